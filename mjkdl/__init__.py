@@ -1,0 +1,54 @@
+"""mjkdl: MuJoCo scenes from plain dataclasses, Pinocchio kinematics and dynamics on top."""
+
+from . import menagerie
+from .errors import BuildError, ModelFileError, MjkdlError, SpecError, UnknownNameError
+from .ik import IKResult
+from .robot import Robot
+from .scene import Scene, mujoco_version
+from .spec import (
+    AttachKind,
+    AttachmentSpec,
+    AttachTarget,
+    CameraSpec,
+    Condim,
+    CtrlMode,
+    ForceTorqueSensorSpec,
+    ResetContext,
+    ResetOptions,
+    RobotSpec,
+    SceneObject,
+    SceneSpec,
+    Shape,
+    ToolFrameSpec,
+    scene_object_site_name,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "AttachKind",
+    "AttachTarget",
+    "AttachmentSpec",
+    "BuildError",
+    "CameraSpec",
+    "Condim",
+    "CtrlMode",
+    "ForceTorqueSensorSpec",
+    "IKResult",
+    "MjkdlError",
+    "ModelFileError",
+    "ResetContext",
+    "ResetOptions",
+    "Robot",
+    "RobotSpec",
+    "Scene",
+    "SceneObject",
+    "SceneSpec",
+    "Shape",
+    "SpecError",
+    "ToolFrameSpec",
+    "UnknownNameError",
+    "menagerie",
+    "mujoco_version",
+    "scene_object_site_name",
+]

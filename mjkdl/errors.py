@@ -1,0 +1,40 @@
+"""The one exception family mjkdl raises for bad input, each also a matching builtin."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+
+
+class MjkdlError(Exception):
+    """Base of every error mjkdl raises on purpose."""
+
+
+class SpecError(MjkdlError, ValueError):
+    """A scene description field holds a value that cannot be built."""
+
+
+class UnknownNameError(MjkdlError, KeyError):
+    """A body, site, joint, actuator, camera, keyframe or object name that does not exist."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message and add quotes
+        return str(self.args[0]) if self.args else ""
+
+
+class ModelFileError(MjkdlError, FileNotFoundError):
+    """A model, mesh or asset file that is missing or unreadable."""
+
+
+class BuildError(MjkdlError, ValueError):
+    """MuJoCo refused to compile or attach what the spec describes."""
+
+
+def unknown_name(kind: str, name: str, known: Iterable[str], where: str = "") -> UnknownNameError:
+    """A lookup error for `name` that lists the closest known names."""
+    known = [k for k in known if k]
+    close = difflib.get_close_matches(name, known, n=5, cutoff=0.5)
+    place = f" in {where}" if where else ""
+    hint = f"; close matches: {', '.join(close)}" if close else ""
+    if not close and known and len(known) <= 12:
+        hint = f"; known: {', '.join(known)}"
+    return UnknownNameError(f"no {kind} named {name!r}{place}{hint}")

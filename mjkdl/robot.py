@@ -1,0 +1,557 @@
+"""The Robot handle: joint ports, control modes and Pinocchio kinematics/dynamics."""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from .chain import Chain
+from .errors import SpecError, unknown_name
+from .ik import IKResult, IKSolver
+from .spec import CtrlMode, ToolFrameSpec
+
+if TYPE_CHECKING:
+    from .scene import Scene
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+# Default servo bandwidth for joints whose actuators are plain motors (URDF robots).
+_SERVO_HZ = 10.0
+
+
+@dataclass
+class _Actuation:
+    """How one chain joint is driven: its actuator and the gains each mode uses."""
+
+    actuator: int
+    gear: float
+    kp: float
+    kv: float
+
+
+class Robot:
+    """A controllable serial chain of a `Scene`, modelled in Pinocchio.
+
+    Ports are NumPy arrays in chain order (base to tip). Measured ports are read-only live
+    arrays refreshed by `update()`; copy them to keep a snapshot. Commands are assigned as a
+    whole (`robot.jnt_trq_cmd = tau`) and checked for length and finiteness.
+
+    Control modes reconfigure the chain's own MuJoCo actuators (gain/bias parameters):
+    TORQUE turns them into motors (force limited by the actuator's `forcerange`), POSITION
+    into position servos and VELOCITY into velocity servos. Servo gains are the actuator's own
+    when it is a MuJoCo position servo; for motor actuators (URDF robots) a critically damped
+    servo of about 10 Hz is synthesised from the mass matrix. POSITION and VELOCITY add
+    Pinocchio's gravity torques as feed-forward (`gravity_feedforward`), so a held pose does
+    not sag under gravity.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        base_body: str,
+        tip_body: str,
+        prefix: str = "",
+        tool: ToolFrameSpec | None = None,
+    ) -> None:
+        if tool is not None and not isinstance(tool, ToolFrameSpec):
+            raise SpecError(f"tool must be a ToolFrameSpec, got {type(tool).__name__}")
+        self._scene = scene
+        self._prefix = prefix
+        self._base_name = prefix + base_body
+        self._tip_name = prefix + tip_body
+        self._tool = copy.deepcopy(tool) if tool is not None else ToolFrameSpec()
+        self._mode = CtrlMode.POSITION
+        self._applied_mode: CtrlMode | None = None
+        self.gravity_feedforward = True
+        self._bind(scene.model, scene.data)
+        self.sync_commands()
+
+    # ------------------------------------------------------------------ binding
+
+    def _bind(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """(Re)build everything that depends on the compiled model and its data."""
+        tcp = self._prefixed(self._tool.tcp_site)
+        self._chain = Chain(model, data, self._base_name, self._tip_name, tcp)
+        self._check_tool_body(model)
+        self._ft = {s.name: self._ft_ids(model, s) for s in self._tool.ft_sensors}
+        self._model, self._data = model, data
+        self._pin = self._chain.model
+        self._pdata = self._pin.createData()
+        n = len(self._chain.joint_ids)
+        self._n = n
+        self._qadr = self._chain.qpos_adr
+        self._dadr = self._chain.dof_adr
+        self._q_view = _view(data.qpos, self._qadr)
+        self._v_view = _view(data.qvel, self._dadr)
+        self._f_view = _view(data.qfrc_actuator, self._dadr)
+        self._actuation = self._find_actuation(model, data)
+        ids = np.array([a.actuator for a in self._actuation]) if self._actuation else None
+        self._ctrl_view = _view(data.ctrl, ids) if ids is not None else None
+        self._authored = _ActuatorParams.save(model, ids) if ids is not None else None
+        for name in ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd"):
+            old = getattr(self, name, None)
+            setattr(self, name, old if old is not None and old.shape == (n,) else np.zeros(n))
+        self._scratch = np.zeros(n)
+        self._ff = np.zeros(n)
+        self._zeros = np.zeros(n)
+        self._ctrl_buf = np.zeros(n)
+        self._ro = {k: _readonly(getattr(self, k)) for k in ("_pos_msr", "_vel_msr", "_trq_msr")}
+        self._ro.update({k: _readonly(getattr(self, k)) for k in ("_pos_cmd", "_vel_cmd", "_trq_cmd")})
+        self._solver: IKSolver | None = None
+        self._read_state()
+        if self._applied_mode is not None:
+            self._applied_mode = None
+            self._configure(self._mode)
+
+    def _prefixed(self, name: str) -> str:
+        return self._prefix + name if name else ""
+
+    def _check_tool_body(self, model: mujoco.MjModel) -> None:
+        if not self._tool.tool_body:
+            return
+        name = self._prefixed(self._tool.tool_body)
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if body < 0:
+            known = [model.body(k).name for k in range(model.nbody)]
+            raise unknown_name("body", name, known, where="the model (tool.tool_body)")
+        b = body
+        while b not in (self._chain.tip, 0):
+            b = int(model.body_parentid[b])
+        if b != self._chain.tip or body == self._chain.tip:
+            raise SpecError(
+                f"tool.tool_body {name!r} is not mounted below the tip {self._tip_name!r}"
+            )
+
+    def _ft_ids(self, model: mujoco.MjModel, sensor) -> tuple[slice, slice]:
+        out = []
+        for field, kind in (("force_sensor", "force"), ("torque_sensor", "torque")):
+            name = self._prefixed(getattr(sensor, field))
+            i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name)
+            if i < 0:
+                known = [model.sensor(k).name for k in range(model.nsensor)]
+                raise unknown_name("sensor", name, known, where=f"ft_sensors {sensor.name!r}")
+            if model.sensor_dim[i] != 3:
+                raise SpecError(f"sensor {name!r} is not a 3D {kind} sensor")
+            adr = int(model.sensor_adr[i])
+            out.append(slice(adr, adr + 3))
+        return out[0], out[1]
+
+    def _find_actuation(self, model: mujoco.MjModel, data: mujoco.MjData) -> list[_Actuation]:
+        """One joint-transmission actuator per chain joint, with the servo gains to use."""
+        by_joint: dict[int, list[int]] = {}
+        for a in range(model.nu):
+            if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT):
+                by_joint.setdefault(int(model.actuator_trnid[a, 0]), []).append(a)
+        missing = [model.joint(j).name for j in self._chain.joint_ids if j not in by_joint]
+        if missing:
+            self._unactuated = missing
+            return []
+        self._unactuated = []
+        mass = self._mass_diagonal(data)
+        out = []
+        for i, j in enumerate(self._chain.joint_ids):
+            acts = by_joint[j]
+            if len(acts) > 1:
+                names = ", ".join(model.actuator(a).name for a in acts)
+                raise SpecError(
+                    f"joint {model.joint(j).name!r} is driven by several actuators ({names}); "
+                    "a Robot drives each joint through exactly one"
+                )
+            a = acts[0]
+            if int(model.actuator_dyntype[a]) != int(mujoco.mjtDyn.mjDYN_NONE):
+                raise SpecError(
+                    f"actuator {model.actuator(a).name!r} has activation dynamics; control "
+                    "modes need direct (dyntype none) actuators"
+                )
+            gear = float(model.actuator_gear[a, 0])
+            if gear == 0:
+                raise SpecError(f"actuator {model.actuator(a).name!r} has zero gear")
+            kp, kv = _servo_gains(model, a)
+            if kp <= 0:
+                omega = 2 * math.pi * _SERVO_HZ
+                kp = mass[i] * omega**2 / gear**2
+                kv = 2 * mass[i] * omega / gear**2
+            elif kv <= 0:
+                kv = 2 * math.sqrt(kp * mass[i]) / abs(gear)
+            out.append(_Actuation(a, gear, kp, kv))
+        return out
+
+    def _mass_diagonal(self, data: mujoco.MjData) -> np.ndarray:
+        q = data.qpos[self._chain.qpos_adr]
+        self._chain.refresh(self._scene.model, data)
+        pdata = self._chain.model.createData()
+        return np.diag(pin.crba(self._chain.model, pdata, q)).copy()
+
+    # ------------------------------------------------------------------ description
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints in the chain."""
+        self._check_open()
+        return self._n
+
+    @property
+    def joint_names(self) -> list[str]:
+        """MuJoCo joint names in chain order (with prefix)."""
+        self._check_open()
+        return list(self._chain.joint_names)
+
+    @property
+    def joint_limits(self) -> np.ndarray:
+        """n×2 [lower, upper] positions; unlimited joints have ±inf."""
+        self._check_open()
+        return np.column_stack([self._pin.lowerPositionLimit, self._pin.upperPositionLimit])
+
+    @property
+    def has_tcp_frame(self) -> bool:
+        """Whether FK refers to a TCP site (else to the tip body)."""
+        self._check_open()
+        return self._chain.tcp_frame != self._chain.tip_frame
+
+    @property
+    def model(self) -> pin.Model:
+        """The Pinocchio model of the chain (tool inertia lumped into the last link)."""
+        self._check_open()
+        return self._pin
+
+    def kdl_chain(self) -> pin.Model:
+        """The chain model; named after the C++ original's KDL accessor for porting."""
+        return self.model
+
+    @property
+    def tcp_frame_id(self) -> int:
+        """Pinocchio frame id of the TCP (or of the tip body)."""
+        self._check_open()
+        return self._chain.tcp_frame
+
+    # ------------------------------------------------------------------ ports
+
+    @property
+    def jnt_pos_msr(self) -> np.ndarray:
+        """Measured joint positions (MuJoCo qpos), as of the last `update()`."""
+        self._check_open()
+        return self._ro["_pos_msr"]
+
+    @property
+    def jnt_vel_msr(self) -> np.ndarray:
+        """Measured joint velocities, as of the last `update()`."""
+        self._check_open()
+        return self._ro["_vel_msr"]
+
+    @property
+    def jnt_trq_msr(self) -> np.ndarray:
+        """Torque the actuation applies at each joint (`qfrc_actuator`), after force limits."""
+        self._check_open()
+        return self._ro["_trq_msr"]
+
+    @property
+    def jnt_pos_cmd(self) -> np.ndarray:
+        """Joint position command (POSITION mode)."""
+        self._check_open()
+        return self._ro["_pos_cmd"]
+
+    @jnt_pos_cmd.setter
+    def jnt_pos_cmd(self, value: np.ndarray) -> None:
+        self._assign(self._pos_cmd, value, "jnt_pos_cmd")
+
+    @property
+    def jnt_vel_cmd(self) -> np.ndarray:
+        """Joint velocity command (VELOCITY mode)."""
+        self._check_open()
+        return self._ro["_vel_cmd"]
+
+    @jnt_vel_cmd.setter
+    def jnt_vel_cmd(self, value: np.ndarray) -> None:
+        self._assign(self._vel_cmd, value, "jnt_vel_cmd")
+
+    @property
+    def jnt_trq_cmd(self) -> np.ndarray:
+        """Joint torque command (TORQUE mode)."""
+        self._check_open()
+        return self._ro["_trq_cmd"]
+
+    @jnt_trq_cmd.setter
+    def jnt_trq_cmd(self, value: np.ndarray) -> None:
+        self._assign(self._trq_cmd, value, "jnt_trq_cmd")
+
+    def _assign(self, port: np.ndarray, value: object, name: str) -> None:
+        self._check_open()
+        shape = value.shape if isinstance(value, np.ndarray) else np.shape(value)
+        if shape != port.shape:
+            raise SpecError(f"{name} needs {self._n} values (one per joint), got shape {shape}")
+        try:
+            np.copyto(self._scratch, value)
+        except TypeError:
+            raise SpecError(f"{name} must hold numbers, got {value!r}") from None
+        # A dot product with zeros is NaN exactly when some entry is inf or NaN.
+        if not math.isfinite(self._scratch.dot(self._zeros)):
+            raise SpecError(f"{name} must be finite, got {value!r}")
+        np.copyto(port, self._scratch)
+
+    def sync_commands(self) -> None:
+        """Set the command ports to the measured state (position; zero velocity, torque)."""
+        self._check_open()
+        self._read_state()
+        np.copyto(self._pos_cmd, self._pos_msr)
+        self._vel_cmd.fill(0.0)
+        self._trq_cmd.fill(0.0)
+
+    # ------------------------------------------------------------------ control
+
+    @property
+    def ctrl_mode(self) -> CtrlMode:
+        """POSITION, VELOCITY or TORQUE; a change takes effect on the next `update()`."""
+        self._check_open()
+        return self._mode
+
+    @ctrl_mode.setter
+    def ctrl_mode(self, mode: CtrlMode) -> None:
+        self._check_open()
+        if not isinstance(mode, CtrlMode):
+            raise SpecError(f"ctrl_mode must be a CtrlMode, got {mode!r}")
+        self._mode = mode
+
+    def update(self) -> None:
+        """Read the measured state, then apply the command ports for the current mode."""
+        self._check_open()
+        self._read_state()
+        mode = self._mode
+        if mode is not self._applied_mode:
+            self._configure(mode)
+        act = self._actuation
+        if not act:
+            if mode is not CtrlMode.TORQUE:
+                raise SpecError(
+                    f"{mode.name} mode needs an actuator on every joint; none drives "
+                    f"{', '.join(self._unactuated)} (TORQUE mode applies qfrc_applied there)"
+                )
+            self._data.qfrc_applied[self._dadr] = self._trq_cmd
+            return
+        ctrl = self._ctrl_buf
+        if mode is CtrlMode.TORQUE:
+            np.multiply(self._trq_cmd, self._cmd_scale, out=ctrl)
+        else:
+            cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd
+            np.multiply(cmd, self._cmd_scale, out=ctrl)
+            if self.gravity_feedforward:
+                self._refresh()
+                ff = pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
+                np.multiply(ff, self._ff_scale, out=self._ff)
+                np.add(ctrl, self._ff, out=ctrl)
+        self._write_ctrl(ctrl)
+
+    def step(self) -> None:
+        """Advance the owning scene one timestep."""
+        self._scene.step()
+
+    def _read_state(self) -> None:
+        d = self._data
+        _gather(self._pos_msr, self._q_view, d.qpos, self._qadr)
+        _gather(self._vel_msr, self._v_view, d.qvel, self._dadr)
+        _gather(self._trq_msr, self._f_view, d.qfrc_actuator, self._dadr)
+        if not self._actuation and self._unactuated:
+            self._trq_msr += d.qfrc_applied[self._dadr]
+        self._dirty = True
+
+    def _write_ctrl(self, ctrl: np.ndarray) -> None:
+        if self._ctrl_view is not None:
+            np.copyto(self._ctrl_view, ctrl)
+        else:
+            self._data.ctrl[[a.actuator for a in self._actuation]] = ctrl
+
+    def _configure(self, mode: CtrlMode) -> None:
+        """Turn the chain's actuators into motors or servos for `mode`."""
+        self._applied_mode = mode
+        if not self._actuation:
+            return
+        m = self._model
+        gear = np.array([a.gear for a in self._actuation])
+        kp = np.array([a.kp for a in self._actuation])
+        kv = np.array([a.kv for a in self._actuation])
+        for i, a in enumerate(self._actuation):
+            aid = a.actuator
+            m.actuator_gaintype[aid] = mujoco.mjtGain.mjGAIN_FIXED
+            m.actuator_biastype[aid] = mujoco.mjtBias.mjBIAS_AFFINE
+            m.actuator_ctrllimited[aid] = 0
+            m.actuator_gainprm[aid, :] = 0.0
+            m.actuator_biasprm[aid, :] = 0.0
+            if mode is CtrlMode.TORQUE:
+                m.actuator_gainprm[aid, 0] = 1.0
+            elif mode is CtrlMode.POSITION:
+                m.actuator_gainprm[aid, 0] = kp[i]
+                m.actuator_biasprm[aid, 1:3] = (-kp[i], -kv[i])
+            else:
+                m.actuator_gainprm[aid, 0] = kv[i]
+                m.actuator_biasprm[aid, 2] = -kv[i]
+        # Actuator force f acts as gear*f at the joint; servos act on length gear*q.
+        if mode is CtrlMode.TORQUE:
+            self._cmd_scale, self._ff_scale = 1.0 / gear, np.zeros(self._n)
+        elif mode is CtrlMode.POSITION:
+            self._cmd_scale, self._ff_scale = gear, 1.0 / (gear * kp)
+        else:
+            self._cmd_scale, self._ff_scale = gear, 1.0 / (gear * kv)
+
+    # ------------------------------------------------------------------ state
+
+    def set_joint_pos(self, q: np.ndarray, call_forward: bool = True) -> None:
+        """Write joint positions into MuJoCo's qpos (velocities are left as they are)."""
+        self._check_open()
+        self._assign(self._scratch, q, "set_joint_pos(q)")
+        self._data.qpos[self._qadr] = self._scratch
+        np.copyto(self._pos_msr, self._scratch)
+        self._dirty = True
+        if call_forward:
+            mujoco.mj_forward(self._model, self._data)
+
+    # ------------------------------------------------------------------ kinematics / dynamics
+
+    def _q(self, q: object, name: str = "q") -> np.ndarray:
+        if q is None:
+            return self._pos_msr
+        arr = np.asarray(q, dtype=float)
+        if arr.shape != (self._n,) or not np.all(np.isfinite(arr)):
+            raise SpecError(f"{name} must be {self._n} finite values, got {q!r}")
+        return arr
+
+    def _refresh(self) -> None:
+        """Bring lumped tool inertias up to the configuration MuJoCo last computed."""
+        if self._dirty:
+            self._chain.refresh(self._model, self._data)
+            self._dirty = False
+
+    def fk_frame(self, q: np.ndarray | None = None) -> pin.SE3:
+        """World pose of the TCP (the tip body when there is no TCP site)."""
+        self._check_open()
+        self._refresh()
+        pin.forwardKinematics(self._pin, self._pdata, self._q(q))
+        return pin.SE3(pin.updateFramePlacement(self._pin, self._pdata, self._chain.tcp_frame))
+
+    def jacobian(self, q: np.ndarray | None = None) -> np.ndarray:
+        """6×n Jacobian at the TCP, world-aligned axes: linear rows first, then angular."""
+        self._check_open()
+        self._refresh()
+        return pin.computeFrameJacobian(
+            self._pin, self._pdata, self._q(q), self._chain.tcp_frame, _LWA
+        )
+
+    def gravity_torques(self, gravity_z: float | None = None) -> np.ndarray:
+        """Joint torques that hold the chain (with its tool) against gravity at the measured q.
+
+        `gravity_z` overrides the z component of the scene's gravity for this call.
+        """
+        self._check_open()
+        self._refresh()
+        if gravity_z is None or gravity_z == self._pin.gravity.linear[2]:
+            return pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
+        g = self._pin.gravity
+        saved = g.linear.copy()
+        try:
+            self._pin.gravity = pin.Motion(np.array([saved[0], saved[1], gravity_z]), np.zeros(3))
+            return pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
+        finally:
+            self._pin.gravity = pin.Motion(saved, np.zeros(3))
+
+    def mass_matrix(self, q: np.ndarray | None = None) -> np.ndarray:
+        """n×n joint-space inertia matrix, joint armature included (MuJoCo's `mj_fullM`)."""
+        self._check_open()
+        self._refresh()
+        upper = pin.crba(self._pin, self._pdata, self._q(q))
+        return np.triu(upper) + np.triu(upper, 1).T
+
+    def nonlinear_effects(
+        self, q: np.ndarray | None = None, v: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Coriolis, centrifugal and gravity torques (MuJoCo's `qfrc_bias` for the chain)."""
+        self._check_open()
+        self._refresh()
+        vel = self._vel_msr if v is None else self._q(v, "v")
+        return pin.nonLinearEffects(self._pin, self._pdata, self._q(q), vel)
+
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Joint torques that produce acceleration `a` at (`q`, `v`) (RNEA, armature included)."""
+        self._check_open()
+        self._refresh()
+        return pin.rnea(self._pin, self._pdata, self._q(q), self._q(v, "v"), self._q(a, "a"))
+
+    def ik(self, target: pin.SE3, q0: np.ndarray | None = None) -> IKResult:
+        """Joint positions that put the TCP at `target`, within the joint limits."""
+        self._check_open()
+        if self._solver is None:
+            lim = self.joint_limits
+            self._solver = IKSolver(self._pin, self._chain.tcp_frame, lim[:, 0], lim[:, 1])
+        return self._solver.solve(target, self._q(q0, "q0").copy())
+
+    def ft_sensor(self, name: str) -> pin.Force:
+        """Force/torque reading of `tool.ft_sensors[name]`, in the sensor's site frame."""
+        self._check_open()
+        if name not in self._ft:
+            raise unknown_name("force/torque sensor", name, self._ft, where="tool.ft_sensors")
+        force, torque = self._ft[name]
+        data = self._data.sensordata
+        return pin.Force(data[force].copy(), data[torque].copy())
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def _check_open(self) -> None:
+        if self._scene._model is None:
+            raise RuntimeError("this Robot's scene is closed")
+
+
+@dataclass
+class _ActuatorParams:
+    """The authored actuator parameters a Robot overwrites, kept to restore them."""
+
+    gaintype: np.ndarray
+    biastype: np.ndarray
+    gainprm: np.ndarray
+    biasprm: np.ndarray
+    ctrllimited: np.ndarray
+
+    @classmethod
+    def save(cls, model: mujoco.MjModel, ids: np.ndarray) -> _ActuatorParams:
+        return cls(
+            model.actuator_gaintype[ids].copy(),
+            model.actuator_biastype[ids].copy(),
+            model.actuator_gainprm[ids].copy(),
+            model.actuator_biasprm[ids].copy(),
+            model.actuator_ctrllimited[ids].copy(),
+        )
+
+
+def _servo_gains(model: mujoco.MjModel, a: int) -> tuple[float, float]:
+    """(kp, kv) of a MuJoCo position servo (`<position>`); (0, 0) for anything else."""
+    gain = model.actuator_gainprm[a]
+    bias = model.actuator_biasprm[a]
+    is_servo = (
+        int(model.actuator_gaintype[a]) == int(mujoco.mjtGain.mjGAIN_FIXED)
+        and int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE)
+        and gain[0] > 0
+        and bias[0] == 0
+        and bias[1] == -gain[0]
+    )
+    return (float(gain[0]), float(-bias[2])) if is_servo else (0.0, 0.0)
+
+
+def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
+    """A slice view of `arr` when `idx` is contiguous (no copy per read), else None."""
+    if len(idx) and np.all(np.diff(idx) == 1):
+        return arr[idx[0] : idx[-1] + 1]
+    return None
+
+
+def _gather(out: np.ndarray, view: np.ndarray | None, arr: np.ndarray, idx: np.ndarray) -> None:
+    if view is not None:
+        np.copyto(out, view)
+    else:
+        np.take(arr, idx, out=out)
+
+
+def _readonly(arr: np.ndarray) -> np.ndarray:
+    view = arr.view()
+    view.flags.writeable = False
+    return view

@@ -1,0 +1,162 @@
+"""Plain dataclasses that describe a scene; `compile.py` turns them into a MuJoCo model."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import mujoco
+
+
+class AttachKind(enum.Enum):
+    """What kind of MuJoCo element a model is mounted on."""
+
+    Body = "body"
+    Site = "site"
+    Frame = "frame"
+
+
+@dataclass
+class AttachTarget:
+    """A mount point: a body, site or frame by name (names inside a robot omit its prefix)."""
+
+    kind: AttachKind = AttachKind.Site
+    name: str = ""
+
+
+class Shape(enum.Enum):
+    """Primitive geom shapes; `size` follows MuJoCo's geom size convention for each."""
+
+    BOX = "box"
+    SPHERE = "sphere"
+    CYLINDER = "cylinder"
+    CAPSULE = "capsule"
+    ELLIPSOID = "ellipsoid"
+
+
+class Condim(enum.IntEnum):
+    """MuJoCo contact dimensionality."""
+
+    Frictionless = 1
+    Sliding = 3
+    Torsional = 4
+    Rolling = 6
+
+
+def _zeros3() -> list[float]:
+    return [0.0, 0.0, 0.0]
+
+
+@dataclass
+class AttachmentSpec:
+    """An MJCF model (gripper, sensor, tool) mounted on a robot, offset by `pos`/`euler`."""
+
+    mjcf_path: str | Path = ""
+    attach_to: AttachTarget | None = None
+    prefix: str = ""
+    pos: list[float] = field(default_factory=_zeros3)
+    euler: list[float] = field(default_factory=_zeros3)
+
+
+@dataclass
+class RobotSpec:
+    """A robot from an MJCF or URDF file, in the world at `pos`/`euler` or on `attach_to`."""
+
+    path: str | Path = ""
+    prefix: str = ""
+    attach_to: AttachTarget | None = None
+    pos: list[float] = field(default_factory=_zeros3)
+    euler: list[float] = field(default_factory=_zeros3)
+    attachments: list[AttachmentSpec] = field(default_factory=list)
+
+
+@dataclass
+class SceneObject:
+    """A primitive (`shape`, `size`, `mass`, ...) or an MJCF file; free unless `fixed`."""
+
+    name: str = ""
+    mjcf_path: str | Path = ""
+    shape: Shape | None = None
+    size: list[float] = field(default_factory=list)
+    rgba: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.5, 1.0])
+    mass: float = 0.0
+    friction: list[float] = field(default_factory=lambda: [1.0, 0.005, 0.0001])
+    condim: Condim = Condim.Sliding
+    pos: list[float] = field(default_factory=_zeros3)
+    euler: list[float] = field(default_factory=_zeros3)
+    fixed: bool = False
+
+
+@dataclass
+class CameraSpec:
+    """A fixed world camera; `pos` and `fovy` (degrees) are required."""
+
+    name: str = ""
+    pos: list[float] | None = None
+    euler: list[float] = field(default_factory=_zeros3)
+    fovy: float | None = None
+
+
+@dataclass
+class ForceTorqueSensorSpec:
+    """A force/torque sensor pair (MuJoCo `force` and `torque` sensor names)."""
+
+    name: str = ""
+    force_sensor: str = ""
+    torque_sensor: str = ""
+
+
+@dataclass
+class ToolFrameSpec:
+    """The tool mounted below a robot's tip: its root body, TCP site and F/T sensors."""
+
+    tool_body: str = ""
+    tcp_site: str = ""
+    ft_sensors: list[ForceTorqueSensorSpec] = field(default_factory=list)
+
+
+@dataclass
+class SceneSpec:
+    """A whole scene. `timestep`, `add_floor` and `add_skybox` must be set explicitly."""
+
+    timestep: float | None = None
+    add_floor: bool | None = None
+    add_skybox: bool | None = None
+    gravity_z: float = -9.81
+    robots: list[RobotSpec] = field(default_factory=list)
+    objects: list[SceneObject] = field(default_factory=list)
+    cameras: list[CameraSpec] = field(default_factory=list)
+
+
+@dataclass
+class ResetOptions:
+    """How `Env.reset` starts: from MuJoCo's defaults or from a keyframe (index or name)."""
+
+    keyframe: int | str = 0
+    use_keyframe: bool = False
+
+
+@dataclass
+class ResetContext:
+    """What a reset hook receives."""
+
+    env: Any
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    options: ResetOptions
+
+
+class CtrlMode(enum.Enum):
+    """How `Robot.update()` drives the joints."""
+
+    POSITION = "position"
+    VELOCITY = "velocity"
+    TORQUE = "torque"
+
+
+def scene_object_site_name(obj: SceneObject, site: str) -> str:
+    """The compiled name of `site` authored inside the MJCF-backed object `obj`."""
+    return f"{obj.name}/{site}"
