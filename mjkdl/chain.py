@@ -20,19 +20,19 @@ from .errors import SpecError, unknown_name
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 _SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
-# Pinocchio's dynamic parameters are [m, mc, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]; MuJoCo's cinert
-# is [Ixx, Iyy, Izz, Ixy, Ixz, Iyz, mc, m], both about the same origin.
-_CINERT_TO_PIN = np.array([9, 6, 7, 8, 0, 3, 1, 4, 5, 2])
+# Pinocchio's dynamic parameters are [m, mc, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]; MuJoCo's
+# cinert/crb rows are [Ixx, Iyy, Izz, Ixy, Ixz, Iyz, mc, m], both about the same origin.
+_CRB_TO_PIN = np.array([9, 6, 7, 8, 0, 3, 1, 4, 5, 2])
 
 
 @dataclass
 class _JointedSubtree:
-    """Bodies with joints of their own hanging rigidly-as-a-whole off one chain body."""
+    """A subtree with joints of its own (gripper fingers) hanging off one chain body."""
 
-    joint: int  # Pinocchio joint that carries them
-    body: int  # MuJoCo chain body they hang from
-    bodies: slice | np.ndarray  # MuJoCo body ids of the subtree
-    body_in_joint: pin.SE3  # placement of `body` in the Pinocchio joint frame
+    root: int  # MuJoCo body id of the subtree's root
+    body: int  # MuJoCo chain body it hangs from
+    joint: int  # Pinocchio joint that carries that body
+    joint_in_body: pin.SE3  # placement of the Pinocchio joint frame in `body`
 
 
 class Chain:
@@ -65,7 +65,11 @@ class Chain:
         if tcp_site:
             self.tcp_frame = self._add_site_frame(mj_model, tcp_site)
         self._static_inertias = [pin.Inertia(y) for y in self.model.inertias]
-        self._cinert_sum = np.zeros(10)
+        joints = sorted({sub.joint for sub in self._subtrees})
+        self._subtrees_by_joint = [
+            (j, [sub for sub in self._subtrees if sub.joint == j]) for j in joints
+        ]
+        self._origin = pin.SE3.Identity()
         # A base carried by joints of its own (a mobile base, another robot) moves: keep the
         # root placements relative to it and re-place them on every refresh.
         self.base_moves = bool(mj_model.body_weldid[self.base] != 0)
@@ -145,9 +149,8 @@ class Chain:
                 continue
             members = _subtree(m, int(child))
             if any(m.body_jntnum[k] for k in members):
-                ids = np.array(members)
-                span = slice(ids[0], ids[-1] + 1) if np.all(np.diff(ids) == 1) else ids
-                self._subtrees.append(_JointedSubtree(joint, b, span, body_in_joint))
+                sub = _JointedSubtree(int(child), b, joint, body_in_joint.inverse())
+                self._subtrees.append(sub)
             else:
                 for k in members:
                     rel = _relative_pose(m, b, k)
@@ -164,7 +167,8 @@ class Chain:
             if m.body_jntnum[anchor]:
                 raise SpecError(
                     f"TCP site {site!r} is on body {m.body(body).name!r}, which moves relative "
-                    "to the tip through its own joints: choose a site fixed to the tool"
+                    "to the chain through joints outside it (fingers, links beyond the tip): "
+                    "choose a site rigidly fixed to the chain or its tool"
                 )
             anchor = int(m.body_parentid[anchor])
         if anchor == 0:
@@ -182,8 +186,9 @@ class Chain:
     def refresh(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         """Follow MuJoCo's last computed state: jointed subtrees' inertia and a moving base.
 
-        Subtrees are re-lumped from `cinert` (per-body inertia about the kinematic tree's
-        subtree_com, world axes), which `mj_forward`/`mj_step` already computed.
+        A subtree's inertia is MuJoCo's composite rigid-body inertia `crb` of its root (about
+        the kinematic tree's `subtree_com`, world axes), which `mj_forward`/`mj_step` already
+        computed, so no kinematics is repeated here.
         """
         if self.base_moves:
             base = _body_pose(d, self.base)
@@ -194,13 +199,15 @@ class Chain:
                 frame.placement = base * rel
                 self.model.frames[f] = frame
         inertias = self.model.inertias
-        for sub in self._subtrees:
-            np.sum(d.cinert[sub.bodies], axis=0, out=self._cinert_sum)
-            about_origin = pin.Inertia.FromDynamicParameters(self._cinert_sum[_CINERT_TO_PIN])
-            origin = d.subtree_com[m.body_rootid[sub.body]]
-            joint_in_world = _body_pose(d, sub.body) * sub.body_in_joint.inverse()
-            to_joint = joint_in_world.actInv(pin.SE3(np.eye(3), origin.copy()))
-            inertias[sub.joint] = self._static_inertias[sub.joint] + to_joint.act(about_origin)
+        origin = self._origin
+        for joint, subtrees in self._subtrees_by_joint:
+            total = self._static_inertias[joint]
+            for sub in subtrees:
+                about_origin = pin.Inertia.FromDynamicParameters(d.crb[sub.root][_CRB_TO_PIN])
+                origin.translation = d.subtree_com[m.body_rootid[sub.root]]
+                joint_in_world = _body_pose(d, sub.body) * sub.joint_in_body
+                total = total + joint_in_world.actInv(origin).act(about_origin)
+            inertias[joint] = total
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -244,7 +251,7 @@ def _quat_matrix(quat: np.ndarray) -> np.ndarray:
 
 
 def _body_pose(d: mujoco.MjData, b: int) -> pin.SE3:
-    return pin.SE3(d.xmat[b].reshape(3, 3).copy(), d.xpos[b].copy())
+    return pin.SE3(d.xmat[b].reshape(3, 3), d.xpos[b])
 
 
 def _relative_pose(m: mujoco.MjModel, ancestor: int, body: int) -> pin.SE3:

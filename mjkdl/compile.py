@@ -40,6 +40,9 @@ _GEOM_TYPES = {
     Shape.ELLIPSOID: (mujoco.mjtGeom.mjGEOM_ELLIPSOID, 3),
 }
 
+# `MjSpec` list attribute of each mount kind ("bodies", not "bodys").
+_PLURAL = {AttachKind.Body: "bodies", AttachKind.Site: "sites", AttachKind.Frame: "frames"}
+
 # MuJoCo's own notices when attaching: option adoption under the merge policy, and the
 # empty-prefix save caveat. Real conflicts still raise (see `_attach`).
 _QUIET = ("Attach conflict when attaching", "Attaching a spec with an empty prefix")
@@ -84,7 +87,8 @@ def compile_mjspec(s: mujoco.MjSpec) -> mujoco.MjModel:
             return s.compile()
     except ValueError as err:
         msg = str(err).strip()
-        if "resource not found" in msg or "could not open" in msg.lower():
+        lower = msg.lower()
+        if any(text in lower for text in ("resource not found", "could not open", "error opening")):
             raise ModelFileError(f"MuJoCo could not read a model file: {msg}") from None
         raise BuildError(f"MuJoCo could not compile the scene: {msg}") from None
 
@@ -326,7 +330,7 @@ def _mount(s: mujoco.MjSpec, target: AttachTarget | None, field: str, within: st
     kind = target.kind.value
     element = getattr(s, kind)(target.name)
     if element is None:
-        known = [e.name for e in getattr(s, kind + "s")]
+        known = [e.name for e in getattr(s, _PLURAL[target.kind])]
         raise unknown_name(kind, target.name, known, where=f"{within} ({field})")
     if target.kind is AttachKind.Site:
         return {"site": element}

@@ -90,23 +90,23 @@ class Robot:
         self._v_view = _view(data.qvel, self._dadr)
         self._f_view = _view(data.qfrc_actuator, self._dadr)
         self._actuation = self._find_actuation(model, data)
-        ids = np.array([a.actuator for a in self._actuation]) if self._actuation else None
-        self._ctrl_view = _view(data.ctrl, ids) if ids is not None else None
-        self._authored = _ActuatorParams.save(model, ids) if ids is not None else None
+        ids = np.array([a.actuator for a in self._actuation], dtype=int)
+        self._actuator_ids = ids
+        self._ctrl_view = _view(data.ctrl, ids)
         for name in ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd"):
             old = getattr(self, name, None)
             setattr(self, name, old if old is not None and old.shape == (n,) else np.zeros(n))
         self._scratch = np.zeros(n)
         self._ff = np.zeros(n)
-        self._zeros = np.zeros(n)
+        self._finite = np.zeros(n, dtype=bool)
         self._ctrl_buf = np.zeros(n)
         self._ro = {k: _readonly(getattr(self, k)) for k in ("_pos_msr", "_vel_msr", "_trq_msr")}
         self._ro.update({k: _readonly(getattr(self, k)) for k in ("_pos_cmd", "_vel_cmd", "_trq_cmd")})
         self._solver: IKSolver | None = None
         self._read_state()
+        self._pending = True
         if self._applied_mode is not None:
-            self._applied_mode = None
-            self._configure(self._mode)
+            self._configure(self._applied_mode)
 
     def _prefixed(self, name: str) -> str:
         return self._prefix + name if name else ""
@@ -288,10 +288,10 @@ class Robot:
             np.copyto(self._scratch, value)
         except TypeError:
             raise SpecError(f"{name} must hold numbers, got {value!r}") from None
-        # A dot product with zeros is NaN exactly when some entry is inf or NaN.
-        if not math.isfinite(self._scratch.dot(self._zeros)):
+        if not np.isfinite(self._scratch, out=self._finite).all():
             raise SpecError(f"{name} must be finite, got {value!r}")
         np.copyto(port, self._scratch)
+        self._pending = True
 
     def sync_commands(self) -> None:
         """Set the command ports to the measured state (position; zero velocity, torque)."""
@@ -300,6 +300,7 @@ class Robot:
         np.copyto(self._pos_cmd, self._pos_msr)
         self._vel_cmd.fill(0.0)
         self._trq_cmd.fill(0.0)
+        self._pending = True
 
     # ------------------------------------------------------------------ control
 
@@ -320,11 +321,23 @@ class Robot:
         """Read the measured state, then apply the command ports for the current mode."""
         self._check_open()
         self._read_state()
-        mode = self._mode
-        if mode is not self._applied_mode:
-            self._configure(mode)
-        act = self._actuation
-        if not act:
+        if self._mode is not self._applied_mode:
+            self._configure(self._mode)
+        if self._pending or self._applied_mode is not CtrlMode.TORQUE:
+            self._apply()
+
+    def step(self) -> None:
+        """Apply commands assigned since `update()`, then advance the scene one timestep."""
+        if self._pending:
+            self._check_open()
+            self._apply()
+        self._scene.step()
+
+    def _apply(self) -> None:
+        """Write the command ports into MuJoCo's controls, in the mode last configured."""
+        self._pending = False
+        mode = self._applied_mode
+        if not self._actuation:
             if mode is not CtrlMode.TORQUE:
                 raise SpecError(
                     f"{mode.name} mode needs an actuator on every joint; none drives "
@@ -343,11 +356,10 @@ class Robot:
                 ff = pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
                 np.multiply(ff, self._ff_scale, out=self._ff)
                 np.add(ctrl, self._ff, out=ctrl)
-        self._write_ctrl(ctrl)
-
-    def step(self) -> None:
-        """Advance the owning scene one timestep."""
-        self._scene.step()
+        if self._ctrl_view is not None:
+            np.copyto(self._ctrl_view, ctrl)
+        else:
+            self._data.ctrl[self._actuator_ids] = ctrl
 
     def _read_state(self) -> None:
         d = self._data
@@ -357,12 +369,6 @@ class Robot:
         if not self._actuation and self._unactuated:
             self._trq_msr += d.qfrc_applied[self._dadr]
         self._dirty = True
-
-    def _write_ctrl(self, ctrl: np.ndarray) -> None:
-        if self._ctrl_view is not None:
-            np.copyto(self._ctrl_view, ctrl)
-        else:
-            self._data.ctrl[[a.actuator for a in self._actuation]] = ctrl
 
     def _configure(self, mode: CtrlMode) -> None:
         """Turn the chain's actuators into motors or servos for `mode`."""
@@ -500,27 +506,6 @@ class Robot:
     def _check_open(self) -> None:
         if self._scene._model is None:
             raise RuntimeError("this Robot's scene is closed")
-
-
-@dataclass
-class _ActuatorParams:
-    """The authored actuator parameters a Robot overwrites, kept to restore them."""
-
-    gaintype: np.ndarray
-    biastype: np.ndarray
-    gainprm: np.ndarray
-    biasprm: np.ndarray
-    ctrllimited: np.ndarray
-
-    @classmethod
-    def save(cls, model: mujoco.MjModel, ids: np.ndarray) -> _ActuatorParams:
-        return cls(
-            model.actuator_gaintype[ids].copy(),
-            model.actuator_biastype[ids].copy(),
-            model.actuator_gainprm[ids].copy(),
-            model.actuator_biasprm[ids].copy(),
-            model.actuator_ctrllimited[ids].copy(),
-        )
 
 
 def _servo_gains(model: mujoco.MjModel, a: int) -> tuple[float, float]:

@@ -1,0 +1,101 @@
+"""Shared fixtures: Menagerie lookup for tests, and the tutorial's tabletop scene."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ASSETS = ROOT / "assets"
+_SHARED_MENAGERIE = ROOT.parent / "shared" / "menagerie"
+
+if "MENAGERIE_ROOT" not in os.environ and _SHARED_MENAGERIE.is_dir():
+    os.environ["MENAGERIE_ROOT"] = str(_SHARED_MENAGERIE)
+
+import mjkdl as mjk  # noqa: E402  (after MENAGERIE_ROOT is set)
+
+HOME = [0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708]
+
+
+def _menagerie_has(name: str) -> bool:
+    """True when `name` resolves without a download (MENAGERIE_ROOT or the package cache)."""
+    import mujoco_menagerie
+
+    root = os.environ.get("MENAGERIE_ROOT")
+    if root:
+        return (Path(root) / name).is_dir()
+    return mujoco_menagerie.Cache().is_cached(mujoco_menagerie.get(name))
+
+
+def menagerie(name: str) -> str:
+    """Path of a Menagerie model, or skip the test when it is not on this machine."""
+    if not _menagerie_has(name):
+        pytest.skip(f"MuJoCo Menagerie model {name!r} not available (set MENAGERIE_ROOT)")
+    return mjk.menagerie.model_path(name)
+
+
+def base_spec(**kw) -> mjk.SceneSpec:
+    """A SceneSpec with the three required fields set."""
+    fields = {"timestep": 0.002, "add_floor": True, "add_skybox": False}
+    fields.update(kw)
+    return mjk.SceneSpec(**fields)
+
+
+def table_object() -> mjk.SceneObject:
+    return mjk.SceneObject(
+        name="table", mjcf_path=str(ASSETS / "table.xml"), pos=[0.0, 0.0, 0.7], fixed=True
+    )
+
+
+def gripper(prefix: str = "g_") -> mjk.AttachmentSpec:
+    return mjk.AttachmentSpec(
+        mjcf_path=menagerie("robotiq_2f85"),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site"),
+        prefix=prefix,
+    )
+
+
+def gripper_tool(prefix: str = "g_") -> mjk.ToolFrameSpec:
+    return mjk.ToolFrameSpec(tool_body=f"{prefix}base", tcp_site=f"{prefix}pinch")
+
+
+def tutorial_spec() -> mjk.SceneSpec:
+    """Gen3 + 2F-85 on the table's `table_top`, a cube and a task camera."""
+    table = table_object()
+    cube = mjk.SceneObject(
+        name="cube",
+        shape=mjk.Shape.BOX,
+        size=[0.025, 0.025, 0.025],
+        pos=[0.35, 0.10, 0.725],
+        rgba=[0.1, 0.25, 1.0, 1.0],
+        mass=0.1,
+        condim=mjk.Condim.Torsional,
+        friction=[0.8, 0.02, 0.001],
+    )
+    arm = mjk.RobotSpec(
+        path=menagerie("kinova_gen3"),
+        attach_to=mjk.AttachTarget(
+            mjk.AttachKind.Site, mjk.scene_object_site_name(table, "table_top")
+        ),
+        attachments=[gripper()],
+    )
+    camera = mjk.CameraSpec(name="task", pos=[0.1, -0.9, 1.45], euler=[35.0, 0.0, 5.0], fovy=45.0)
+    return base_spec(objects=[table, cube], robots=[arm], cameras=[camera])
+
+
+@pytest.fixture
+def tutorial_scene() -> Callable[[], mjk.Scene]:
+    """Builds the tutorial scene; closes every scene it built after the test."""
+    built: list[mjk.Scene] = []
+
+    def build(cls: type[mjk.Scene] = mjk.Scene) -> mjk.Scene:
+        scene = cls.build(tutorial_spec())
+        built.append(scene)
+        return scene
+
+    yield build
+    for scene in built:
+        scene.close()

@@ -1,0 +1,646 @@
+"""Scene compilation (issue #2): mounting, offsets, primitives, cameras, MjSpec traps, errors."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import ASSETS, HOME, base_spec, gripper, menagerie, table_object, tutorial_spec
+
+import mjkdl as mjk
+from mjkdl.compile import build_mjspec
+from mjkdl.urdf import UnreadableMeshWarning, example_robot_data_path
+
+TOL = 1e-12
+OFFSET_POS = [0.01, -0.02, 0.03]
+OFFSET_EULER = [10.0, 20.0, 30.0]
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _rot_xyz(euler_deg) -> np.ndarray:
+    """Intrinsic x-y-z rotation, written out independently of MuJoCo."""
+    a, b, c = np.deg2rad(euler_deg)
+    rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    rz = np.array([[np.cos(c), -np.sin(c), 0], [np.sin(c), np.cos(c), 0], [0, 0, 1]])
+    return rx @ ry @ rz
+
+
+def _se3(pos, euler_deg) -> pin.SE3:
+    return pin.SE3(_rot_xyz(euler_deg), np.asarray(pos, dtype=float))
+
+
+def _assert_se3(actual: pin.SE3, expected: pin.SE3, tol: float = TOL) -> None:
+    np.testing.assert_allclose(actual.translation, expected.translation, rtol=0, atol=tol)
+    np.testing.assert_allclose(actual.rotation, expected.rotation, rtol=0, atol=tol)
+
+
+def _same_quat(a, b, tol: float = TOL) -> None:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if np.dot(a, b) < 0:
+        b = -b
+    np.testing.assert_allclose(a, b, rtol=0, atol=tol)
+
+
+def _xml_euler_quat(euler_deg) -> np.ndarray:
+    """The body quaternion MuJoCo's XML parser makes of `euler` in degrees."""
+    e = " ".join(repr(float(v)) for v in euler_deg)
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><worldbody><body name="b" euler="{e}"><geom size="0.1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    return model.body_quat[1].copy()
+
+
+def _build(spec: mjk.SceneSpec) -> mjk.Scene:
+    return mjk.Scene.build(spec)
+
+
+def _table_site(table: mjk.SceneObject) -> mjk.AttachTarget:
+    return mjk.AttachTarget(mjk.AttachKind.Site, mjk.scene_object_site_name(table, "table_top"))
+
+
+def _gen3_on_table(**robot_kw) -> mjk.SceneSpec:
+    table = table_object()
+    arm = mjk.RobotSpec(path=menagerie("kinova_gen3"), attach_to=_table_site(table), **robot_kw)
+    return base_spec(objects=[table], robots=[arm])
+
+
+def _gripper_authored_pose() -> pin.SE3:
+    """base_mount's pose relative to the 2F-85's own worldbody, read from its XML."""
+    root = ET.parse(menagerie("robotiq_2f85")).getroot()
+    mount = root.find("worldbody/body[@name='base_mount']")
+    assert mount is not None
+    assert mount.get("quat") is None and mount.get("euler") is None
+    pos = np.array([float(v) for v in mount.get("pos", "0 0 0").split()])
+    return pin.SE3(np.eye(3), pos)
+
+
+def _patched_gripper(tmp_path: Path, impratio: str) -> Path:
+    """A copy of the 2F-85 XML with another impratio, its meshes read from the original."""
+    original = Path(menagerie("robotiq_2f85"))
+    text = original.read_text()
+    assert 'impratio="10"' in text and 'meshdir="assets"' in text
+    text = text.replace('impratio="10"', f'impratio="{impratio}"')
+    text = text.replace('meshdir="assets"', f'meshdir="{original.parent / "assets"}"')
+    path = tmp_path / "2f85_patched.xml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def tutorial():
+    scene = mjk.Scene.build(tutorial_spec())
+    yield scene
+    scene.close()
+
+
+# ----------------------------------------------------------------------------- mounting
+
+
+def test_gen3_base_sits_exactly_on_table_top(tutorial):
+    top = tutorial.site_frame("table/table_top")
+    assert top.translation[2] == pytest.approx(0.7, abs=TOL)
+    _assert_se3(tutorial.body_frame("base_link"), top)
+
+
+def test_gripper_sits_on_pinch_site_with_its_authored_offset(tutorial):
+    authored = _gripper_authored_pose()
+    np.testing.assert_allclose(authored.translation, [0, 0, 0.007], rtol=0, atol=TOL)
+    expected = tutorial.site_frame("pinch_site") * authored
+    _assert_se3(tutorial.body_frame("g_base_mount"), expected)
+
+
+def test_attachment_offset_moves_it_by_exactly_that_transform():
+    def mount_pose(**offset) -> tuple[pin.SE3, pin.SE3]:
+        att = gripper()
+        for key, value in offset.items():
+            setattr(att, key, value)
+        with _build(_gen3_on_table(attachments=[att])) as scene:
+            return scene.body_frame("g_base_mount"), scene.site_frame("pinch_site")
+
+    without, site = mount_pose()
+    with_offset, site_again = mount_pose(pos=OFFSET_POS, euler=OFFSET_EULER)
+    _assert_se3(site_again, site)
+    offset = _se3(OFFSET_POS, OFFSET_EULER)
+    authored = _gripper_authored_pose()
+    # The offset moves the gripper's model frame (base_mount minus its authored pos) ...
+    _assert_se3(with_offset * authored.inverse(), without * authored.inverse() * offset)
+    # ... which puts base_mount at site * offset * authored.
+    _assert_se3(with_offset, site * offset * authored)
+    assert np.linalg.norm(with_offset.translation - without.translation) > 0.02
+
+
+@pytest.mark.parametrize("on_table", [False, True], ids=["world", "table_top"])
+def test_robot_offset_moves_it_by_exactly_that_transform(on_table):
+    gen3 = menagerie("kinova_gen3")
+
+    def base_pose(**offset) -> pin.SE3:
+        if on_table:
+            spec = _gen3_on_table(**offset)
+        else:
+            spec = base_spec(robots=[mjk.RobotSpec(path=gen3, **offset)])
+        with _build(spec) as scene:
+            return scene.body_frame("base_link")
+
+    without = base_pose()
+    if not on_table:
+        _assert_se3(without, pin.SE3.Identity())
+    with_offset = base_pose(pos=OFFSET_POS, euler=OFFSET_EULER)
+    _assert_se3(with_offset, without * _se3(OFFSET_POS, OFFSET_EULER))
+
+
+def test_robot_mounted_on_a_body(tmp_path):
+    table = table_object()
+    on_body = mjk.RobotSpec(
+        path=menagerie("kinova_gen3"),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "table/table"),
+        pos=[0, 0, 0.1],
+    )
+    with _build(base_spec(objects=[table], robots=[on_body])) as scene:
+        expected = scene.body_frame("table/table") * _se3([0, 0, 0.1], [0, 0, 0])
+        _assert_se3(scene.body_frame("base_link"), expected)
+
+
+def test_robot_mounted_on_a_frame(tmp_path):
+    path = tmp_path / "stand.xml"
+    path.write_text(
+        '<mujoco><compiler angle="degree"/><worldbody><body name="stand">'
+        '<geom type="box" size="0.1 0.1 0.1"/>'
+        '<frame name="mount" pos="0.05 0 0.1" euler="0 0 90"/></body></worldbody></mujoco>'
+    )
+    stand = mjk.SceneObject(name="stand", mjcf_path=str(path), pos=[1, 0, 0], fixed=True)
+    robot = mjk.RobotSpec(
+        path=menagerie("kinova_gen3"),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Frame, "stand/mount"),
+    )
+    with _build(base_spec(objects=[stand], robots=[robot])) as scene:
+        _assert_se3(scene.body_frame("base_link"), _se3([1.05, 0, 0.1], [0, 0, 90]))
+
+
+# ----------------------------------------------------------------------------- primitives
+
+
+SHAPES = {
+    mjk.Shape.BOX: ("box", [0.03, 0.02, 0.01]),
+    mjk.Shape.SPHERE: ("sphere", [0.04]),
+    mjk.Shape.CYLINDER: ("cylinder", [0.03, 0.05]),
+    mjk.Shape.CAPSULE: ("capsule", [0.02, 0.06]),
+    mjk.Shape.ELLIPSOID: ("ellipsoid", [0.03, 0.04, 0.05]),
+}
+
+
+@pytest.mark.parametrize("shape", list(SHAPES), ids=lambda s: s.name)
+def test_primitive_matches_equivalent_mjcf(shape):
+    xml_type, size = SHAPES[shape]
+    pos, euler = [0.3, -0.2, 0.9], [15.0, -40.0, 75.0]
+    rgba, friction, mass = [0.1, 0.2, 0.3, 0.4], [0.7, 0.01, 0.002], 0.25
+    obj = mjk.SceneObject(
+        name="thing",
+        shape=shape,
+        size=size,
+        rgba=rgba,
+        mass=mass,
+        friction=friction,
+        condim=mjk.Condim.Rolling,
+        pos=pos,
+        euler=euler,
+    )
+    fixed = mjk.SceneObject(name="post", shape=shape, size=size, mass=mass, fixed=True)
+    ref = mujoco.MjModel.from_xml_string(
+        f'<mujoco><worldbody><body name="thing" pos="{" ".join(map(str, pos))}" '
+        f'euler="{" ".join(map(str, euler))}"><freejoint/>'
+        f'<geom type="{xml_type}" size="{" ".join(map(str, size))}" mass="{mass}" '
+        f'rgba="{" ".join(map(str, rgba))}" friction="{" ".join(map(str, friction))}" '
+        'condim="6"/></body></worldbody></mujoco>'
+    )
+    with _build(base_spec(objects=[obj, fixed], add_floor=False)) as scene:
+        m = scene.model
+        b = scene.body_id("thing")
+        g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "thing")
+        assert m.body_mass[b] == pytest.approx(mass, abs=TOL)
+        assert m.body_mass[scene.body_id("post")] == pytest.approx(mass, abs=TOL)
+        np.testing.assert_allclose(m.body_pos[b], pos, rtol=0, atol=TOL)
+        _same_quat(m.body_quat[b], ref.body_quat[1])
+        _same_quat(m.body_quat[b], _xml_euler_quat(euler))
+        np.testing.assert_allclose(m.body_inertia[b], ref.body_inertia[1], rtol=1e-9, atol=0)
+        assert m.geom_type[g] == ref.geom_type[0]
+        np.testing.assert_allclose(m.geom_size[g], ref.geom_size[0], rtol=0, atol=TOL)
+        np.testing.assert_allclose(m.geom_rgba[g], rgba, rtol=0, atol=1e-7)
+        np.testing.assert_allclose(m.geom_friction[g], friction, rtol=0, atol=TOL)
+        assert m.geom_condim[g] == 6
+        # free objects get one free joint, fixed ones none
+        assert m.body_jntnum[b] == 1
+        assert m.jnt_type[m.body_jntadr[b]] == mujoco.mjtJoint.mjJNT_FREE
+        assert m.body_jntnum[scene.body_id("post")] == 0
+        assert m.njnt == 1
+
+
+def test_primitive_default_condim_and_partial_friction():
+    obj = mjk.SceneObject(name="c", shape=mjk.Shape.SPHERE, size=[0.02], mass=0.1, friction=[0.4])
+    with _build(base_spec(objects=[obj])) as scene:
+        g = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_GEOM, "c")
+        assert scene.model.geom_condim[g] == 3
+        np.testing.assert_allclose(scene.model.geom_friction[g], [0.4, 0.005, 0.0001])
+
+
+def test_fixed_primitive_with_zero_mass_builds():
+    obj = mjk.SceneObject(name="wall", shape=mjk.Shape.BOX, size=[0.1, 0.1, 0.1], fixed=True)
+    with _build(base_spec(objects=[obj])) as scene:
+        assert scene.model.njnt == 0
+        assert scene.model.body_mass[scene.body_id("wall")] > 0  # MuJoCo's density
+
+
+@pytest.mark.parametrize(
+    "euler",
+    [[0, 0, 0], [90, 0, 0], [0, 90, 0], [0, 0, 90], [30, 45, 60], [-120, 10, 170], [45, 90, -30]],
+)
+def test_euler_is_intrinsic_xyz_degrees_like_mujoco_xml(euler):
+    obj = mjk.SceneObject(
+        name="o", shape=mjk.Shape.BOX, size=[0.1, 0.1, 0.1], mass=1.0, euler=euler
+    )
+    with _build(base_spec(objects=[obj])) as scene:
+        b = scene.body_id("o")
+        _same_quat(scene.model.body_quat[b], _xml_euler_quat(euler))
+        np.testing.assert_allclose(
+            scene.body_frame("o").rotation, _rot_xyz(euler), rtol=0, atol=1e-12
+        )
+
+
+# ----------------------------------------------------------------------------- cameras, robots
+
+
+def test_cameras_listed_with_pos_and_fovy(tutorial):
+    assert sorted(tutorial.camera_names()) == ["task", "wrist"]
+    m = tutorial.model
+    cam = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, "task")
+    np.testing.assert_allclose(m.cam_pos[cam], [0.1, -0.9, 1.45], rtol=0, atol=TOL)
+    assert m.cam_fovy[cam] == pytest.approx(45.0)
+    _same_quat(m.cam_quat[cam], _xml_euler_quat([35.0, 0.0, 5.0]))
+    wrist = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, "wrist")
+    assert m.cam_fovy[wrist] == pytest.approx(41.83792730009236)
+
+
+def test_two_gen3_with_prefix():
+    gen3 = menagerie("kinova_gen3")
+    robots = [
+        mjk.RobotSpec(path=gen3),
+        mjk.RobotSpec(path=gen3, prefix="r2_", pos=[0.0, 1.0, 0.0]),
+    ]
+    with _build(base_spec(robots=robots)) as scene:
+        m = scene.model
+        scene.body_id("base_link")
+        scene.body_id("r2_base_link")
+        assert m.njnt == 14
+        assert sum(m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE for j in range(m.njnt)) == 14
+        keys = [m.key(k).name for k in range(m.nkey)]
+        assert "home" in keys and "r2_home" in keys
+        assert m.key_qpos.shape == (m.nkey, m.nq) == (4, 14)
+        r2_home = m.key("r2_home").qpos
+        adr = [m.jnt_qposadr[m.joint(f"r2_joint_{i}").id] for i in range(1, 8)]
+        np.testing.assert_allclose(r2_home[adr], HOME, atol=1e-4)
+        _assert_se3(scene.body_frame("r2_base_link"), _se3([0, 1, 0], [0, 0, 0]))
+
+
+# ----------------------------------------------------------------------------- MjSpec traps
+
+
+def test_gripper_options_survive_attachment(tutorial):
+    opt = tutorial.model.opt
+    assert opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    assert opt.impratio == pytest.approx(10.0)
+    assert opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+
+
+def test_conflicting_attachment_options_raise(tmp_path):
+    patched = _patched_gripper(tmp_path, "5")
+    second = mjk.AttachmentSpec(
+        mjcf_path=str(patched),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "base_link"),
+        prefix="h_",
+    )
+    spec = base_spec(
+        robots=[mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[gripper(), second])]
+    )
+    with pytest.raises(mjk.BuildError, match=r"(?s)attachments\[1\].*2f85_patched\.xml.*impratio"):
+        _build(spec)
+
+
+def test_conflicting_robot_options_raise(tmp_path):
+    patched = _patched_gripper(tmp_path, "5")
+    gen3 = menagerie("kinova_gen3")
+    other = mjk.AttachmentSpec(
+        mjcf_path=str(patched), attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site")
+    )
+    robots = [
+        mjk.RobotSpec(path=gen3, attachments=[gripper()]),
+        mjk.RobotSpec(path=gen3, prefix="r2_", pos=[0, 1, 0], attachments=[other]),
+    ]
+    with pytest.raises(ValueError, match=r"(?s)robots\[1\].*impratio"):
+        _build(base_spec(robots=robots))
+
+
+def test_same_options_in_two_attachments_are_fine(tmp_path):
+    patched = _patched_gripper(tmp_path, "10")
+    gen3 = menagerie("kinova_gen3")
+    other = mjk.AttachmentSpec(
+        mjcf_path=str(patched), attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site")
+    )
+    robots = [
+        mjk.RobotSpec(path=gen3, attachments=[gripper()]),
+        mjk.RobotSpec(path=gen3, prefix="r2_", pos=[0, 1, 0], attachments=[other]),
+    ]
+    with _build(base_spec(robots=robots)) as scene:
+        assert scene.model.opt.impratio == pytest.approx(10.0)
+
+
+def test_welded_gen3_has_no_contacts_at_rest(tutorial):
+    m = tutorial.model
+    data = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, data, m.key("home").id)
+    mujoco.mj_forward(m, data)
+    assert data.ncon == 0
+    base, shoulder = tutorial.body_id("base_link"), tutorial.body_id("shoulder_link")
+    signatures = set(m.exclude_signature[: m.nexclude].tolist())
+    assert (min(base, shoulder) << 16) + max(base, shoulder) in signatures
+    assert m.nexclude == 7  # the 2F-85's own six plus base_link/shoulder_link
+
+
+def test_without_the_exclusion_gen3_base_touches_its_shoulder():
+    """The exclusion is what removes the contacts (guards against a vacuous pass above)."""
+    s = build_mjspec(tutorial_spec())
+    for exclude in [
+        e for e in s.excludes if {e.bodyname1, e.bodyname2} == {"base_link", "shoulder_link"}
+    ]:
+        s.delete(exclude)
+    with pytest.warns(UserWarning):
+        m = s.compile()
+    data = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, data, m.key("home").id)
+    mujoco.mj_forward(m, data)
+    assert data.ncon == 4
+
+
+def test_keyframes_survive_attachment(tutorial):
+    m = tutorial.model
+    assert m.nkey == 2
+    assert m.key_qpos.shape == (m.nkey, m.nq)
+    root = ET.parse(menagerie("kinova_gen3")).getroot()
+    authored = [float(v) for v in root.find("keyframe/key[@name='home']").get("qpos").split()]
+    home = m.key("home").qpos
+    adr = [m.jnt_qposadr[m.joint(f"joint_{i}").id] for i in range(1, 8)]
+    np.testing.assert_allclose(home[adr], authored, rtol=0, atol=TOL)
+    cube = m.jnt_qposadr[m.joint("cube").id]
+    np.testing.assert_allclose(home[cube : cube + 7], [0.35, 0.10, 0.725, 1, 0, 0, 0], atol=TOL)
+
+
+def test_offscreen_buffer_fits_1080p(tutorial):
+    assert tutorial.model.vis.global_.offwidth >= 1920
+    assert tutorial.model.vis.global_.offheight >= 1080
+
+
+# ----------------------------------------------------------------------------- URDF robots
+
+
+@pytest.mark.parametrize(
+    ("relative", "prefix", "root", "motors"),
+    [
+        ("ur_description/urdf/ur5_robot.urdf", "ur_", "base_link", 6),
+        ("panda_description/urdf/panda.urdf", "p_", "panda_link0", 8),
+    ],
+    ids=["ur5", "panda"],
+)
+def test_urdf_robot_on_table(relative, prefix, root, motors):
+    table = table_object()
+    robot = mjk.RobotSpec(
+        path=str(example_robot_data_path(relative)), prefix=prefix, attach_to=_table_site(table)
+    )
+    with pytest.warns(UnreadableMeshWarning):
+        scene = _build(base_spec(objects=[table], robots=[robot]))
+    with scene:
+        m = scene.model
+        _assert_se3(scene.body_frame(prefix + root), scene.site_frame("table/table_top"))
+        assert np.count_nonzero(m.geom_type == mujoco.mjtGeom.mjGEOM_MESH) >= 2 * motors
+        assert m.nu == motors
+        for a in range(m.nu):
+            name = m.actuator(a).name
+            assert name.startswith(prefix)
+            assert m.joint(m.actuator_trnid[a, 0]).name == name
+        assert all(m.joint(j).name.startswith(prefix) for j in range(m.njnt))
+        # one motor per joint, except a mimic joint (Panda's second finger) tied by an equality
+        assert m.nu + m.neq == m.njnt
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize("field", ["timestep", "add_floor", "add_skybox"])
+def test_required_fields_named(field):
+    spec = base_spec(**{field: None})
+    with pytest.raises(mjk.SpecError, match=f"SceneSpec.{field}"):
+        _build(spec)
+
+
+def test_missing_object_file(tmp_path):
+    path = tmp_path / "nothere.xml"
+    obj = mjk.SceneObject(name="o", mjcf_path=str(path))
+    with pytest.raises(FileNotFoundError, match=r"nothere\.xml") as err:
+        _build(base_spec(objects=[obj]))
+    assert "objects[0]" in str(err.value)
+
+
+@pytest.mark.parametrize("suffix", [".xml", ".urdf"])
+def test_missing_robot_file(tmp_path, suffix):
+    path = tmp_path / f"nothere{suffix}"
+    with pytest.raises(FileNotFoundError, match=f"robots\\[0\\].*nothere\\{suffix}"):
+        _build(base_spec(robots=[mjk.RobotSpec(path=str(path))]))
+
+
+def test_missing_attachment_file(tmp_path):
+    att = mjk.AttachmentSpec(
+        mjcf_path=str(tmp_path / "nothere.xml"),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site"),
+    )
+    robot = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[att])
+    with pytest.raises(FileNotFoundError, match=r"attachments\[0\].*nothere\.xml"):
+        _build(base_spec(robots=[robot]))
+
+
+MESH_XML = """<mujoco><asset><mesh name="m" file="nope.stl"/></asset>
+<worldbody><body name="b"><geom type="mesh" mesh="m"/></body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("as_robot", [False, True], ids=["object", "robot"])
+def test_missing_mesh_named(tmp_path, as_robot):
+    path = tmp_path / "meshy.xml"
+    path.write_text(MESH_XML)
+    if as_robot:
+        spec = base_spec(robots=[mjk.RobotSpec(path=str(path))])
+    else:
+        spec = base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path), fixed=True)])
+    with pytest.raises(FileNotFoundError, match=r"nope\.stl"):
+        _build(spec)
+
+
+@pytest.mark.parametrize(
+    ("kind", "name", "suggestion"),
+    [
+        (mjk.AttachKind.Site, "pinch_sit", "pinch_site"),
+        (mjk.AttachKind.Body, "bracelet_lnk", "bracelet_link"),
+        (mjk.AttachKind.Frame, "no_frame", ""),
+    ],
+)
+def test_unknown_attachment_target(kind, name, suggestion):
+    att = mjk.AttachmentSpec(
+        mjcf_path=menagerie("robotiq_2f85"), attach_to=mjk.AttachTarget(kind, name)
+    )
+    robot = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[att])
+    with pytest.raises(KeyError, match=f"{kind.value} named '{name}'.*{suggestion}") as err:
+        _build(base_spec(robots=[robot]))
+    assert "attachments[0]" in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("kind", "name", "suggestion"),
+    [
+        (mjk.AttachKind.Site, "table/table_tp", "table/table_top"),
+        (mjk.AttachKind.Body, "table/tabel", "table/table"),
+    ],
+)
+def test_unknown_robot_target(kind, name, suggestion):
+    robot = mjk.RobotSpec(path=menagerie("kinova_gen3"), attach_to=mjk.AttachTarget(kind, name))
+    with pytest.raises(KeyError, match=f"{kind.value} named '{name}'.*{suggestion}"):
+        _build(base_spec(objects=[table_object()], robots=[robot]))
+
+
+def _prim(**kw) -> mjk.SceneObject:
+    fields = {"name": "p", "shape": mjk.Shape.BOX, "size": [0.1, 0.1, 0.1], "mass": 1.0}
+    fields.update(kw)
+    return mjk.SceneObject(**fields)
+
+
+@pytest.mark.parametrize(
+    ("obj", "pattern"),
+    [
+        (_prim(size=[0.1, -0.1, 0.1]), r"objects\[0\].*\.size.*positive"),
+        (_prim(size=[0.1, 0.1]), r"objects\[0\].*\.size.*3 values"),
+        (_prim(shape=mjk.Shape.SPHERE, size=[0.1, 0.1]), r"\.size \(SPHERE\).*1 values"),
+        (_prim(size=[0.1, 0.0, 0.1]), r"\.size.*positive"),
+        (_prim(pos=[0, 0]), r"objects\[0\] \('p'\)\.pos.*3 values"),
+        (_prim(euler=[0, 0, 0, 0]), r"objects\[0\] \('p'\)\.euler.*3 values"),
+        (_prim(rgba=[1, 0, 0]), r"\.rgba.*4 values"),
+        (_prim(rgba=[1, 0, 0, 1.5]), r"\.rgba.*\[0, 1\]"),
+        (_prim(rgba=[-0.1, 0, 0, 1]), r"\.rgba.*\[0, 1\]"),
+        (_prim(shape=None), r"objects\[0\] \('p'\)\.shape"),
+        (_prim(mass=0.0), r"\.mass.*positive"),
+        (_prim(mass=-1.0, fixed=True), r"\.mass"),
+        (_prim(pos=[0, float("nan"), 0]), r"\.pos.*finite"),
+    ],
+    ids=[
+        "negative-size",
+        "short-size",
+        "sphere-size",
+        "zero-size",
+        "pos-length",
+        "euler-length",
+        "rgba-length",
+        "rgba-high",
+        "rgba-low",
+        "no-shape",
+        "zero-mass-free",
+        "negative-mass-fixed",
+        "nan-pos",
+    ],
+)
+def test_bad_primitive(obj, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        _build(base_spec(objects=[obj]))
+
+
+@pytest.mark.parametrize(("field", "value"), [("pos", [0, 0]), ("euler", [0, 0, 0, 0])])
+def test_bad_attachment_and_robot_offsets(field, value):
+    att = gripper()
+    setattr(att, field, value)
+    robot = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[att])
+    with pytest.raises(ValueError, match=rf"attachments\[0\]\.{field}.*3 values"):
+        _build(base_spec(robots=[robot]))
+    robot = mjk.RobotSpec(path=menagerie("kinova_gen3"), **{field: value})
+    with pytest.raises(ValueError, match=rf"robots\[0\]\.{field}.*3 values"):
+        _build(base_spec(robots=[robot]))
+
+
+def test_duplicate_object_names():
+    with pytest.raises(ValueError, match="duplicate object name 'p'"):
+        _build(base_spec(objects=[_prim(), _prim(pos=[1, 0, 0])]))
+
+
+def test_duplicate_camera_names():
+    cams = [
+        mjk.CameraSpec(name="c", pos=[0, 0, 1], fovy=45),
+        mjk.CameraSpec(name="c", pos=[1, 0, 1], fovy=45),
+    ]
+    with pytest.raises(ValueError, match="duplicate camera name 'c'"):
+        _build(base_spec(cameras=cams))
+
+
+def test_camera_name_clashing_with_robot_camera():
+    cam = mjk.CameraSpec(name="wrist", pos=[0, 0, 1], fovy=45)
+    robot = mjk.RobotSpec(path=menagerie("kinova_gen3"))
+    with pytest.raises(ValueError, match="'wrist'"):
+        _build(base_spec(robots=[robot], cameras=[cam]))
+
+
+@pytest.mark.parametrize(
+    ("cam", "pattern"),
+    [
+        (mjk.CameraSpec(name="c", fovy=45), r"cameras\[0\] \('c'\)\.pos is required"),
+        (mjk.CameraSpec(name="c", pos=[0, 0, 1]), r"cameras\[0\] \('c'\)\.fovy is required"),
+        (mjk.CameraSpec(name="c", pos=[0, 0, 1], fovy=0), r"\.fovy must lie in"),
+        (mjk.CameraSpec(name="c", pos=[0, 1], fovy=45), r"\.pos must have 3"),
+    ],
+    ids=["no-pos", "no-fovy", "zero-fovy", "short-pos"],
+)
+def test_bad_camera(cam, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        _build(base_spec(cameras=[cam]))
+
+
+def test_second_robot_without_prefix_suggests_one():
+    gen3 = menagerie("kinova_gen3")
+    robots = [mjk.RobotSpec(path=gen3), mjk.RobotSpec(path=gen3, pos=[0, 1, 0])]
+    with pytest.raises(ValueError, match=r"robots\[1\].*prefix"):
+        _build(base_spec(robots=robots))
+
+
+def test_mjcf_object_with_free_joint(tmp_path):
+    path = tmp_path / "free.xml"
+    path.write_text(
+        '<mujoco><worldbody><body name="b"><freejoint name="loose"/><geom size="0.1"/>'
+        "</body></worldbody></mujoco>"
+    )
+    for fixed in (False, True):
+        obj = mjk.SceneObject(name="o", mjcf_path=str(path), fixed=fixed)
+        with pytest.raises(ValueError, match=r"objects\[0\].*free\.xml.*free joint.*loose"):
+            _build(base_spec(objects=[obj]))
+
+
+def test_table_asset_compiles_alone():
+    model = mujoco.MjModel.from_xml_path(str(ASSETS / "table.xml"))
+    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "table_top")
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(data.site_xpos[site], [0, 0, 0], atol=TOL)
+    top = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "top")
+    # the top surface is the site plane: geom centre - half thickness == 0
+    assert model.geom_pos[top][2] + model.geom_size[top][2] == pytest.approx(0.0, abs=TOL)
+    for leg in ("leg_fl", "leg_fr", "leg_bl", "leg_br"):
+        g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, leg)
+        # legs reach the floor (z = -0.7) from the underside of the top (z = -0.04)
+        assert model.geom_pos[g][2] - model.geom_size[g][2] == pytest.approx(-0.7, abs=TOL)
+        assert model.geom_pos[g][2] + model.geom_size[g][2] == pytest.approx(-0.04, abs=TOL)

@@ -1,0 +1,347 @@
+"""Robot handle: ports, control modes, tool handling and its errors."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import HOME, base_spec, gripper_tool, menagerie, table_object
+
+import mjkdl as mjk
+from mjkdl.urdf import example_robot_data_path
+
+
+@pytest.fixture
+def gen3(tutorial_scene):
+    scene = tutorial_scene()
+    robot = scene.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+    robot.set_joint_pos(HOME)
+    robot.sync_commands()
+    return scene, robot
+
+
+@pytest.fixture
+def ur5():
+    table = table_object()
+    arm = mjk.RobotSpec(
+        path=example_robot_data_path("ur_description/urdf/ur5_robot.urdf"),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "table/table_top"),
+    )
+    with pytest.warns(UserWarning, match="dae"):
+        scene = mjk.Scene.build(base_spec(objects=[table], robots=[arm]))
+    robot = scene.create_robot("base_link", "tool0")
+    robot.set_joint_pos([0.3, -1.2, 1.4, -1.5, -1.57, 0.2])
+    robot.sync_commands()
+    yield scene, robot
+    scene.close()
+
+
+def _run(scene: mjk.Scene, robot: mjk.Robot, seconds: float, control=None) -> float:
+    """Run the update/command/step loop; return the largest joint error to the pos command."""
+    worst = 0.0
+    end = scene.time() + seconds
+    while scene.time() < end:
+        robot.update()
+        if control is not None:
+            control(robot)
+        robot.step()
+        worst = max(worst, float(np.abs(robot.jnt_pos_msr - robot.jnt_pos_cmd).max()))
+    return worst
+
+
+# ---------------------------------------------------------------------- description
+
+
+def test_chain_description(gen3) -> None:
+    _, robot = gen3
+    assert robot.n_joints == 7
+    assert robot.joint_names == [f"joint_{i}" for i in range(1, 8)]
+    limits = robot.joint_limits
+    assert limits.shape == (7, 2)
+    assert limits[1].tolist() == [-2.24, 2.24]
+    assert np.isinf(limits[0]).all()
+    assert robot.has_tcp_frame
+    assert robot.kdl_chain() is robot.model
+    assert robot.model.nq == 7
+
+
+def test_no_tool_means_fk_at_tip(tutorial_scene) -> None:
+    scene = tutorial_scene()
+    robot = scene.create_robot("base_link", "bracelet_link")
+    robot.update()
+    assert not robot.has_tcp_frame
+    tip = scene.body_frame("bracelet_link")
+    assert np.abs(robot.fk_frame().translation - tip.translation).max() < 1e-12
+
+
+# ---------------------------------------------------------------------- ports
+
+
+def test_measured_ports_follow_update_and_are_read_only(gen3) -> None:
+    scene, robot = gen3
+    assert np.allclose(robot.jnt_pos_msr, HOME)
+    with pytest.raises(ValueError, match="read-only"):
+        robot.jnt_pos_msr[0] = 1.0
+    scene.data.qpos[0] = 0.5
+    assert robot.jnt_pos_msr[0] == pytest.approx(0.0)  # not before update()
+    robot.update()
+    assert robot.jnt_pos_msr[0] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("port", ["jnt_pos_cmd", "jnt_vel_cmd", "jnt_trq_cmd"])
+def test_command_ports_check_length_and_finiteness(gen3, port: str) -> None:
+    _, robot = gen3
+    setattr(robot, port, [0.1] * 7)
+    assert getattr(robot, port).tolist() == [0.1] * 7
+    with pytest.raises(ValueError, match=f"{port} needs 7 values"):
+        setattr(robot, port, [0.0] * 6)
+    with pytest.raises(ValueError, match=f"{port} must be finite"):
+        setattr(robot, port, [0.0] * 6 + [np.nan])
+    with pytest.raises(ValueError, match=f"{port} must be finite"):
+        setattr(robot, port, np.array([np.inf] + [0.0] * 6))
+    assert getattr(robot, port).tolist() == [0.1] * 7  # a rejected value changes nothing
+
+
+def test_torque_port_is_actuator_torque_limited_by_forcerange(gen3) -> None:
+    scene, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.update()
+    robot.jnt_trq_cmd = [500.0, 0, 0, 0, -500.0, 0, 0]
+    robot.step()
+    robot.update()
+    # Gen3's actuators: forcerange ±105 (joints 1-4) and ±52 (joints 5-7).
+    assert robot.jnt_trq_msr[0] == pytest.approx(105.0)
+    assert robot.jnt_trq_msr[4] == pytest.approx(-52.0)
+    assert np.allclose(robot.jnt_trq_msr[[1, 2, 3, 5, 6]], 0.0)
+
+
+def test_torque_mode_position_actuators_do_not_fight(gen3) -> None:
+    scene, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    for _ in range(50):  # zero torque: the arm falls, and no servo pulls it back
+        robot.update()
+        robot.step()
+    robot.update()
+    assert np.abs(robot.jnt_pos_msr - HOME).max() > 1e-3
+    assert np.abs(scene.data.qfrc_actuator[:7]).max() == 0.0
+
+
+# ---------------------------------------------------------------------- modes
+
+
+def test_gravity_compensation_holds_tcp(gen3) -> None:
+    """The tutorial scene: fingers commanded open, TCP drift < 1e-4 m over 2 s."""
+    scene, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    scene.set_actuator_ctrl("g_fingers_actuator", 0.0)
+    robot.update()
+    start = robot.fk_frame().translation.copy()
+
+    def gravity(r: mjk.Robot) -> None:
+        r.jnt_trq_cmd = r.gravity_torques(-9.81)
+
+    _run(scene, robot, 2.0, gravity)
+    robot.update()
+    assert np.linalg.norm(robot.fk_frame().translation - start) < 1e-4
+
+
+def test_position_hold_gen3(gen3) -> None:
+    scene, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    assert _run(scene, robot, 2.0) < 1e-3
+
+
+def test_position_hold_urdf_ur5_with_motor_actuators(ur5) -> None:
+    scene, robot = ur5
+    assert scene.model.actuator_biastype[0] == mujoco.mjtBias.mjBIAS_NONE  # URDF motors
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    assert _run(scene, robot, 2.0) < 1e-3
+
+
+@pytest.mark.parametrize("fixture", ["gen3", "ur5"])
+def test_velocity_mode_tracks_constant_velocity(fixture: str, request) -> None:
+    scene, robot = request.getfixturevalue(fixture)
+    v = np.linspace(0.15, -0.15, robot.n_joints)
+    robot.ctrl_mode = mjk.CtrlMode.VELOCITY
+    robot.jnt_vel_cmd = v
+    q0 = robot.jnt_pos_msr.copy()
+    _run(scene, robot, 0.2)
+    t0, qa = scene.time(), robot.jnt_pos_msr.copy()
+    worst = 0.0
+    while scene.time() < t0 + 0.5:
+        robot.update()
+        robot.step()
+        worst = max(worst, float(np.abs(robot.jnt_vel_msr - v).max()))
+    assert worst < 1e-2
+    travelled = robot.jnt_pos_msr - qa
+    assert np.allclose(travelled, v * (scene.time() - t0), atol=5e-3)
+    assert not np.allclose(robot.jnt_pos_msr, q0)
+
+
+def test_mode_switch_takes_effect_on_next_update(gen3) -> None:
+    scene, robot = gen3
+    robot.update()  # POSITION: position servos
+    kp = scene.model.actuator_gainprm[0, 0]
+    assert scene.model.actuator_biasprm[0, 1] == -kp
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    assert scene.model.actuator_biasprm[0, 1] == -kp  # not yet
+    robot.update()
+    assert scene.model.actuator_gainprm[0, 0] == 1.0
+    assert np.all(scene.model.actuator_biasprm[:7] == 0.0)
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    robot.update()
+    assert scene.model.actuator_gainprm[0, 0] == kp  # the authored servo gain comes back
+
+
+def test_command_applies_in_the_same_step(gen3) -> None:
+    scene, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.update()
+    robot.jnt_trq_cmd = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+    robot.step()
+    assert scene.data.qfrc_actuator[:7].tolist() == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+
+
+# ---------------------------------------------------------------------- dynamics helpers
+
+
+def test_gravity_override_scales_torques(gen3) -> None:
+    _, robot = gen3
+    robot.update()
+    g = robot.gravity_torques()
+    assert np.allclose(robot.gravity_torques(-9.81 / 2), g / 2, atol=1e-12)
+    assert np.allclose(robot.gravity_torques(0.0), 0.0)
+    assert np.allclose(robot.gravity_torques(), g)  # the override does not stick
+
+
+def test_tool_inertia_follows_finger_configuration(gen3) -> None:
+    scene, robot = gen3
+    robot.update()
+    open_g = robot.gravity_torques()
+    for j in range(scene.model.njnt):
+        if scene.model.joint(j).name.startswith("g_"):
+            scene.data.qpos[scene.model.jnt_qposadr[j]] = scene.model.jnt_range[j, 1]
+    scene.forward()
+    robot.update()
+    closed_g = robot.gravity_torques()
+    assert np.abs(closed_g - open_g).max() > 1e-4
+    assert np.allclose(closed_g, scene.data.qfrc_bias[:7], rtol=0, atol=1e-9)
+
+
+def test_ik_solves_reachable_target(gen3) -> None:
+    _, robot = gen3
+    q_goal = np.array(HOME) + np.array([0.3, -0.2, 0.1, 0.25, -0.3, 0.2, 0.1])
+    target = robot.fk_frame(q_goal)
+    result = robot.ik(target)
+    assert result.success
+    reached = robot.fk_frame(result.q)
+    assert np.linalg.norm(reached.translation - target.translation) < 1e-6
+    assert np.linalg.norm(pin.log3(reached.rotation.T @ target.rotation)) < 1e-5
+    lim = robot.joint_limits
+    assert np.all(result.q >= lim[:, 0]) and np.all(result.q <= lim[:, 1])
+
+
+# ---------------------------------------------------------------------- errors
+
+
+def test_unknown_bodies_list_close_matches(tutorial_scene) -> None:
+    scene = tutorial_scene()
+    with pytest.raises(KeyError, match="bracelet_link"):
+        scene.create_robot("base_link", "bracelet_lnk")
+    with pytest.raises(KeyError, match="no body named 'bse_link'.*base_link"):
+        scene.create_robot("bse_link", "bracelet_link")
+
+
+def test_base_must_be_an_ancestor_of_tip(tutorial_scene) -> None:
+    scene = tutorial_scene()
+    with pytest.raises(ValueError, match="not an ancestor"):
+        scene.create_robot("bracelet_link", "base_link")
+
+
+def test_tool_errors(tutorial_scene) -> None:
+    scene = tutorial_scene()
+    with pytest.raises(KeyError, match="g_pinc"):
+        scene.create_robot("base_link", "bracelet_link", tool=mjk.ToolFrameSpec(tcp_site="g_pinc"))
+    with pytest.raises(ValueError, match="not on the chain or below its tip"):
+        scene.create_robot(
+            "base_link", "bracelet_link", tool=mjk.ToolFrameSpec(tcp_site="table/table_top")
+        )
+    with pytest.raises(ValueError, match="moves relative to the chain through joints"):
+        scene.create_robot(
+            "base_link", "half_arm_1_link", tool=mjk.ToolFrameSpec(tcp_site="g_pinch")
+        )
+    with pytest.raises(ValueError, match="not mounted below the tip"):
+        scene.create_robot(
+            "base_link", "bracelet_link", tool=mjk.ToolFrameSpec(tool_body="shoulder_link")
+        )
+    robot = scene.create_robot("base_link", "bracelet_link")
+    with pytest.raises(KeyError, match="no force/torque sensor named 'wrist'"):
+        robot.ft_sensor("wrist")
+
+
+FT_TOOL = """
+<mujoco model="ft_tool">
+  <worldbody>
+    <body name="plate">
+      <inertial pos="0 0 0.01" mass="0.2" diaginertia="1e-4 1e-4 1e-4"/>
+      <geom type="cylinder" size="0.03 0.01" pos="0 0 0.01"/>
+      <site name="ft_site" pos="0 0 0"/>
+      <site name="mount" pos="0 0 0.02"/>
+    </body>
+  </worldbody>
+  <sensor>
+    <force name="force" site="ft_site"/>
+    <torque name="torque" site="ft_site"/>
+  </sensor>
+</mujoco>
+"""
+
+
+def test_ft_sensor_reads_site_frame_wrench(tmp_path) -> None:
+    tool_xml = tmp_path / "ft_tool.xml"
+    tool_xml.write_text(FT_TOOL)
+    ft = mjk.AttachmentSpec(
+        mjcf_path=str(tool_xml),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site"),
+        prefix="ft_",
+    )
+    arm = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[ft])
+    scene = mjk.Scene.build(base_spec(robots=[arm]))
+    sensor = mjk.ForceTorqueSensorSpec(
+        name="wrist", force_sensor="ft_force", torque_sensor="ft_torque"
+    )
+    tool = mjk.ToolFrameSpec(tool_body="ft_plate", tcp_site="ft_mount", ft_sensors=[sensor])
+    robot = scene.create_robot("base_link", "bracelet_link", tool=tool)
+    robot.set_joint_pos(HOME)
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.update()
+    robot.jnt_trq_cmd = robot.gravity_torques()
+    robot.update()
+    scene.forward()  # gravity-compensated: the arm does not accelerate
+    wrench = robot.ft_sensor("wrist")
+    data = scene.data.sensordata
+    assert isinstance(wrench, pin.Force)
+    assert wrench.linear.tolist() == data[:3].tolist()
+    assert wrench.angular.tolist() == data[3:6].tolist()
+    # At rest the sensor carries the plate's weight: 0.2 kg * 9.81 m/s^2.
+    assert np.linalg.norm(wrench.linear) == pytest.approx(0.2 * 9.81, rel=1e-6)
+    scene.close()
+
+
+def test_closed_scene_makes_robot_raise(tutorial_scene) -> None:
+    scene = tutorial_scene()
+    robot = scene.create_robot("base_link", "bracelet_link")
+    scene.close()
+    for call in (
+        robot.update,
+        robot.step,
+        robot.fk_frame,
+        robot.jacobian,
+        robot.gravity_torques,
+        lambda: robot.jnt_pos_msr,
+        lambda: setattr(robot, "jnt_trq_cmd", [0.0] * 7),
+        lambda: setattr(robot, "ctrl_mode", mjk.CtrlMode.TORQUE),
+    ):
+        with pytest.raises(RuntimeError, match="closed"):
+            call()
