@@ -1,7 +1,7 @@
 """mjkdl: MuJoCo scenes from plain dataclasses, Pinocchio kinematics and dynamics on top."""
 
 from . import menagerie
-from .errors import BuildError, ModelFileError, MjkdlError, SpecError, UnknownNameError
+from .errors import BuildError, MjkdlError, ModelFileError, SpecError, UnknownNameError
 from .ik import IKResult
 from .robot import Robot
 from .scene import Scene, mujoco_version

@@ -93,15 +93,16 @@ class Robot:
         ids = np.array([a.actuator for a in self._actuation], dtype=int)
         self._actuator_ids = ids
         self._ctrl_view = _view(data.ctrl, ids)
-        for name in ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd"):
+        ports = ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd")
+        for name in ports:
             old = getattr(self, name, None)
             setattr(self, name, old if old is not None and old.shape == (n,) else np.zeros(n))
         self._scratch = np.zeros(n)
         self._ff = np.zeros(n)
         self._finite = np.zeros(n, dtype=bool)
         self._ctrl_buf = np.zeros(n)
-        self._ro = {k: _readonly(getattr(self, k)) for k in ("_pos_msr", "_vel_msr", "_trq_msr")}
-        self._ro.update({k: _readonly(getattr(self, k)) for k in ("_pos_cmd", "_vel_cmd", "_trq_cmd")})
+        ports = ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd")
+        self._ro = {k: _readonly(getattr(self, k)) for k in ports}
         self._solver: IKSolver | None = None
         self._read_state()
         self._pending = True

@@ -104,7 +104,7 @@ def test_command_ports_check_length_and_finiteness(gen3, port: str) -> None:
 
 
 def test_torque_port_is_actuator_torque_limited_by_forcerange(gen3) -> None:
-    scene, robot = gen3
+    _, robot = gen3
     robot.ctrl_mode = mjk.CtrlMode.TORQUE
     robot.update()
     robot.jnt_trq_cmd = [500.0, 0, 0, 0, -500.0, 0, 0]
@@ -249,7 +249,7 @@ def test_unknown_bodies_list_close_matches(tutorial_scene) -> None:
     scene = tutorial_scene()
     with pytest.raises(KeyError, match="bracelet_link"):
         scene.create_robot("base_link", "bracelet_lnk")
-    with pytest.raises(KeyError, match="no body named 'bse_link'.*base_link"):
+    with pytest.raises(KeyError, match=r"no body named 'bse_link'.*base_link"):
         scene.create_robot("bse_link", "bracelet_link")
 
 
