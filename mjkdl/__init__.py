@@ -4,7 +4,7 @@ from . import menagerie
 from .errors import BuildError, MjkdlError, ModelFileError, SpecError, UnknownNameError
 from .ik import IKResult
 from .robot import Robot
-from .scene import Scene, mujoco_version
+from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_version
 from .spec import (
     AttachKind,
     AttachmentSpec,
@@ -33,11 +33,14 @@ __all__ = [
     "CameraSpec",
     "Condim",
     "CtrlMode",
+    "Env",
     "ForceTorqueSensorSpec",
     "IKResult",
     "MjkdlError",
     "ModelFileError",
     "ResetContext",
+    "ResetHookError",
+    "ResetInfo",
     "ResetOptions",
     "Robot",
     "RobotSpec",

@@ -69,7 +69,7 @@ class Robot:
         self._applied_mode: CtrlMode | None = None
         self.gravity_feedforward = True
         self._bind(scene.model, scene.data)
-        self.sync_commands()
+        self._hold_commands()
 
     # ------------------------------------------------------------------ binding
 
@@ -295,8 +295,18 @@ class Robot:
         self._pending = True
 
     def sync_commands(self) -> None:
-        """Set the command ports to the measured state (position; zero velocity, torque)."""
+        """Set the command ports to the measured state and apply them in the current mode.
+
+        Position commands take the measured positions, velocity and torque commands zero, so
+        the next step holds (POSITION) or applies nothing stale. `Env.reset` calls this.
+        """
         self._check_open()
+        self._hold_commands()
+        if self._mode is not self._applied_mode:
+            self._configure(self._mode)
+        self._apply()
+
+    def _hold_commands(self) -> None:
         self._read_state()
         np.copyto(self._pos_cmd, self._pos_msr)
         self._vel_cmd.fill(0.0)
@@ -374,6 +384,7 @@ class Robot:
     def _configure(self, mode: CtrlMode) -> None:
         """Turn the chain's actuators into motors or servos for `mode`."""
         self._applied_mode = mode
+        self._pending = True
         if not self._actuation:
             return
         m = self._model

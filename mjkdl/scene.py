@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import copy
-import weakref
-from collections.abc import Sequence
+import inspect
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -12,8 +13,8 @@ import numpy as np
 import pinocchio as pin
 
 from .compile import compile_scene, vector
-from .errors import SpecError, unknown_name
-from .spec import SceneSpec, ToolFrameSpec
+from .errors import MjkdlError, SpecError, unknown_name
+from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -34,7 +35,7 @@ class Scene:
         self._mjspec = mjspec
         self._model: mujoco.MjModel | None = model
         self._data: mujoco.MjData | None = mujoco.MjData(model)
-        self._robots: weakref.WeakSet[Robot] = weakref.WeakSet()
+        self._robots: list[Robot] = []
         mujoco.mj_forward(model, self._data)
 
     @classmethod
@@ -78,7 +79,7 @@ class Scene:
         self._model = None
         self._data = None
         self._mjspec = None
-        self._robots = weakref.WeakSet()
+        self._robots = []
 
     def __enter__(self) -> Self:
         self._check_open()
@@ -227,8 +228,156 @@ class Scene:
 
         self._check_open()
         robot = Robot(self, base_body, tip_body, prefix=prefix, tool=tool)
-        self._robots.add(robot)
+        self._robots.append(robot)
         return robot
 
-    def _registered_robots(self) -> list[Robot]:
-        return list(self._robots)
+    # ------------------------------------------------------------------ rebuild
+
+    def add_object(self, obj: SceneObject) -> None:
+        """Add `obj` and recompile; all surviving state and Robot handles carry over."""
+        self._check_open()
+        if not isinstance(obj, SceneObject):
+            raise SpecError(f"add_object() takes a SceneObject, got {type(obj).__name__}")
+        spec = copy.deepcopy(self._spec)
+        spec.objects.append(copy.deepcopy(obj))
+        self._rebuild(spec)
+
+    def remove_object(self, name: str) -> None:
+        """Remove the object called `name` and recompile, keeping all surviving state."""
+        self._check_open()
+        names = [o.name for o in self._spec.objects]
+        if name not in names:
+            raise unknown_name("object", name, names, where="the scene spec")
+        spec = copy.deepcopy(self._spec)
+        spec.objects = [o for o in spec.objects if o.name != name]
+        self._rebuild(spec)
+
+    def _rebuild(self, spec: SceneSpec) -> None:
+        """Compile `spec`, carry the state over by name, rebind robots; on error keep all."""
+        mjspec, model = compile_scene(spec)
+        data = mujoco.MjData(model)
+        _transfer_state(self._model, self._data, model, data)
+        mujoco.mj_forward(model, data)
+        self._spec, self._mjspec, self._model, self._data = spec, mjspec, model, data
+        for robot in self._robots:
+            robot._bind(model, data)
+
+
+@dataclass(frozen=True)
+class ResetInfo:
+    """What `Env.reset` did: the time it left and the keyframe it used (None: defaults)."""
+
+    time: float
+    keyframe: int | None
+    keyframe_name: str | None
+
+
+class ResetHookError(MjkdlError, RuntimeError):
+    """The user's `on_reset` hook raised; the original exception is the `__cause__`."""
+
+
+class Env(Scene):
+    """A Scene with a reset hook; its robots stay in sync across resets and rebuilds."""
+
+    def __init__(self, spec: SceneSpec, mjspec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
+        super().__init__(spec, mjspec, model)
+        self.on_reset: Callable[[ResetContext], None] | None = None
+
+    def keyframe_id(self, key: int | str) -> int:
+        """Index of keyframe `key` (an index or a name)."""
+        model = self.model
+        names = [model.key(k).name or f"#{k}" for k in range(model.nkey)]
+        if isinstance(key, str):
+            return self._id(mujoco.mjtObj.mjOBJ_KEY, "keyframe", key)
+        if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
+            if 0 <= key < model.nkey:
+                return int(key)
+        raise unknown_name("keyframe", str(key), names, where=f"the scene ({model.nkey} keyframes)")
+
+    def reset(self, opts: ResetOptions | None = None) -> ResetInfo:
+        """Reset MuJoCo (to a keyframe if asked), run `on_reset`, forward, sync robots.
+
+        Keyframe resets restore qpos, qvel, act, ctrl, mocap poses and time. After the hook
+        every registered robot's command ports are set to its measured state and applied,
+        so the first step after a reset carries no stale command.
+        """
+        self._check_open()
+        opts = ResetOptions() if opts is None else opts
+        if not isinstance(opts, ResetOptions):
+            raise SpecError(f"reset() takes ResetOptions, got {type(opts).__name__}")
+        model, data = self._model, self._data
+        key = self.keyframe_id(opts.keyframe) if opts.use_keyframe else None
+        if key is None:
+            mujoco.mj_resetData(model, data)
+        else:
+            mujoco.mj_resetDataKeyframe(model, data, key)
+        try:
+            if self.on_reset is not None:
+                self._run_hook(opts)
+        finally:
+            mujoco.mj_forward(self._model, self._data)
+            for robot in self._robots:
+                robot.sync_commands()
+        name = model.key(key).name if key is not None else None
+        return ResetInfo(float(self._data.time), key, name or None)
+
+    def _run_hook(self, opts: ResetOptions) -> None:
+        hook = self.on_reset
+        try:
+            hook(ResetContext(self, self._model, self._data, opts))
+        except Exception as err:
+            where = getattr(hook, "__qualname__", repr(hook))
+            module = inspect.getmodule(hook)
+            origin = f"{module.__name__}.{where}" if module else where
+            raise ResetHookError(
+                f"reset hook {origin} raised {type(err).__name__}: {err}"
+            ) from err
+
+    def close(self) -> None:
+        """Release MuJoCo's model and data and drop the reset hook."""
+        self.on_reset = None
+        super().close()
+
+
+def _transfer_state(
+    old_m: mujoco.MjModel, old_d: mujoco.MjData, new_m: mujoco.MjModel, new_d: mujoco.MjData
+) -> None:
+    """Copy state from an old model's data into a new one, element by element by name."""
+    new_d.time = old_d.time
+    for j in range(new_m.njnt):
+        name = new_m.joint(j).name
+        k = mujoco.mj_name2id(old_m, mujoco.mjtObj.mjOBJ_JOINT, name) if name else -1
+        if k < 0 or old_m.jnt_type[k] != new_m.jnt_type[j]:
+            continue
+        nq, nv = _joint_sizes(int(new_m.jnt_type[j]))
+        qa, qb = new_m.jnt_qposadr[j], old_m.jnt_qposadr[k]
+        va, vb = new_m.jnt_dofadr[j], old_m.jnt_dofadr[k]
+        new_d.qpos[qa : qa + nq] = old_d.qpos[qb : qb + nq]
+        for field in ("qvel", "qacc_warmstart", "qfrc_applied"):
+            getattr(new_d, field)[va : va + nv] = getattr(old_d, field)[vb : vb + nv]
+    for a in range(new_m.nu):
+        k = mujoco.mj_name2id(old_m, mujoco.mjtObj.mjOBJ_ACTUATOR, new_m.actuator(a).name)
+        if k < 0 or not new_m.actuator(a).name:
+            continue
+        new_d.ctrl[a] = old_d.ctrl[k]
+        n = min(new_m.actuator_actnum[a], old_m.actuator_actnum[k])
+        if n:
+            a0, k0 = new_m.actuator_actadr[a], old_m.actuator_actadr[k]
+            new_d.act[a0 : a0 + n] = old_d.act[k0 : k0 + n]
+    for b in range(new_m.nbody):
+        k = mujoco.mj_name2id(old_m, mujoco.mjtObj.mjOBJ_BODY, new_m.body(b).name)
+        if k < 0:
+            continue
+        new_d.xfrc_applied[b] = old_d.xfrc_applied[k]
+        mocap, old_mocap = new_m.body_mocapid[b], old_m.body_mocapid[k]
+        if mocap >= 0 and old_mocap >= 0:
+            new_d.mocap_pos[mocap] = old_d.mocap_pos[old_mocap]
+            new_d.mocap_quat[mocap] = old_d.mocap_quat[old_mocap]
+
+
+def _joint_sizes(jtype: int) -> tuple[int, int]:
+    """(nq, nv) of a MuJoCo joint type."""
+    return {
+        int(mujoco.mjtJoint.mjJNT_FREE): (7, 6),
+        int(mujoco.mjtJoint.mjJNT_BALL): (4, 3),
+    }.get(jtype, (1, 1))

@@ -9,7 +9,7 @@ import pytest
 from conftest import HOME, base_spec, gripper_tool, menagerie, table_object
 
 import mjkdl as mjk
-from mjkdl.urdf import example_robot_data_path
+from mjkdl.urdf import example_robot_data_path, load_urdf
 
 
 @pytest.fixture
@@ -154,7 +154,8 @@ def test_position_hold_gen3(gen3) -> None:
 
 def test_position_hold_urdf_ur5_with_motor_actuators(ur5) -> None:
     scene, robot = ur5
-    assert scene.model.actuator_biastype[0] == mujoco.mjtBias.mjBIAS_NONE  # URDF motors
+    authored = load_urdf(example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
+    assert all(a.biastype == mujoco.mjtBias.mjBIAS_NONE for a in authored.actuators)  # motors
     robot.ctrl_mode = mjk.CtrlMode.POSITION
     assert _run(scene, robot, 2.0) < 1e-3
 

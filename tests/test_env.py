@@ -1,0 +1,315 @@
+"""Env lifecycle: reset hooks and keyframes, rebuild-on-modify, closed handles."""
+
+from __future__ import annotations
+
+import ctypes
+import gc
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import HOME, base_spec, gripper_tool, table_object
+
+import mjkdl as mjk
+
+CUBE_START = [0.35, 0.10, 0.725]
+
+
+@pytest.fixture
+def env_robot(tutorial_scene):
+    env = tutorial_scene(mjk.Env)
+    robot = env.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+    return env, robot
+
+
+def _obstacle(name: str = "obstacle") -> mjk.SceneObject:
+    return mjk.SceneObject(
+        name=name,
+        shape=mjk.Shape.BOX,
+        size=[0.05, 0.05, 0.2],
+        pos=[0.25, -0.35, 0.92],
+        rgba=[0.8, 0.2, 0.2, 1.0],
+        mass=0.5,
+    )
+
+
+# ---------------------------------------------------------------------- reset
+
+
+def test_reset_runs_hook_that_poses_arm_and_cube(env_robot) -> None:
+    env, robot = env_robot
+    calls = []
+
+    def on_reset(ctx: mjk.ResetContext) -> None:
+        assert ctx.env is env and ctx.model is env.model and ctx.data is env.data
+        calls.append(ctx.options)
+        robot.set_joint_pos(HOME, call_forward=False)
+        env.set_body_pose("cube", CUBE_START)
+
+    env.on_reset = on_reset
+    for _ in range(2):
+        env.set_body_pose("cube", [0.1, 0.3, 0.9])
+        env.step(20)
+        info = env.reset()
+        assert info.time == 0.0 and info.keyframe is None
+        robot.update()
+        assert np.allclose(robot.jnt_pos_msr, HOME, atol=0)
+        assert np.allclose(env.body_frame("cube").translation, CUBE_START, atol=0)
+    assert len(calls) == 2 and isinstance(calls[0], mjk.ResetOptions)
+
+
+@pytest.mark.parametrize("key", [0, "home", 1, "retract"])
+def test_keyframe_reset_restores_qpos_and_ctrl(tutorial_scene, key) -> None:
+    env = tutorial_scene(mjk.Env)  # no robot registered: ctrl stays as the keyframe says
+    m = env.model
+    index = key if isinstance(key, int) else m.key(key).id
+    env.data.qpos[:] = 0.3
+    env.data.ctrl[:] = 0.7
+    info = env.reset(mjk.ResetOptions(keyframe=key, use_keyframe=True))
+    assert info.keyframe == index
+    assert info.keyframe_name == m.key(index).name
+    assert np.array_equal(env.data.qpos, m.key_qpos[index])
+    assert np.array_equal(env.data.ctrl, m.key_ctrl[index])
+
+
+def test_unknown_keyframe_lists_known(tutorial_scene) -> None:
+    env = tutorial_scene(mjk.Env)
+    with pytest.raises(KeyError, match="no keyframe named 'hme'.*home"):
+        env.reset(mjk.ResetOptions(keyframe="hme", use_keyframe=True))
+    with pytest.raises(KeyError, match="keyframe named '7'"):
+        env.reset(mjk.ResetOptions(keyframe=7, use_keyframe=True))
+
+
+def test_reset_syncs_commands_so_position_mode_holds(env_robot) -> None:
+    env, robot = env_robot
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    robot.jnt_pos_cmd = np.zeros(7)  # a stale command that must not survive the reset
+    env.on_reset = lambda ctx: robot.set_joint_pos(HOME, call_forward=False)
+    env.reset()
+    assert np.array_equal(robot.jnt_pos_cmd, robot.jnt_pos_msr)
+    assert np.array_equal(robot.jnt_vel_cmd, np.zeros(7))
+    assert np.array_equal(robot.jnt_trq_cmd, np.zeros(7))
+    for _ in range(100):  # no update(): the reset already applied the synced command
+        env.step()
+    robot.update()
+    assert np.abs(robot.jnt_pos_msr - HOME).max() < 1e-6
+
+
+def test_hook_error_names_hook_and_env_stays_usable(env_robot) -> None:
+    env, robot = env_robot
+
+    def broken_hook(ctx: mjk.ResetContext) -> None:
+        raise ValueError("cube missing")
+
+    env.on_reset = broken_hook
+    with pytest.raises(mjk.ResetHookError, match="broken_hook raised ValueError: cube missing"):
+        env.reset()
+    env.step(5)
+    env.on_reset = None
+    assert env.reset().time == 0.0
+    robot.update()
+    assert np.isfinite(robot.fk_frame().translation).all()
+
+
+# ---------------------------------------------------------------------- rebuild
+
+
+def _state(env: mjk.Env) -> dict[str, np.ndarray]:
+    d, m = env.data, env.model
+    cube = m.jnt_qposadr[m.joint("cube").id]
+    return {
+        "qpos": d.qpos.copy(),
+        "qvel": d.qvel.copy(),
+        "ctrl": d.ctrl.copy(),
+        "cube pose": d.qpos[cube : cube + 7].copy(),
+        "time": np.array([d.time]),
+    }
+
+
+def test_add_then_remove_keeps_state_and_robot_handles(env_robot) -> None:
+    env, robot = env_robot
+    env.on_reset = lambda ctx: robot.set_joint_pos(HOME, call_forward=False)
+    env.reset()
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    for _ in range(150):  # running, not at rest
+        robot.update()
+        robot.jnt_trq_cmd = 0.9 * robot.gravity_torques()
+        robot.step()
+    before = _state(env)
+    nbody = env.model.nbody
+    env.add_object(_obstacle())
+    assert env.model.nbody == nbody + 1
+    with_obstacle = _state(env)
+    for key in ("time", "ctrl"):
+        assert np.array_equal(with_obstacle[key], before[key])
+    env.remove_object("obstacle")
+    after = _state(env)
+    for key, value in before.items():
+        assert np.abs(after[key] - value).max() <= 1e-12, key
+    robot.update()
+    site = env.data.site_xpos[env.site_id("g_pinch")]
+    assert np.abs(robot.fk_frame().translation - site).max() < 1e-12
+    assert robot.ctrl_mode is mjk.CtrlMode.TORQUE
+    assert env.model.actuator_gainprm[0, 0] == 1.0  # the new model is in TORQUE mode too
+    assert env.on_reset is not None
+
+
+def test_rebuild_keeps_a_free_objects_state_by_name(env_robot) -> None:
+    env, _ = env_robot
+    env.set_body_pose("cube", [0.2, -0.1, 0.9], [0.9, 0.1, 0.3, 0.2])
+    env.data.qvel[env.model.jnt_dofadr[env.model.joint("cube").id] + 2] = -0.5
+    env.forward()
+    cube = env.data.qpos[env.model.jnt_qposadr[env.model.joint("cube").id] :][:7].copy()
+    env.add_object(_obstacle())  # inserted before the robot: every address shifts
+    j = env.model.joint("cube").id
+    assert np.array_equal(env.data.qpos[env.model.jnt_qposadr[j] :][:7], cube)
+    assert env.data.qvel[env.model.jnt_dofadr[j] + 2] == -0.5
+
+
+def test_bad_add_object_leaves_env_running(env_robot) -> None:
+    env, robot = env_robot
+    model, data = env.model, env.data
+    with pytest.raises(ValueError, match="duplicate object name 'cube'"):
+        env.add_object(_obstacle("cube"))
+    bad = _obstacle()
+    bad.size = [0.05, 0.05]
+    with pytest.raises(ValueError, match="size"):
+        env.add_object(bad)
+    with pytest.raises(FileNotFoundError, match="nowhere.xml"):
+        env.add_object(mjk.SceneObject(name="thing", mjcf_path="nowhere.xml"))
+    with pytest.raises(KeyError, match="no object named 'cub'.*cube"):
+        env.remove_object("cub")
+    assert env.model is model and env.data is data
+    env.step(10)
+    robot.update()
+    assert [o.name for o in env.spec.objects] == ["table", "cube"]
+
+
+def _rss_mb() -> float:
+    """Resident memory after returning freed heap pages to the OS (glibc), in MB."""
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except OSError:
+        pass
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    raise RuntimeError("no VmRSS")
+
+
+ARM = """
+<mujoco model="two_link">
+  <worldbody>
+    <body name="base">
+      <geom type="cylinder" size="0.05 0.02"/>
+      <body name="l1" pos="0 0 0.05">
+        <joint name="j1" axis="0 0 1"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+        <body name="l2" pos="0.3 0 0">
+          <joint name="j2" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.02"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="j1" name="m1"/>
+    <motor joint="j2" name="m2"/>
+  </actuator>
+</mujoco>
+"""
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/status"), reason="needs /proc")
+def test_two_hundred_rebuilds_do_not_grow_memory(tmp_path) -> None:
+    arm_xml = tmp_path / "two_link.xml"
+    arm_xml.write_text(ARM)
+    spec = base_spec(objects=[table_object()], robots=[mjk.RobotSpec(path=str(arm_xml))])
+    with mjk.Env.build(spec) as env:
+        robot = env.create_robot("base", "l2")
+        for _ in range(20):  # warm up allocator pools
+            env.add_object(_obstacle())
+            env.remove_object("obstacle")
+        start = _rss_mb()
+        for _ in range(200):
+            env.add_object(_obstacle())
+            env.remove_object("obstacle")
+        grown = _rss_mb() - start
+        robot.update()
+    assert grown < 5.0, f"{grown:.1f} MB after 200 add/remove cycles"
+
+
+# ---------------------------------------------------------------------- closed handles
+
+
+def test_every_call_on_a_closed_env_raises(env_robot) -> None:
+    env, robot = env_robot
+    env.close()
+    env.close()  # twice is harmless
+    calls = [
+        lambda: env.model,
+        lambda: env.data,
+        lambda: env.spec,
+        env.time,
+        env.timestep,
+        env.step,
+        env.forward,
+        env.camera_names,
+        env.reset,
+        lambda: env.has_actuator("joint_1"),
+        lambda: env.set_actuator_ctrl("joint_1", 0.0),
+        lambda: env.body_frame("cube"),
+        lambda: env.site_frame("g_pinch"),
+        lambda: env.set_body_pose("cube", [0, 0, 1]),
+        lambda: env.create_robot("base_link", "bracelet_link"),
+        lambda: env.add_object(_obstacle()),
+        lambda: env.remove_object("cube"),
+        robot.update,
+        robot.step,
+        robot.sync_commands,
+        robot.fk_frame,
+        robot.jacobian,
+        robot.gravity_torques,
+        robot.mass_matrix,
+        robot.nonlinear_effects,
+        lambda: robot.inverse_dynamics(HOME, np.zeros(7), np.zeros(7)),
+        lambda: robot.ik(robot.fk_frame()),
+        lambda: robot.set_joint_pos(HOME),
+        lambda: robot.ft_sensor("x"),
+        lambda: robot.n_joints,
+        lambda: robot.joint_names,
+        lambda: robot.joint_limits,
+        lambda: robot.model,
+        robot.kdl_chain,
+        lambda: robot.jnt_pos_msr,
+        lambda: robot.jnt_vel_msr,
+        lambda: robot.jnt_trq_msr,
+        lambda: robot.jnt_pos_cmd,
+        lambda: setattr(robot, "jnt_pos_cmd", HOME),
+        lambda: setattr(robot, "ctrl_mode", mjk.CtrlMode.TORQUE),
+    ]
+    for call in calls:
+        with pytest.raises(RuntimeError, match="closed"):
+            call()
+
+
+def test_context_manager_closes_on_exception(tutorial_scene) -> None:
+    env = tutorial_scene(mjk.Env)
+    with pytest.raises(ZeroDivisionError), env:
+        env.step()
+        1 / 0  # noqa: B018
+    assert env.closed
+    with pytest.raises(RuntimeError, match="closed"):
+        env.time()
+
+
+def test_closed_env_touches_no_native_memory(tutorial_scene) -> None:
+    env = tutorial_scene(mjk.Env)
+    robot = env.create_robot("base_link", "bracelet_link")
+    env.close()
+    gc.collect()
+    with pytest.raises(RuntimeError):
+        robot.update()
+    assert isinstance(mujoco.__version__, str)  # still alive: nothing crashed
