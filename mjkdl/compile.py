@@ -63,7 +63,7 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
     # Under the merge policy a child's non-default <option> (the 2F-85's elliptic cone and
     # impratio, Gen3's implicitfast integrator) is adopted; two children that disagree raise.
     s.compiler.conflict = mujoco.mjtConflict.mjCONFLICT_MERGE
-    s.option.timestep = spec.timestep
+    s.option.timestep = _number(spec.timestep, "SceneSpec.timestep")
     s.option.gravity = [0.0, 0.0, _number(spec.gravity_z, "SceneSpec.gravity_z")]
     s.visual.global_.offwidth = OFFSCREEN_WIDTH
     s.visual.global_.offheight = OFFSCREEN_HEIGHT
@@ -100,7 +100,7 @@ def _check_required(spec: SceneSpec) -> None:
     for field in ("timestep", "add_floor", "add_skybox"):
         if getattr(spec, field) is None:
             raise SpecError(f"SceneSpec.{field} is required and has no default: set it")
-    if not (math.isfinite(spec.timestep) and spec.timestep > 0):
+    if not _number(spec.timestep, "SceneSpec.timestep") > 0:
         raise SpecError(f"SceneSpec.timestep must be a positive number, got {spec.timestep!r}")
 
 
@@ -398,7 +398,25 @@ def _add_camera(s: mujoco.MjSpec, cam: CameraSpec, field: str) -> None:
 
 
 class _quiet_attach_notices(warnings.catch_warnings):
+    """Silence `_QUIET` notices, both as Python warnings and through MuJoCo's C handler.
+
+    MuJoCo's default C handler prints every warning to stdout and appends it to
+    MUJOCO_LOG.TXT in the working directory. While inside, C warnings are collected instead
+    (a Python handler must never raise: MuJoCo would abort) and the others re-issued as Python
+    warnings on exit.
+    """
+
     def __enter__(self) -> None:
         super().__enter__()
         for text in _QUIET:
             warnings.filterwarnings("ignore", message=text)
+        self._notices: list[str] = []
+        self._handler = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(self._notices.append)
+
+    def __exit__(self, *exc: object) -> None:
+        mujoco.set_mju_user_warning(self._handler)
+        super().__exit__(*exc)
+        for notice in self._notices:
+            if not notice.startswith(_QUIET):
+                warnings.warn(f"MuJoCo: {notice}", UserWarning, stacklevel=3)

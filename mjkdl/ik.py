@@ -2,14 +2,16 @@
 
 :class:`IKSolver` runs Levenberg–Marquardt on the SE(3) pose error with Sugihara's adaptive
 damping λ = c·|e|² + w.  Each step is the minimiser of the damped Gauss–Newton model subject
-to the joint limits, a 7-variable box-constrained QP solved by MuJoCo's ``mju_boxQP``, so a
-joint that reaches a limit stays there while the others keep converging (clipping a free step
-instead stalls about 4% of the attempts).  An attempt whose error stops improving is restarted
-from deterministic random seeds inside the limits; the best attempt is returned.
+to the joint limits: a small box-constrained QP solved by MuJoCo's ``mju_boxQP``, so a joint
+that reaches a limit stays there while the others keep converging (clipping the free step
+instead left ~4% of first attempts stalled on the Kinova Gen3).  An attempt whose error stops
+improving is restarted from deterministic random seeds inside the limits; the best attempt is
+returned.
 
-The hot loop is a handful of C calls per iteration: the world-frame joint Jacobian is read
-from ``data.J`` without a copy, and the error is the world twist ``log6(oMf · target⁻¹)``,
-which is exactly the quantity that Jacobian maps joint velocities to.
+The hot loop is a dozen C calls per iteration: the world-frame joint Jacobian is read from
+``data.J`` without a copy, the error is the world twist ``log6(oMf · target⁻¹)`` that this
+Jacobian maps joint velocities to, and the QP is posed in absolute joint positions so its box
+is the joint limits themselves and its solution is written straight into q.
 """
 
 from __future__ import annotations
@@ -20,7 +22,6 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 import pinocchio as pin
-from numpy._core import umath
 
 from mjkdl.errors import SpecError
 
@@ -39,6 +40,12 @@ class IKResult:
     rotation_error: float  # radians, final
 
 
+def _clip(q: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Clip `q` into [lo, hi] in place (ufuncs: np.clip is several times slower on 7 values)."""
+    np.maximum(q, lo, out=q)
+    np.minimum(q, hi, out=q)
+
+
 def _limit_vector(name: str, value: np.ndarray, nq: int) -> np.ndarray:
     arr = np.array(value, dtype=float).reshape(-1)
     if arr.shape != (nq,):
@@ -49,7 +56,10 @@ def _limit_vector(name: str, value: np.ndarray, nq: int) -> np.ndarray:
 
 
 class IKSolver:
-    """Damped, box-constrained Gauss–Newton IK for one frame of a fixed-base serial chain."""
+    """Damped, box-constrained Gauss–Newton IK for one frame of a fixed-base serial chain.
+
+    An instance owns its work buffers: share it between threads only with a lock.
+    """
 
     #: λ = DAMP_ERROR·|e|² + DAMP_FLOOR (Sugihara 2011), tuned on the Kinova Gen3.
     DAMP_ERROR = 3e-3
@@ -84,8 +94,8 @@ class IKSolver:
             raise SpecError(f"frame_id {frame_id} out of range [0, {model.nframes})")
         lo = _limit_vector("lower", lower, nq)
         hi = _limit_vector("upper", upper, nq)
-        if (lo > hi).any():
-            raise SpecError("lower must be <= upper for every joint")
+        if (lo > hi).any() or (lo == np.inf).any() or (hi == -np.inf).any():
+            raise SpecError("lower must be <= upper for every joint, with lower < +inf")
         if not (tol_pos > 0 and tol_rot > 0):
             raise SpecError("tol_pos and tol_rot must be positive")
         if max_iters < 1 or max_restarts < 0:
@@ -132,14 +142,17 @@ class IKSolver:
         """
         if not isinstance(target, pin.SE3):
             raise SpecError(f"target must be a pinocchio.SE3, got {type(target).__name__}")
-        q = np.array(q0, dtype=float)
+        try:
+            q = np.array(q0, dtype=float)
+        except (TypeError, ValueError) as err:
+            raise SpecError(f"q0 must be a vector of numbers: {err}") from None
         nq = self.model.nq
         if q.shape != (nq,):
             raise SpecError(f"q0 must be a vector of length {nq}, got shape {q.shape}")
         if not math.isfinite(q.dot(q)) and not np.isfinite(q).all():
             raise SpecError(f"q0 must be finite, got {q0!r}")
         lo, hi = self.lower, self.upper
-        umath.clip(q, lo, hi, out=q)
+        _clip(q, lo, hi)
 
         target_inv = target.inverse()
         p_target = target.translation
@@ -153,7 +166,7 @@ class IKSolver:
             total += its
             if done is not None:
                 if self._locked:
-                    umath.clip(q, lo, hi, out=q)
+                    _clip(q, lo, hi)
                 return IKResult(q, True, total, restarts, *done)
             if err < best_err:
                 best_q, best_err = q, err
@@ -162,7 +175,7 @@ class IKSolver:
             q = self._seeds[restarts].copy()
             restarts += 1
         if self._locked:
-            umath.clip(best_q, lo, hi, out=best_q)
+            _clip(best_q, lo, hi)
         return IKResult(best_q, False, total, restarts, *self._errors(best_q, target))
 
     def _attempt(
@@ -178,7 +191,7 @@ class IKSolver:
         tp2, tr2 = self.tol_pos**2, self.tol_rot**2
         aug_t, aug_jac_t = aug.T, aug_jac.T
         cjj, ufp, log6 = pin.computeJointJacobians, pin.updateFramePlacement, pin.log6
-        boxqp, mul, sub, sqrt = mujoco.mju_boxQP, umath.multiply, umath.subtract, math.sqrt
+        boxqp, mul, sub, sqrt = mujoco.mju_boxQP, np.multiply, np.subtract, math.sqrt
         best, since = math.inf, 0
         for it in range(self.max_iters + 1):
             cjj(model, data, q)

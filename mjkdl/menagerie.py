@@ -37,7 +37,9 @@ def model_path(name: str) -> str:
             else "set MENAGERIE_ROOT to a Menagerie checkout, or go online so "
             "mujoco-menagerie can download it"
         )
-        raise ModelFileError(f"MuJoCo Menagerie model {name!r} is not available: {where} ({err})")
+        raise ModelFileError(
+            f"MuJoCo Menagerie model {name!r} is not available: {where} ({err})"
+        ) from None
     if not Path(path).is_file():
         raise ModelFileError(f"MuJoCo Menagerie model {name!r}: {path} does not exist")
     return str(path)

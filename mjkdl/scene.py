@@ -160,9 +160,14 @@ class Scene:
     def set_actuator_ctrl(self, name: str, value: float) -> None:
         """Set the control input of actuator `name` (clamped by MuJoCo to its ctrlrange)."""
         i = self.actuator_id(name)
-        v = float(value)
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            v = float("nan")
         if not np.isfinite(v):
-            raise SpecError(f"set_actuator_ctrl({name!r}): value must be finite, got {value!r}")
+            raise SpecError(
+                f"set_actuator_ctrl({name!r}): value must be a finite number, got {value!r}"
+            )
         self.data.ctrl[i] = v
 
     # ------------------------------------------------------------------ poses
@@ -289,9 +294,9 @@ class Env(Scene):
         names = [model.key(k).name or f"#{k}" for k in range(model.nkey)]
         if isinstance(key, str):
             return self._id(mujoco.mjtObj.mjOBJ_KEY, "keyframe", key)
-        if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
-            if 0 <= key < model.nkey:
-                return int(key)
+        integral = isinstance(key, (int, np.integer)) and not isinstance(key, bool)
+        if integral and 0 <= key < model.nkey:
+            return int(key)
         raise unknown_name("keyframe", str(key), names, where=f"the scene ({model.nkey} keyframes)")
 
     def reset(self, opts: ResetOptions | None = None) -> ResetInfo:

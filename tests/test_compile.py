@@ -273,6 +273,28 @@ def test_euler_is_intrinsic_xyz_degrees_like_mujoco_xml(euler):
         )
 
 
+DOOR_XML = """<mujoco><worldbody><body name="frame"><geom type="box" size="0.1 0.1 0.1"/>
+<body name="leaf" pos="0 0 0.3" euler="0 0 45"><joint name="hinge" axis="0 0 1" range="-90 90"/>
+<geom type="box" size="0.1 0.02 0.1"/><site name="knob" euler="90 0 0"/></body></body>
+</worldbody><keyframe><key name="ajar" qpos="0.5"/></keyframe></mujoco>"""
+
+
+def test_mjcf_object_keeps_its_own_degree_angles(tmp_path):
+    """The scene compiles in radians; a child authored in degrees must be converted."""
+    path = tmp_path / "door.xml"
+    path.write_text(DOOR_XML)
+    ref = mujoco.MjModel.from_xml_path(str(path))
+    door = mjk.SceneObject(name="door", mjcf_path=str(path), pos=[1, 0, 0], fixed=True)
+    with _build(base_spec(objects=[door])) as scene:
+        m = scene.model
+        np.testing.assert_allclose(m.jnt_range[0], [-np.pi / 2, np.pi / 2], atol=1e-12)
+        leaf = scene.body_id("door/leaf")
+        _same_quat(m.body_quat[leaf], ref.body_quat[ref.body("leaf").id])
+        _same_quat(m.site_quat[scene.site_id("door/knob")], _xml_euler_quat([90, 0, 0]))
+        assert m.key("door/ajar").qpos[0] == 0.5
+        _assert_se3(scene.body_frame("door/leaf"), _se3([1, 0, 0.3], [0, 0, 45]))
+
+
 # ----------------------------------------------------------------------------- cameras, robots
 
 
@@ -360,6 +382,16 @@ def test_same_options_in_two_attachments_are_fine(tmp_path):
         assert scene.model.opt.impratio == pytest.approx(10.0)
 
 
+def test_attach_notices_stay_out_of_stdout_and_mujoco_log(tmp_path, monkeypatch, capfd):
+    """MuJoCo's C handler would print them and append them to ./MUJOCO_LOG.TXT."""
+    monkeypatch.chdir(tmp_path)
+    with _build(tutorial_spec()) as scene:
+        assert scene.model.opt.impratio == pytest.approx(10.0)
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    assert mujoco.get_mju_user_warning() is None  # MuJoCo's own handler is back
+    assert "Attach conflict" not in capfd.readouterr().out
+
+
 def test_welded_gen3_has_no_contacts_at_rest(tutorial):
     m = tutorial.model
     data = mujoco.MjData(m)
@@ -445,6 +477,17 @@ def test_required_fields_named(field):
     spec = base_spec(**{field: None})
     with pytest.raises(mjk.SpecError, match=f"SceneSpec.{field}"):
         _build(spec)
+
+
+@pytest.mark.parametrize("value", ["fast", 0.0, -1e-3, float("nan")])
+def test_bad_timestep_named(value):
+    with pytest.raises(mjk.SpecError, match=r"SceneSpec\.timestep"):
+        _build(base_spec(timestep=value))
+
+
+def test_timestep_given_as_text_is_read_as_a_number():
+    with _build(base_spec(timestep="0.004")) as scene:
+        assert scene.timestep() == 0.004
 
 
 def test_missing_object_file(tmp_path):
@@ -572,6 +615,18 @@ def test_bad_attachment_and_robot_offsets(field, value):
         _build(base_spec(robots=[robot]))
     robot = mjk.RobotSpec(path=menagerie("kinova_gen3"), **{field: value})
     with pytest.raises(ValueError, match=rf"robots\[0\]\.{field}.*3 values"):
+        _build(base_spec(robots=[robot]))
+
+
+def test_attachment_without_target_and_robot_without_path():
+    att = mjk.AttachmentSpec(mjcf_path=menagerie("robotiq_2f85"))
+    robot = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[att])
+    with pytest.raises(ValueError, match=r"robots\[0\]\.attachments\[0\]\.attach_to is unset"):
+        _build(base_spec(robots=[robot]))
+    with pytest.raises(ValueError, match=r"robots\[0\]\.path is empty"):
+        _build(base_spec(robots=[mjk.RobotSpec()]))
+    robot = mjk.RobotSpec(path=menagerie("kinova_gen3"), attach_to="table/table_top")
+    with pytest.raises(ValueError, match=r"robots\[0\]\.attach_to must be an AttachTarget"):
         _build(base_spec(robots=[robot]))
 
 

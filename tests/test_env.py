@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import gc
 
@@ -74,7 +75,7 @@ def test_keyframe_reset_restores_qpos_and_ctrl(tutorial_scene, key) -> None:
 
 def test_unknown_keyframe_lists_known(tutorial_scene) -> None:
     env = tutorial_scene(mjk.Env)
-    with pytest.raises(KeyError, match="no keyframe named 'hme'.*home"):
+    with pytest.raises(KeyError, match=r"no keyframe named 'hme'.*home"):
         env.reset(mjk.ResetOptions(keyframe="hme", use_keyframe=True))
     with pytest.raises(KeyError, match="keyframe named '7'"):
         env.reset(mjk.ResetOptions(keyframe=7, use_keyframe=True))
@@ -169,15 +170,15 @@ def test_rebuild_keeps_a_free_objects_state_by_name(env_robot) -> None:
 def test_bad_add_object_leaves_env_running(env_robot) -> None:
     env, robot = env_robot
     model, data = env.model, env.data
-    with pytest.raises(ValueError, match="duplicate object name 'cube'"):
+    with pytest.raises(ValueError, match=r"duplicate object name 'cube'"):
         env.add_object(_obstacle("cube"))
     bad = _obstacle()
     bad.size = [0.05, 0.05]
     with pytest.raises(ValueError, match="size"):
         env.add_object(bad)
-    with pytest.raises(FileNotFoundError, match="nowhere.xml"):
+    with pytest.raises(FileNotFoundError, match=r"nowhere\.xml"):
         env.add_object(mjk.SceneObject(name="thing", mjcf_path="nowhere.xml"))
-    with pytest.raises(KeyError, match="no object named 'cub'.*cube"):
+    with pytest.raises(KeyError, match=r"no object named 'cub'.*cube"):
         env.remove_object("cub")
     assert env.model is model and env.data is data
     env.step(10)
@@ -188,10 +189,8 @@ def test_bad_add_object_leaves_env_running(env_robot) -> None:
 def _rss_mb() -> float:
     """Resident memory after returning freed heap pages to the OS (glibc), in MB."""
     gc.collect()
-    try:
+    with contextlib.suppress(OSError):
         ctypes.CDLL("libc.so.6").malloc_trim(0)
-    except OSError:
-        pass
     with open("/proc/self/status") as status:
         for line in status:
             if line.startswith("VmRSS:"):

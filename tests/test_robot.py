@@ -154,7 +154,8 @@ def test_position_hold_gen3(gen3) -> None:
 
 def test_position_hold_urdf_ur5_with_motor_actuators(ur5) -> None:
     scene, robot = ur5
-    authored = load_urdf(example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
+    with pytest.warns(UserWarning, match="dae"):
+        authored = load_urdf(example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
     assert all(a.biastype == mujoco.mjtBias.mjBIAS_NONE for a in authored.actuators)  # motors
     robot.ctrl_mode = mjk.CtrlMode.POSITION
     assert _run(scene, robot, 2.0) < 1e-3
