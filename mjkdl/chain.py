@@ -20,6 +20,9 @@ from .errors import SpecError, unknown_name
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 _SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
+# Jointed subtrees (fingers) are re-lumped once their joints moved this far (rad or m) since
+# the last time: far below any effect on gravity or inertia that a test could resolve.
+RELUMP_TOL = 1e-9
 # Pinocchio's dynamic parameters are [m, mc, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]; MuJoCo's
 # cinert/crb rows are [Ixx, Iyy, Izz, Ixy, Ixz, Iyz, mc, m], both about the same origin.
 _CRB_TO_PIN = np.array([9, 6, 7, 8, 0, 3, 1, 4, 5, 2])
@@ -70,6 +73,10 @@ class Chain:
             (j, [sub for sub in self._subtrees if sub.joint == j]) for j in joints
         ]
         self._origin = pin.SE3.Identity()
+        self._subtree_qpos = _qpos_span(mj_model, [sub.root for sub in self._subtrees])
+        nsub = len(mj_data.qpos[self._subtree_qpos])
+        self._lumped_q = np.full(nsub, np.nan)  # NaN: nothing lumped yet
+        self._dq = np.zeros(nsub)
         # A base carried by joints of its own (a mobile base, another robot) moves: keep the
         # root placements relative to it and re-place them on every refresh.
         self.base_moves = bool(mj_model.body_weldid[self.base] != 0)
@@ -198,6 +205,16 @@ class Chain:
                 frame = self.model.frames[f]
                 frame.placement = base * rel
                 self.model.frames[f] = frame
+        if not self._subtrees:
+            return
+        # The lumped inertia, in the frame of the joint carrying it, depends only on the
+        # subtree's own joints: re-lump when they moved by more than RELUMP_TOL since.
+        q = d.qpos[self._subtree_qpos]
+        dq = self._dq
+        np.subtract(q, self._lumped_q, out=dq)
+        if dq.dot(dq) <= RELUMP_TOL * RELUMP_TOL:
+            return
+        np.copyto(self._lumped_q, q)
         inertias = self.model.inertias
         origin = self._origin
         for joint, subtrees in self._subtrees_by_joint:
@@ -236,11 +253,31 @@ def _path(m: mujoco.MjModel, base: int, tip: int, base_name: str, tip_name: str)
     return path[::-1]
 
 
+def _qpos_span(m: mujoco.MjModel, roots: list[int]) -> slice | np.ndarray:
+    """qpos addresses of every joint in the subtrees under `roots` (a slice when contiguous)."""
+    adr = sorted(
+        a
+        for root in roots
+        for b in _subtree(m, root)
+        for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
+        for a in range(m.jnt_qposadr[j], m.jnt_qposadr[j] + _joint_nq(int(m.jnt_type[j])))
+    )
+    if adr and adr == list(range(adr[0], adr[-1] + 1)):
+        return slice(adr[0], adr[-1] + 1)
+    return np.array(adr, dtype=int)
+
+
+def _joint_nq(jtype: int) -> int:
+    return {int(mujoco.mjtJoint.mjJNT_FREE): 7, int(mujoco.mjtJoint.mjJNT_BALL): 4}.get(jtype, 1)
+
+
 def _subtree(m: mujoco.MjModel, root: int) -> list[int]:
     members = [root]
+    inside = {root}
     for k in range(root + 1, m.nbody):
-        if int(m.body_parentid[k]) in members:
+        if int(m.body_parentid[k]) in inside:
             members.append(k)
+            inside.add(k)
     return members
 
 

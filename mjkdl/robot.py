@@ -86,9 +86,6 @@ class Robot:
         self._n = n
         self._qadr = self._chain.qpos_adr
         self._dadr = self._chain.dof_adr
-        self._q_view = _view(data.qpos, self._qadr)
-        self._v_view = _view(data.qvel, self._dadr)
-        self._f_view = _view(data.qfrc_actuator, self._dadr)
         self._actuation = self._find_actuation(model, data)
         ids = np.array([a.actuator for a in self._actuation], dtype=int)
         self._actuator_ids = ids
@@ -97,9 +94,16 @@ class Robot:
         for name in ports:
             old = getattr(self, name, None)
             setattr(self, name, old if old is not None and old.shape == (n,) else np.zeros(n))
+        # Measured ports are copied from views of MuJoCo's arrays when the chain's joints are
+        # contiguous in qpos/qvel (the usual case), else gathered by index.
+        views = (
+            _view(data.qpos, self._qadr),
+            _view(data.qvel, self._dadr),
+            _view(data.qfrc_actuator, self._dadr),
+        )
+        self._views = None if any(v is None for v in views) else views
         self._scratch = np.zeros(n)
         self._ff = np.zeros(n)
-        self._finite = np.zeros(n, dtype=bool)
         self._ctrl_buf = np.zeros(n)
         ports = ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd")
         self._ro = {k: _readonly(getattr(self, k)) for k in ports}
@@ -282,16 +286,20 @@ class Robot:
 
     def _assign(self, port: np.ndarray, value: object, name: str) -> None:
         self._check_open()
-        shape = value.shape if isinstance(value, np.ndarray) else np.shape(value)
-        if shape != port.shape:
-            raise SpecError(f"{name} needs {self._n} values (one per joint), got shape {shape}")
-        try:
-            np.copyto(self._scratch, value)
-        except TypeError:
-            raise SpecError(f"{name} must hold numbers, got {value!r}") from None
-        if not np.isfinite(self._scratch, out=self._finite).all():
+        if type(value) is not np.ndarray or value.dtype != np.float64:
+            try:
+                value = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                raise SpecError(f"{name} must hold numbers, got {value!r}") from None
+        if value.shape != port.shape:
+            raise SpecError(
+                f"{name} needs {self._n} values (one per joint), got shape {value.shape}"
+            )
+        # v.v is finite exactly when every entry is (barring overflow past 1e154, which the
+        # exact check below then clears): one BLAS call instead of a ufunc and a reduction.
+        if not math.isfinite(value.dot(value)) and not np.isfinite(value).all():
             raise SpecError(f"{name} must be finite, got {value!r}")
-        np.copyto(port, self._scratch)
+        np.copyto(port, value)
         self._pending = True
 
     def sync_commands(self) -> None:
@@ -356,7 +364,8 @@ class Robot:
                 )
             self._data.qfrc_applied[self._dadr] = self._trq_cmd
             return
-        ctrl = self._ctrl_buf
+        view = self._ctrl_view
+        ctrl = self._ctrl_buf if view is None else view
         if mode is CtrlMode.TORQUE:
             np.multiply(self._trq_cmd, self._cmd_scale, out=ctrl)
         else:
@@ -367,18 +376,23 @@ class Robot:
                 ff = pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
                 np.multiply(ff, self._ff_scale, out=self._ff)
                 np.add(ctrl, self._ff, out=ctrl)
-        if self._ctrl_view is not None:
-            np.copyto(self._ctrl_view, ctrl)
-        else:
+        if view is None:
             self._data.ctrl[self._actuator_ids] = ctrl
 
     def _read_state(self) -> None:
-        d = self._data
-        _gather(self._pos_msr, self._q_view, d.qpos, self._qadr)
-        _gather(self._vel_msr, self._v_view, d.qvel, self._dadr)
-        _gather(self._trq_msr, self._f_view, d.qfrc_actuator, self._dadr)
-        if not self._actuation and self._unactuated:
-            self._trq_msr += d.qfrc_applied[self._dadr]
+        if self._views is not None:
+            copyto = np.copyto
+            pos, vel, trq = self._views
+            copyto(self._pos_msr, pos)
+            copyto(self._vel_msr, vel)
+            copyto(self._trq_msr, trq)
+        else:
+            d = self._data
+            np.take(d.qpos, self._qadr, out=self._pos_msr)
+            np.take(d.qvel, self._dadr, out=self._vel_msr)
+            np.take(d.qfrc_actuator, self._dadr, out=self._trq_msr)
+        if self._unactuated:
+            self._trq_msr += self._data.qfrc_applied[self._dadr]
         self._dirty = True
 
     def _configure(self, mode: CtrlMode) -> None:
@@ -539,13 +553,6 @@ def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
     if len(idx) and np.all(np.diff(idx) == 1):
         return arr[idx[0] : idx[-1] + 1]
     return None
-
-
-def _gather(out: np.ndarray, view: np.ndarray | None, arr: np.ndarray, idx: np.ndarray) -> None:
-    if view is not None:
-        np.copyto(out, view)
-    else:
-        np.take(arr, idx, out=out)
 
 
 def _readonly(arr: np.ndarray) -> np.ndarray:

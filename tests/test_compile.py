@@ -354,31 +354,26 @@ def test_conflicting_attachment_options_raise(tmp_path):
         _build(spec)
 
 
-def test_conflicting_robot_options_raise(tmp_path):
-    patched = _patched_gripper(tmp_path, "5")
-    gen3 = menagerie("kinova_gen3")
+def _two_robots_with_grippers(tmp_path, impratio: str) -> list[mjk.RobotSpec]:
+    """Two Gen3s: one with the stock 2F-85, one with a copy whose impratio is patched."""
     other = mjk.AttachmentSpec(
-        mjcf_path=str(patched), attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site")
+        mjcf_path=str(_patched_gripper(tmp_path, impratio)),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site"),
     )
-    robots = [
+    gen3 = menagerie("kinova_gen3")
+    return [
         mjk.RobotSpec(path=gen3, attachments=[gripper()]),
         mjk.RobotSpec(path=gen3, prefix="r2_", pos=[0, 1, 0], attachments=[other]),
     ]
+
+
+def test_conflicting_robot_options_raise(tmp_path):
     with pytest.raises(ValueError, match=r"(?s)robots\[1\].*impratio"):
-        _build(base_spec(robots=robots))
+        _build(base_spec(robots=_two_robots_with_grippers(tmp_path, "5")))
 
 
 def test_same_options_in_two_attachments_are_fine(tmp_path):
-    patched = _patched_gripper(tmp_path, "10")
-    gen3 = menagerie("kinova_gen3")
-    other = mjk.AttachmentSpec(
-        mjcf_path=str(patched), attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site")
-    )
-    robots = [
-        mjk.RobotSpec(path=gen3, attachments=[gripper()]),
-        mjk.RobotSpec(path=gen3, prefix="r2_", pos=[0, 1, 0], attachments=[other]),
-    ]
-    with _build(base_spec(robots=robots)) as scene:
+    with _build(base_spec(robots=_two_robots_with_grippers(tmp_path, "10"))) as scene:
         assert scene.model.opt.impratio == pytest.approx(10.0)
 
 

@@ -179,3 +179,26 @@ def test_deterministic(gen3):
         np.testing.assert_array_equal(a.q, c.q)
         assert a.iterations == b.iterations == c.iterations
         assert a.restarts == b.restarts == c.restarts
+
+
+def test_prismatic_and_revolute_chain():
+    model = pin.Model()
+    parent = 0
+    joints = [pin.JointModelPX(), pin.JointModelPY(), pin.JointModelPZ()]
+    joints += [pin.JointModelRZ(), pin.JointModelRY(), pin.JointModelRX()]
+    for i, joint in enumerate(joints):
+        offset = pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.1 if i else 0.0]))
+        parent = model.addJoint(parent, joint, offset, f"j{i}")
+    fid = model.addFrame(
+        pin.Frame("tcp", parent, 0, pin.SE3(np.eye(3), np.array([0.05, 0.0, 0.2])), pin.OP_FRAME)
+    )
+    lower = np.array([-0.5, -0.5, 0.0, -np.inf, -1.0, -np.inf])
+    upper = np.array([0.5, 0.5, 0.4, np.inf, 1.0, np.inf])
+    solver = IKSolver(model, fid, lower, upper)
+    for q_true in _sample(lower, upper, 20, seed=2):
+        target = _fk(model, fid, q_true)
+        res = solver.solve(target, np.zeros(6))
+        assert res.success
+        assert _within(res.q, lower, upper)
+        pos, rot = _pose_errors(model, fid, res.q, target)
+        assert pos <= TOL_POS and rot <= TOL_ROT
