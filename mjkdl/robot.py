@@ -105,7 +105,6 @@ class Robot:
         self._scratch = np.zeros(n)
         self._ff = np.zeros(n)
         self._ctrl_buf = np.zeros(n)
-        ports = ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd")
         self._ro = {k: _readonly(getattr(self, k)) for k in ports}
         self._solver: IKSolver | None = None
         self._read_state()
@@ -153,11 +152,11 @@ class Robot:
             if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT):
                 by_joint.setdefault(int(model.actuator_trnid[a, 0]), []).append(a)
         missing = [model.joint(j).name for j in self._chain.joint_ids if j not in by_joint]
+        self._unactuated = missing
+        self._partly_actuated = 0 < len(missing) < len(self._chain.joint_ids)
         if missing:
-            self._unactuated = missing
             return []
-        self._unactuated = []
-        mass = self._mass_diagonal(data)
+        mass = self._mass_diagonal(model, data)
         out = []
         for i, j in enumerate(self._chain.joint_ids):
             acts = by_joint[j]
@@ -186,9 +185,9 @@ class Robot:
             out.append(_Actuation(a, gear, kp, kv))
         return out
 
-    def _mass_diagonal(self, data: mujoco.MjData) -> np.ndarray:
+    def _mass_diagonal(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         q = data.qpos[self._chain.qpos_adr]
-        self._chain.refresh(self._scene.model, data)
+        self._chain.refresh(model, data)
         pdata = self._chain.model.createData()
         return np.diag(pin.crba(self._chain.model, pdata, q)).copy()
 
@@ -340,6 +339,8 @@ class Robot:
         """Read the measured state, then apply the command ports for the current mode."""
         self._check_open()
         self._read_state()
+        if self._unactuated and (error := self._control_error()):
+            raise SpecError(error)
         if self._mode is not self._applied_mode:
             self._configure(self._mode)
         if self._pending or self._applied_mode is not CtrlMode.TORQUE:
@@ -357,12 +358,8 @@ class Robot:
         self._pending = False
         mode = self._applied_mode
         if not self._actuation:
-            if mode is not CtrlMode.TORQUE:
-                raise SpecError(
-                    f"{mode.name} mode needs an actuator on every joint; none drives "
-                    f"{', '.join(self._unactuated)} (TORQUE mode applies qfrc_applied there)"
-                )
-            self._data.qfrc_applied[self._dadr] = self._trq_cmd
+            if self._control_error() is None:
+                self._data.qfrc_applied[self._dadr] = self._trq_cmd
             return
         view = self._ctrl_view
         ctrl = self._ctrl_buf if view is None else view
@@ -378,6 +375,22 @@ class Robot:
                 np.add(ctrl, self._ff, out=ctrl)
         if view is None:
             self._data.ctrl[self._actuator_ids] = ctrl
+
+    def _control_error(self) -> str | None:
+        """Why the chain's commands cannot be applied in the current mode, if they cannot."""
+        names = ", ".join(self._unactuated)
+        if self._partly_actuated:
+            return (
+                f"joints {names} have no actuator while the rest of the chain has: a Robot "
+                "drives all chain joints through actuators, or none (TORQUE mode then applies "
+                "the torques as qfrc_applied)"
+            )
+        if self._unactuated and self._mode is not CtrlMode.TORQUE:
+            return (
+                f"{self._mode.name} mode needs an actuator on every joint; none drives {names} "
+                "(TORQUE mode applies the torques as qfrc_applied)"
+            )
+        return None
 
     def _read_state(self) -> None:
         if self._views is not None:

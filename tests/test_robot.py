@@ -347,3 +347,54 @@ def test_closed_scene_makes_robot_raise(tutorial_scene) -> None:
     ):
         with pytest.raises(RuntimeError, match="closed"):
             call()
+
+
+PASSIVE_ARM = """
+<mujoco model="passive">
+  <worldbody>
+    <body name="base">
+      <geom type="cylinder" size="0.05 0.02"/>
+      <body name="l1" pos="0 0 0.05">
+        <joint name="j1" axis="0 0 1"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
+        <body name="l2" pos="0.3 0 0">
+          <joint name="j2" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.02" mass="0.5"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  {actuators}
+</mujoco>
+"""
+
+
+def _passive_robot(tmp_path, actuators: str) -> tuple[mjk.Scene, mjk.Robot]:
+    path = tmp_path / "arm.xml"
+    path.write_text(PASSIVE_ARM.replace("{actuators}", actuators))
+    scene = mjk.Scene.build(base_spec(robots=[mjk.RobotSpec(path=str(path))]))
+    return scene, scene.create_robot("base", "l2")
+
+
+def test_unactuated_chain_takes_torques_as_applied_forces(tmp_path) -> None:
+    scene, robot = _passive_robot(tmp_path, "")
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.update()
+    robot.jnt_trq_cmd = [0.5, -0.25]
+    robot.step()
+    assert scene.data.qfrc_applied[:2].tolist() == [0.5, -0.25]
+    robot.update()
+    assert robot.jnt_trq_msr.tolist() == [0.5, -0.25]
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    with pytest.raises(ValueError, match="POSITION mode needs an actuator on every joint"):
+        robot.update()
+    scene.close()
+
+
+def test_partly_actuated_chain_is_refused_for_control_only(tmp_path) -> None:
+    scene, robot = _passive_robot(tmp_path, '<actuator><motor joint="j1"/></actuator>')
+    robot.set_joint_pos([0.3, 0.2])
+    assert robot.jacobian().shape == (6, 2)  # kinematics still work
+    with pytest.raises(ValueError, match="joints j2 have no actuator"):
+        robot.update()
+    scene.close()
