@@ -82,6 +82,7 @@ class Robot:
         self._model, self._data = model, data
         self._pin = self._chain.model
         self._pdata = self._pin.createData()
+        self._gravity_z = float(model.opt.gravity[2])
         n = len(self._chain.joint_ids)
         self._n = n
         self._qadr = self._chain.qpos_adr
@@ -284,7 +285,8 @@ class Robot:
         self._assign(self._trq_cmd, value, "jnt_trq_cmd")
 
     def _assign(self, port: np.ndarray, value: object, name: str) -> None:
-        self._check_open()
+        if self._scene._model is None:
+            self._check_open()
         if type(value) is not np.ndarray or value.dtype != np.float64:
             try:
                 value = np.asarray(value, dtype=float)
@@ -337,7 +339,8 @@ class Robot:
 
     def update(self) -> None:
         """Read the measured state, then apply the command ports for the current mode."""
-        self._check_open()
+        if self._scene._model is None:
+            self._check_open()
         self._read_state()
         if self._unactuated and (error := self._control_error()):
             raise SpecError(error)
@@ -489,9 +492,11 @@ class Robot:
 
         `gravity_z` overrides the z component of the scene's gravity for this call.
         """
-        self._check_open()
-        self._refresh()
-        if gravity_z is None or gravity_z == self._pin.gravity.linear[2]:
+        if self._scene._model is None:
+            self._check_open()
+        if self._dirty:
+            self._refresh()
+        if gravity_z is None or gravity_z == self._gravity_z:
             return pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
         g = self._pin.gravity
         saved = g.linear.copy()
