@@ -350,16 +350,18 @@ class Robot:
             self._apply()
 
     def step(self) -> None:
-        """Apply commands assigned since `update()`, then advance the scene one timestep."""
-        if self._pending:
-            self._check_open()
-            self._apply()
+        """Advance the scene one timestep; pending commands (of every robot) apply first."""
         self._scene.step()
 
     def _apply(self) -> None:
-        """Write the command ports into MuJoCo's controls, in the mode last configured."""
-        self._pending = False
+        """Write the command ports into MuJoCo's controls, in the mode last configured.
+
+        Until the first `update()` or `sync_commands()` the actuators stay as authored.
+        """
         mode = self._applied_mode
+        if mode is None:
+            return
+        self._pending = False
         if not self._actuation:
             if self._control_error() is None:
                 self._data.qfrc_applied[self._dadr] = self._trq_cmd

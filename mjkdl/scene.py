@@ -103,8 +103,11 @@ class Scene:
         return float(self.model.opt.timestep)
 
     def step(self, n: int = 1) -> None:
-        """Advance the simulation `n` timesteps."""
+        """Advance the simulation `n` timesteps, applying robots' pending commands first."""
         self._check_open()
+        for robot in self._robots:
+            if robot._pending:
+                robot._apply()
         if n == 1:
             mujoco.mj_step(self._model, self._data)
             return
@@ -323,6 +326,10 @@ class Env(Scene):
             mujoco.mj_forward(self._model, self._data)
             for robot in self._robots:
                 robot.sync_commands()
+            if self._robots:  # measured torques under the synced commands
+                mujoco.mj_forward(self._model, self._data)
+                for robot in self._robots:
+                    robot._read_state()
         name = model.key(key).name if key is not None else None
         return ResetInfo(float(self._data.time), key, name or None)
 

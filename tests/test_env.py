@@ -312,3 +312,11 @@ def test_closed_env_touches_no_native_memory(tutorial_scene) -> None:
     with pytest.raises(RuntimeError):
         robot.update()
     assert isinstance(mujoco.__version__, str)  # still alive: nothing crashed
+
+
+def test_reset_into_torque_mode_reads_no_leftover_servo_force(env_robot) -> None:
+    env, robot = env_robot
+    robot.update()  # POSITION servos configured, holding against gravity
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    env.reset(mjk.ResetOptions(keyframe="home", use_keyframe=True))
+    assert np.array_equal(robot.jnt_trq_msr, np.zeros(7))

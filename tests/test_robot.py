@@ -398,3 +398,19 @@ def test_partly_actuated_chain_is_refused_for_control_only(tmp_path) -> None:
     with pytest.raises(ValueError, match="joints j2 have no actuator"):
         robot.update()
     scene.close()
+
+
+def test_every_robots_commands_apply_in_the_same_step() -> None:
+    first = mjk.RobotSpec(path=menagerie("kinova_gen3"), pos=[-0.6, 0.0, 0.0])
+    second = mjk.RobotSpec(path=menagerie("kinova_gen3"), prefix="r2_", pos=[0.6, 0.0, 0.0])
+    with mjk.Scene.build(base_spec(robots=[first, second])) as scene:
+        a = scene.create_robot("base_link", "bracelet_link")
+        b = scene.create_robot("base_link", "bracelet_link", prefix="r2_")
+        for robot in (a, b):
+            robot.ctrl_mode = mjk.CtrlMode.TORQUE
+            robot.update()
+        a.jnt_trq_cmd = np.full(7, 1.0)
+        b.jnt_trq_cmd = np.full(7, 2.0)
+        a.step()  # steps the scene: b's command goes out in this step too
+        assert scene.data.qfrc_actuator[:7].tolist() == [1.0] * 7
+        assert scene.data.qfrc_actuator[7:14].tolist() == [2.0] * 7
