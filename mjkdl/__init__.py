@@ -3,6 +3,7 @@
 from . import menagerie
 from .errors import BuildError, MjkdlError, ModelFileError, SpecError, UnknownNameError
 from .ik import IKResult
+from .record import OffscreenRenderError, VideoRecorder, VideoResolution, VideoWriteError
 from .robot import Robot
 from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_version
 from .spec import (
@@ -22,6 +23,7 @@ from .spec import (
     ToolFrameSpec,
     scene_object_site_name,
 )
+from .viewer import NoDisplayError, SimulateViewer
 
 __version__ = "0.1.0"
 
@@ -38,6 +40,8 @@ __all__ = [
     "IKResult",
     "MjkdlError",
     "ModelFileError",
+    "NoDisplayError",
+    "OffscreenRenderError",
     "ResetContext",
     "ResetHookError",
     "ResetInfo",
@@ -48,9 +52,13 @@ __all__ = [
     "SceneObject",
     "SceneSpec",
     "Shape",
+    "SimulateViewer",
     "SpecError",
     "ToolFrameSpec",
     "UnknownNameError",
+    "VideoRecorder",
+    "VideoResolution",
+    "VideoWriteError",
     "menagerie",
     "mujoco_version",
     "scene_object_site_name",

@@ -63,7 +63,7 @@ class Chain:
         self.qpos_adr = np.array([mj_model.jnt_qposadr[j] for j in self.joint_ids])
         self.dof_adr = np.array([mj_model.jnt_dofadr[j] for j in self.joint_ids])
         self.joint_names = [mj_model.joint(j).name for j in self.joint_ids]
-        self.tip_frame = self.model.getFrameId(mj_model.body(self.tip).name)
+        self.tip_frame = self._body_frames[self.tip]
         self.tcp_frame = self.tip_frame
         if tcp_site:
             self.tcp_frame = self._add_site_frame(mj_model, tcp_site)
@@ -93,11 +93,6 @@ class Chain:
         ]
         self.refresh(mj_model, mj_data)
 
-    @property
-    def has_jointed_subtrees(self) -> bool:
-        """Whether some lumped inertia depends on joints outside the chain (e.g. fingers)."""
-        return bool(self._subtrees)
-
     # ------------------------------------------------------------------ building
 
     def _build(self, m: mujoco.MjModel, d: mujoco.MjData, path: list[int]) -> None:
@@ -106,15 +101,17 @@ class Chain:
         # the universe frame is MuJoCo's world, so the base pose comes first.
         parent = 0
         frame = self.model.addFrame(
-            pin.Frame(m.body(self.base).name, 0, 0, _body_pose(d, self.base), pin.BODY)
+            pin.Frame(_frame_name(m, self.base), 0, 0, _body_pose(d, self.base), pin.BODY)
         )
+        self._body_frames = {self.base: frame}  # MuJoCo body id -> Pinocchio frame id
         acc = _body_pose(d, self.base)
         for b in path:
             acc = acc * pin.SE3(_quat_matrix(m.body_quat[b]), m.body_pos[b].copy())
             for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
                 parent, acc = self._add_joint(m, j, parent, acc)
             self.model.appendBodyToJoint(parent, _body_inertia(m, b), acc)
-            frame = self.model.addBodyFrame(m.body(b).name, parent, acc, frame)
+            frame = self.model.addBodyFrame(_frame_name(m, b), parent, acc, frame)
+            self._body_frames[b] = frame
             self._lump_branches(m, b, parent, acc, on_path)
 
     def _add_joint(
@@ -169,26 +166,32 @@ class Chain:
             known = [m.site(k).name for k in range(m.nsite)]
             raise unknown_name("site", site, known, where="the model (tool.tcp_site)")
         body = int(m.site_bodyid[s])
-        anchor = body
-        while anchor not in (self.tip, 0) and not self.model.existFrame(m.body(anchor).name):
-            if m.body_jntnum[anchor]:
+        between = [body]  # bodies from the site's up to the first chain body
+        while between[-1] not in self._body_frames:
+            if between[-1] == 0:
                 raise SpecError(
-                    f"TCP site {site!r} is on body {m.body(body).name!r}, which moves relative "
-                    "to the chain through joints outside it (fingers, links beyond the tip): "
-                    "choose a site rigidly fixed to the chain or its tool"
+                    f"TCP site {site!r} (body {m.body(body).name!r}) is not on the chain or "
+                    f"below its tip {m.body(self.tip).name!r}"
                 )
-            anchor = int(m.body_parentid[anchor])
-        if anchor == 0:
+            between.append(int(m.body_parentid[between[-1]]))
+        anchor = between.pop()
+        if any(m.body_jntnum[b] for b in between):
             raise SpecError(
-                f"TCP site {site!r} (body {m.body(body).name!r}) is not on the chain or below "
-                f"its tip {m.body(self.tip).name!r}"
+                f"TCP site {site!r} is on body {m.body(body).name!r}, which moves relative "
+                "to the chain through joints outside it (fingers, links beyond the tip): "
+                "choose a site rigidly fixed to the chain or its tool"
             )
-        host = self.model.frames[self.model.getFrameId(m.body(anchor).name)]
+        host = self.model.frames[self._body_frames[anchor]]
         site_in_body = pin.SE3(_quat_matrix(m.site_quat[s]), m.site_pos[s].copy())
         placement = host.placement * _relative_pose(m, anchor, body) * site_in_body
         return self.model.addFrame(pin.Frame(site, host.parentJoint, placement, pin.OP_FRAME))
 
     # ------------------------------------------------------------------ runtime
+
+    def invalidate(self) -> None:
+        """Forget the lumped subtree inertia: MuJoCo's data changed behind our back."""
+        if self._subtrees:
+            self._lumped_q.fill(np.nan)
 
     def refresh(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         """Follow MuJoCo's last computed state: jointed subtrees' inertia and a moving base.
@@ -214,6 +217,8 @@ class Chain:
         np.subtract(q, self._lumped_q, out=dq)
         if dq.dot(dq) <= RELUMP_TOL * RELUMP_TOL:
             return
+        if d.crb[self._subtrees[0].root, 9] <= 0.0:
+            return  # not computed yet (reset data, no mj_forward since): nothing to lump from
         np.copyto(self._lumped_q, q)
         inertias = self.model.inertias
         origin = self._origin
@@ -228,6 +233,11 @@ class Chain:
 
 
 # ---------------------------------------------------------------------------- helpers
+
+
+def _frame_name(m: mujoco.MjModel, b: int) -> str:
+    """Pinocchio frame name of MuJoCo body `b` (its name, or `body<id>` when unnamed)."""
+    return m.body(b).name or f"body{b}"
 
 
 def _body_id(m: mujoco.MjModel, name: str) -> int:
@@ -260,15 +270,19 @@ def _qpos_span(m: mujoco.MjModel, roots: list[int]) -> slice | np.ndarray:
         for root in roots
         for b in _subtree(m, root)
         for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
-        for a in range(m.jnt_qposadr[j], m.jnt_qposadr[j] + _joint_nq(int(m.jnt_type[j])))
+        for a in range(m.jnt_qposadr[j], m.jnt_qposadr[j] + joint_sizes(int(m.jnt_type[j]))[0])
     )
     if adr and adr == list(range(adr[0], adr[-1] + 1)):
         return slice(adr[0], adr[-1] + 1)
     return np.array(adr, dtype=int)
 
 
-def _joint_nq(jtype: int) -> int:
-    return {int(mujoco.mjtJoint.mjJNT_FREE): 7, int(mujoco.mjtJoint.mjJNT_BALL): 4}.get(jtype, 1)
+def joint_sizes(jtype: int) -> tuple[int, int]:
+    """(nq, nv) of a MuJoCo joint type."""
+    return {
+        int(mujoco.mjtJoint.mjJNT_FREE): (7, 6),
+        int(mujoco.mjtJoint.mjJNT_BALL): (4, 3),
+    }.get(jtype, (1, 1))
 
 
 def _subtree(m: mujoco.MjModel, root: int) -> list[int]:

@@ -69,6 +69,9 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
     s.visual.global_.offheight = OFFSCREEN_HEIGHT
     _add_environment(s, floor=bool(spec.add_floor), skybox=bool(spec.add_skybox))
 
+    _check_entries(spec.objects, SceneObject, "SceneSpec.objects")
+    _check_entries(spec.robots, RobotSpec, "SceneSpec.robots")
+    _check_entries(spec.cameras, CameraSpec, "SceneSpec.cameras")
     _check_unique([o.name for o in spec.objects], "SceneSpec.objects", "object")
     _check_unique([c.name for c in spec.cameras], "SceneSpec.cameras", "camera")
     for i, obj in enumerate(spec.objects):
@@ -121,8 +124,10 @@ def vector(value: object, n: int | Sequence[int], field: str, positive: bool = F
         arr = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):
         raise SpecError(f"{field} must be a list of numbers, got {value!r}") from None
-    if arr.size not in lengths or np.ndim(value) != 1:
-        want = " or ".join(str(k) for k in lengths)
+    want = " or ".join(str(k) for k in lengths)
+    if np.ndim(value) != 1:
+        raise SpecError(f"{field} must be a flat list of {want} numbers, got {value!r}")
+    if arr.size not in lengths:
         raise SpecError(f"{field} must have {want} values, got {len(arr)}: {value!r}")
     if not np.all(np.isfinite(arr)):
         raise SpecError(f"{field} must be finite, got {value!r}")
@@ -138,10 +143,24 @@ def euler_quat(euler_deg: object, field: str) -> np.ndarray:
     return quat
 
 
+def _check_entries(items: object, cls: type, field: str) -> None:
+    if not isinstance(items, list):
+        raise SpecError(f"{field} must be a list of {cls.__name__}, got {items!r}")
+    for i, item in enumerate(items):
+        if not isinstance(item, cls):
+            raise SpecError(f"{field}[{i}] must be a {cls.__name__}, got {item!r}")
+
+
+def _text(value: object, field: str) -> str:
+    if not isinstance(value, str):
+        raise SpecError(f"{field} must be a string, got {value!r}")
+    return value
+
+
 def _check_unique(names: list[str], field: str, kind: str) -> None:
     seen: set[str] = set()
     for i, name in enumerate(names):
-        if not name:
+        if not _text(name, f"{field}[{i}].name"):
             raise SpecError(f"{field}[{i}].name is empty: every {kind} needs a name")
         if name in seen:
             raise SpecError(f"{field}: duplicate {kind} name {name!r}")
@@ -244,7 +263,7 @@ def _add_primitive(
     mass = _number(obj.mass, f"{field}.mass")
     if mass < 0 or (mass == 0 and not obj.fixed):
         raise SpecError(f"{field}.mass must be positive for a free object, got {obj.mass!r}")
-    condim = int(obj.condim)
+    condim = int(obj.condim) if isinstance(obj.condim, (int, np.integer)) else None
     if condim not in (1, 3, 4, 6):
         raise SpecError(f"{field}.condim must be 1, 3, 4 or 6, got {obj.condim!r}")
 
@@ -268,6 +287,10 @@ def _add_primitive(
 def _add_mjcf_object(
     s: mujoco.MjSpec, obj: SceneObject, field: str, pos: np.ndarray, quat: np.ndarray
 ) -> None:
+    if obj.shape is not None or len(obj.size) or obj.mass:
+        raise SpecError(
+            f"{field}: give either mjcf_path or a primitive (shape, size, mass), not both"
+        )
     child = load_model_file(obj.mjcf_path, f"{field}.mjcf_path")
     free = [j.name or "(unnamed)" for j in child.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
     if free:
@@ -285,6 +308,8 @@ def _add_mjcf_object(
 
 
 def _add_robot(s: mujoco.MjSpec, robot: RobotSpec, field: str) -> None:
+    _text(robot.prefix, f"{field}.prefix")
+    _check_entries(robot.attachments, AttachmentSpec, f"{field}.attachments")
     child = load_model_file(robot.path, f"{field}.path")
     roots = [b.name for b in child.worldbody.bodies]
     for j, att in enumerate(robot.attachments):
@@ -301,6 +326,7 @@ def _add_robot(s: mujoco.MjSpec, robot: RobotSpec, field: str) -> None:
 def _add_attachment(robot: mujoco.MjSpec, att: AttachmentSpec, field: str) -> None:
     if att.attach_to is None:
         raise SpecError(f"{field}.attach_to is unset: name the site, body or frame to mount on")
+    _text(att.prefix, f"{field}.prefix")
     child = load_model_file(att.mjcf_path, f"{field}.mjcf_path")
     _offset(child, att.pos, att.euler, field)
     mount = _mount(robot, att.attach_to, f"{field}.attach_to", within="the robot")
@@ -327,6 +353,8 @@ def _mount(s: mujoco.MjSpec, target: AttachTarget | None, field: str, within: st
         return {"frame": s.worldbody.add_frame()}
     if not isinstance(target, AttachTarget) or not isinstance(target.kind, AttachKind):
         raise SpecError(f"{field} must be an AttachTarget(AttachKind, name), got {target!r}")
+    if not _text(target.name, f"{field}.name"):
+        raise SpecError(f"{field}.name is empty: name the {target.kind.value} to mount on")
     kind = target.kind.value
     element = getattr(s, kind)(target.name)
     if element is None:

@@ -47,7 +47,12 @@ class Robot:
     when it is a MuJoCo position servo; for motor actuators (URDF robots) a critically damped
     servo of about 10 Hz is synthesised from the mass matrix. POSITION and VELOCITY add
     Pinocchio's gravity torques as feed-forward (`gravity_feedforward`), so a held pose does
-    not sag under gravity.
+    not sag under gravity. The servos ignore the actuators' authored `ctrlrange` (commands are
+    in joint units in every mode); `forcerange` still limits the force.
+
+    A handle starts driving its actuators once it is used for control — `update()`, a command
+    assignment or a `ctrl_mode` change; until then it only reads, so several handles may look
+    at the same joints, but only one may drive them.
     """
 
     def __init__(
@@ -67,9 +72,11 @@ class Robot:
         self._tool = copy.deepcopy(tool) if tool is not None else ToolFrameSpec()
         self._mode = CtrlMode.POSITION
         self._applied_mode: CtrlMode | None = None
+        self._active = False
         self.gravity_feedforward = True
         self._bind(scene.model, scene.data)
         self._hold_commands()
+        self._pending = False
 
     # ------------------------------------------------------------------ binding
 
@@ -103,13 +110,11 @@ class Robot:
             _view(data.qfrc_actuator, self._dadr),
         )
         self._views = None if any(v is None for v in views) else views
-        self._scratch = np.zeros(n)
         self._ff = np.zeros(n)
         self._ctrl_buf = np.zeros(n)
         self._ro = {k: _readonly(getattr(self, k)) for k in ports}
         self._solver: IKSolver | None = None
         self._read_state()
-        self._pending = True
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
 
@@ -134,14 +139,19 @@ class Robot:
 
     def _ft_ids(self, model: mujoco.MjModel, sensor) -> tuple[slice, slice]:
         out = []
-        for field, kind in (("force_sensor", "force"), ("torque_sensor", "torque")):
+        for field, kind, want in (
+            ("force_sensor", "force", mujoco.mjtSensor.mjSENS_FORCE),
+            ("torque_sensor", "torque", mujoco.mjtSensor.mjSENS_TORQUE),
+        ):
             name = self._prefixed(getattr(sensor, field))
             i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name)
             if i < 0:
                 known = [model.sensor(k).name for k in range(model.nsensor)]
                 raise unknown_name("sensor", name, known, where=f"ft_sensors {sensor.name!r}")
-            if model.sensor_dim[i] != 3:
-                raise SpecError(f"sensor {name!r} is not a 3D {kind} sensor")
+            if int(model.sensor_type[i]) != int(want):
+                raise SpecError(
+                    f"ft_sensors {sensor.name!r}: sensor {name!r} is not a {kind} sensor"
+                )
             adr = int(model.sensor_adr[i])
             out.append(slice(adr, adr + 3))
         return out[0], out[1]
@@ -176,7 +186,7 @@ class Robot:
             gear = float(model.actuator_gear[a, 0])
             if gear == 0:
                 raise SpecError(f"actuator {model.actuator(a).name!r} has zero gear")
-            kp, kv = _servo_gains(model, a)
+            kp, kv = _servo_gains(self._scene._authored_actuators, a)
             if kp <= 0:
                 omega = 2 * math.pi * _SERVO_HZ
                 kp = mass[i] * omega**2 / gear**2
@@ -284,7 +294,8 @@ class Robot:
     def jnt_trq_cmd(self, value: np.ndarray) -> None:
         self._assign(self._trq_cmd, value, "jnt_trq_cmd")
 
-    def _assign(self, port: np.ndarray, value: object, name: str) -> None:
+    def _vector(self, value: object, name: str) -> np.ndarray:
+        """`value` checked to be n finite numbers, as a float64 array (no copy if it is one)."""
         if self._scene._model is None:
             self._check_open()
         if type(value) is not np.ndarray or value.dtype != np.float64:
@@ -292,7 +303,7 @@ class Robot:
                 value = np.asarray(value, dtype=float)
             except (TypeError, ValueError):
                 raise SpecError(f"{name} must hold numbers, got {value!r}") from None
-        if value.shape != port.shape:
+        if value.shape != (self._n,):
             raise SpecError(
                 f"{name} needs {self._n} values (one per joint), got shape {value.shape}"
             )
@@ -300,8 +311,13 @@ class Robot:
         # exact check below then clears): one BLAS call instead of a ufunc and a reduction.
         if not math.isfinite(value.dot(value)) and not np.isfinite(value).all():
             raise SpecError(f"{name} must be finite, got {value!r}")
-        np.copyto(port, value)
+        return value
+
+    def _assign(self, port: np.ndarray, value: object, name: str) -> None:
+        np.copyto(port, self._vector(value, name))
         self._pending = True
+        if not self._active:
+            self._activate()
 
     def sync_commands(self) -> None:
         """Set the command ports to the measured state and apply them in the current mode.
@@ -311,8 +327,6 @@ class Robot:
         """
         self._check_open()
         self._hold_commands()
-        if self._mode is not self._applied_mode:
-            self._configure(self._mode)
         self._apply()
 
     def _hold_commands(self) -> None:
@@ -321,6 +335,25 @@ class Robot:
         self._vel_cmd.fill(0.0)
         self._trq_cmd.fill(0.0)
         self._pending = True
+
+    def _after_reset(self) -> None:
+        """MuJoCo's data was reset and forwarded: drop what was derived from the old state."""
+        self._chain.invalidate()
+        self._read_state()
+
+    def _activate(self) -> None:
+        """Start driving the actuators, unless another handle already drives these joints."""
+        mine = set(self._chain.joint_ids)
+        for other in self._scene._robots:
+            both = mine & set(other._chain.joint_ids)
+            if other is not self and other._active and both:
+                shared = sorted(self._model.joint(j).name for j in both)
+                raise SpecError(
+                    f"joints {', '.join(shared)} are already driven by the Robot "
+                    f"{other._base_name!r} -> {other._tip_name!r}; one Robot per joint may "
+                    "control (any number may read)"
+                )
+        self._active = True
 
     # ------------------------------------------------------------------ control
 
@@ -335,18 +368,21 @@ class Robot:
         self._check_open()
         if not isinstance(mode, CtrlMode):
             raise SpecError(f"ctrl_mode must be a CtrlMode, got {mode!r}")
+        if not self._active:
+            self._activate()
         self._mode = mode
+        self._pending = True
 
     def update(self) -> None:
         """Read the measured state, then apply the command ports for the current mode."""
         if self._scene._model is None:
             self._check_open()
         self._read_state()
+        if not self._active:
+            self._activate()
         if self._unactuated and (error := self._control_error()):
             raise SpecError(error)
-        if self._mode is not self._applied_mode:
-            self._configure(self._mode)
-        if self._pending or self._applied_mode is not CtrlMode.TORQUE:
+        if self._pending or self._mode is not CtrlMode.TORQUE:
             self._apply()
 
     def step(self) -> None:
@@ -354,13 +390,15 @@ class Robot:
         self._scene.step()
 
     def _apply(self) -> None:
-        """Write the command ports into MuJoCo's controls, in the mode last configured.
+        """Write the command ports into MuJoCo's controls in the current mode.
 
-        Until the first `update()` or `sync_commands()` the actuators stay as authored.
+        A handle that was never used for control leaves the actuators as authored.
         """
-        mode = self._applied_mode
-        if mode is None:
+        if not self._active:
             return
+        if self._mode is not self._applied_mode:
+            self._configure(self._mode)
+        mode = self._mode
         self._pending = False
         if not self._actuation:
             if self._control_error() is None:
@@ -440,7 +478,7 @@ class Robot:
                 m.actuator_biasprm[aid, 2] = -kv[i]
         # Actuator force f acts as gear*f at the joint; servos act on length gear*q.
         if mode is CtrlMode.TORQUE:
-            self._cmd_scale, self._ff_scale = 1.0 / gear, np.zeros(self._n)
+            self._cmd_scale = 1.0 / gear
         elif mode is CtrlMode.POSITION:
             self._cmd_scale, self._ff_scale = gear, 1.0 / (gear * kp)
         else:
@@ -450,10 +488,9 @@ class Robot:
 
     def set_joint_pos(self, q: np.ndarray, call_forward: bool = True) -> None:
         """Write joint positions into MuJoCo's qpos (velocities are left as they are)."""
-        self._check_open()
-        self._assign(self._scratch, q, "set_joint_pos(q)")
-        self._data.qpos[self._qadr] = self._scratch
-        np.copyto(self._pos_msr, self._scratch)
+        q = self._vector(q, "set_joint_pos(q)")
+        self._data.qpos[self._qadr] = q
+        np.copyto(self._pos_msr, q)
         self._dirty = True
         if call_forward:
             mujoco.mj_forward(self._model, self._data)
@@ -461,12 +498,7 @@ class Robot:
     # ------------------------------------------------------------------ kinematics / dynamics
 
     def _q(self, q: object, name: str = "q") -> np.ndarray:
-        if q is None:
-            return self._pos_msr
-        arr = np.asarray(q, dtype=float)
-        if arr.shape != (self._n,) or not np.all(np.isfinite(arr)):
-            raise SpecError(f"{name} must be {self._n} finite values, got {q!r}")
-        return arr
+        return self._pos_msr if q is None else self._vector(q, name)
 
     def _refresh(self) -> None:
         """Bring lumped tool inertias up to the configuration MuJoCo last computed."""
@@ -500,10 +532,18 @@ class Robot:
             self._refresh()
         if gravity_z is None or gravity_z == self._gravity_z:
             return pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
+        try:
+            gz = float(gravity_z)
+        except (TypeError, ValueError):
+            gz = math.nan
+        if not math.isfinite(gz):
+            raise SpecError(
+                f"gravity_torques: gravity_z must be a finite number, got {gravity_z!r}"
+            )
         g = self._pin.gravity
         saved = g.linear.copy()
         try:
-            self._pin.gravity = pin.Motion(np.array([saved[0], saved[1], gravity_z]), np.zeros(3))
+            self._pin.gravity = pin.Motion(np.array([saved[0], saved[1], gz]), np.zeros(3))
             return pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
         finally:
             self._pin.gravity = pin.Motion(saved, np.zeros(3))
@@ -533,6 +573,7 @@ class Robot:
     def ik(self, target: pin.SE3, q0: np.ndarray | None = None) -> IKResult:
         """Joint positions that put the TCP at `target`, within the joint limits."""
         self._check_open()
+        self._refresh()
         if self._solver is None:
             lim = self.joint_limits
             self._solver = IKSolver(self._pin, self._chain.tcp_frame, lim[:, 0], lim[:, 1])
@@ -554,13 +595,32 @@ class Robot:
             raise RuntimeError("this Robot's scene is closed")
 
 
-def _servo_gains(model: mujoco.MjModel, a: int) -> tuple[float, float]:
+@dataclass(frozen=True)
+class AuthoredActuators:
+    """The actuator parameters as compiled, before any Robot turned them into its mode."""
+
+    gaintype: np.ndarray
+    biastype: np.ndarray
+    gainprm: np.ndarray
+    biasprm: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> AuthoredActuators:
+        return cls(
+            model.actuator_gaintype.copy(),
+            model.actuator_biastype.copy(),
+            model.actuator_gainprm.copy(),
+            model.actuator_biasprm.copy(),
+        )
+
+
+def _servo_gains(authored: AuthoredActuators, a: int) -> tuple[float, float]:
     """(kp, kv) of a MuJoCo position servo (`<position>`); (0, 0) for anything else."""
-    gain = model.actuator_gainprm[a]
-    bias = model.actuator_biasprm[a]
+    gain = authored.gainprm[a]
+    bias = authored.biasprm[a]
     is_servo = (
-        int(model.actuator_gaintype[a]) == int(mujoco.mjtGain.mjGAIN_FIXED)
-        and int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE)
+        int(authored.gaintype[a]) == int(mujoco.mjtGain.mjGAIN_FIXED)
+        and int(authored.biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE)
         and gain[0] > 0
         and bias[0] == 0
         and bias[1] == -gain[0]

@@ -12,14 +12,14 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from .chain import joint_sizes
 from .compile import compile_scene, vector
 from .errors import MjkdlError, SpecError, unknown_name
+from .robot import AuthoredActuators, Robot
 from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
 
 if TYPE_CHECKING:
     from typing_extensions import Self
-
-    from .robot import Robot
 
 
 def mujoco_version() -> str:
@@ -36,6 +36,7 @@ class Scene:
         self._model: mujoco.MjModel | None = model
         self._data: mujoco.MjData | None = mujoco.MjData(model)
         self._robots: list[Robot] = []
+        self._authored_actuators = AuthoredActuators.of(model)
         mujoco.mj_forward(model, self._data)
 
     @classmethod
@@ -232,8 +233,6 @@ class Scene:
         tool: ToolFrameSpec | None = None,
     ) -> Robot:
         """A `Robot` handle on the chain from `base_body` to `tip_body` (names without prefix)."""
-        from .robot import Robot
-
         self._check_open()
         robot = Robot(self, base_body, tip_body, prefix=prefix, tool=tool)
         self._robots.append(robot)
@@ -266,9 +265,19 @@ class Scene:
         data = mujoco.MjData(model)
         _transfer_state(self._model, self._data, model, data)
         mujoco.mj_forward(model, data)
+        old = (self._spec, self._mjspec, self._model, self._data, self._authored_actuators)
         self._spec, self._mjspec, self._model, self._data = spec, mjspec, model, data
-        for robot in self._robots:
-            robot._bind(model, data)
+        self._authored_actuators = AuthoredActuators.of(model)
+        try:
+            for robot in self._robots:
+                robot._bind(model, data)
+        except Exception:
+            # A handle that cannot live on the new model (its chain was removed): put every
+            # handle and the scene back on the previous model, which they were bound to.
+            self._spec, self._mjspec, self._model, self._data, self._authored_actuators = old
+            for robot in self._robots:
+                robot._bind(self._model, self._data)
+            raise
 
 
 @dataclass(frozen=True)
@@ -329,7 +338,7 @@ class Env(Scene):
             if self._robots:  # measured torques under the synced commands
                 mujoco.mj_forward(self._model, self._data)
                 for robot in self._robots:
-                    robot._read_state()
+                    robot._after_reset()
         name = model.key(key).name if key is not None else None
         return ResetInfo(float(self._data.time), key, name or None)
 
@@ -361,7 +370,7 @@ def _transfer_state(
         k = mujoco.mj_name2id(old_m, mujoco.mjtObj.mjOBJ_JOINT, name) if name else -1
         if k < 0 or old_m.jnt_type[k] != new_m.jnt_type[j]:
             continue
-        nq, nv = _joint_sizes(int(new_m.jnt_type[j]))
+        nq, nv = joint_sizes(int(new_m.jnt_type[j]))
         qa, qb = new_m.jnt_qposadr[j], old_m.jnt_qposadr[k]
         va, vb = new_m.jnt_dofadr[j], old_m.jnt_dofadr[k]
         new_d.qpos[qa : qa + nq] = old_d.qpos[qb : qb + nq]
@@ -385,11 +394,3 @@ def _transfer_state(
         if mocap >= 0 and old_mocap >= 0:
             new_d.mocap_pos[mocap] = old_d.mocap_pos[old_mocap]
             new_d.mocap_quat[mocap] = old_d.mocap_quat[old_mocap]
-
-
-def _joint_sizes(jtype: int) -> tuple[int, int]:
-    """(nq, nv) of a MuJoCo joint type."""
-    return {
-        int(mujoco.mjtJoint.mjJNT_FREE): (7, 6),
-        int(mujoco.mjtJoint.mjJNT_BALL): (4, 3),
-    }.get(jtype, (1, 1))

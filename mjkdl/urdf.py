@@ -81,7 +81,7 @@ def load_urdf(path: str | Path) -> mujoco.MjSpec:
     spec.strippath = False
     spec.meshdir = ""  # every mesh file is absolute, whatever spec it ends up attached to
     _set_geom_groups(spec)
-    joints = _urdf_joints(root)
+    joints = _urdf_joints(root, urdf)
     _add_motors(spec, joints)
     _name_mimic_equalities(spec, joints)
     _warn_unreadable(urdf, report)
@@ -250,11 +250,17 @@ def _set_geom_groups(spec: mujoco.MjSpec) -> None:
         geom.group = 2 if geom.contype == 0 and geom.conaffinity == 0 else 3
 
 
-def _urdf_joints(root: ET.Element) -> dict[str, _UrdfJoint]:
+def _urdf_joints(root: ET.Element, path: Path) -> dict[str, _UrdfJoint]:
     joints = {}
     for joint in root.findall("joint"):
         limit = joint.find("limit")
-        effort = abs(float(limit.get("effort", "0"))) if limit is not None else 0.0
+        text = limit.get("effort", "0") if limit is not None else "0"
+        try:
+            effort = abs(float(text))
+        except ValueError:
+            raise SpecError(
+                f"{path}: joint {joint.get('name', '')!r} has a non-numeric effort {text!r}"
+            ) from None
         joints[joint.get("name", "")] = _UrdfJoint(
             kind=joint.get("type", ""), effort=effort, mimic=joint.find("mimic") is not None
         )

@@ -579,6 +579,13 @@ def _prim(**kw) -> mjk.SceneObject:
         (_prim(mass=0.0), r"\.mass.*positive"),
         (_prim(mass=-1.0, fixed=True), r"\.mass"),
         (_prim(pos=[0, float("nan"), 0]), r"\.pos.*finite"),
+        (_prim(pos=[[0, 0, 1]]), r"\.pos must be a flat list of 3 numbers"),
+        (_prim(condim=None), r"\.condim must be 1, 3, 4 or 6"),
+        (_prim(name=5), r"objects\[0\]\.name must be a string"),
+        (
+            _prim(mjcf_path=str(ASSETS / "table.xml")),
+            r"either mjcf_path or a primitive",
+        ),
     ],
     ids=[
         "negative-size",
@@ -594,6 +601,10 @@ def _prim(**kw) -> mjk.SceneObject:
         "zero-mass-free",
         "negative-mass-fixed",
         "nan-pos",
+        "nested-pos",
+        "condim-none",
+        "name-not-text",
+        "mjcf-and-primitive",
     ],
 )
 def test_bad_primitive(obj, pattern):
@@ -694,3 +705,25 @@ def test_table_asset_compiles_alone():
         # legs reach the floor (z = -0.7) from the underside of the top (z = -0.04)
         assert model.geom_pos[g][2] - model.geom_size[g][2] == pytest.approx(-0.7, abs=TOL)
         assert model.geom_pos[g][2] + model.geom_size[g][2] == pytest.approx(-0.04, abs=TOL)
+
+
+@pytest.mark.parametrize(
+    ("spec_kw", "pattern"),
+    [
+        ({"robots": [None]}, r"SceneSpec\.robots\[0\] must be a RobotSpec"),
+        ({"objects": "table"}, r"SceneSpec\.objects must be a list of SceneObject"),
+        ({"cameras": [mjk.SceneObject()]}, r"SceneSpec\.cameras\[0\] must be a CameraSpec"),
+    ],
+)
+def test_spec_lists_hold_the_right_types(spec_kw, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        _build(base_spec(**spec_kw))
+
+
+def test_robot_prefix_and_target_name_types():
+    gen3 = menagerie("kinova_gen3")
+    with pytest.raises(ValueError, match=r"robots\[0\]\.prefix must be a string"):
+        _build(base_spec(robots=[mjk.RobotSpec(path=gen3, prefix=None)]))
+    target = mjk.AttachTarget(mjk.AttachKind.Site, None)
+    with pytest.raises(ValueError, match=r"robots\[0\]\.attach_to\.name must be a string"):
+        _build(base_spec(robots=[mjk.RobotSpec(path=gen3, attach_to=target)]))

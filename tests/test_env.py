@@ -320,3 +320,23 @@ def test_reset_into_torque_mode_reads_no_leftover_servo_force(env_robot) -> None
     robot.ctrl_mode = mjk.CtrlMode.TORQUE
     env.reset(mjk.ResetOptions(keyframe="home", use_keyframe=True))
     assert np.array_equal(robot.jnt_trq_msr, np.zeros(7))
+
+
+def test_gravity_stays_finite_when_a_hook_reads_before_forward(env_robot) -> None:
+    env, robot = env_robot
+    j = env.model.joint("g_right_driver_joint").id
+    env.data.qpos[env.model.jnt_qposadr[j]] = 0.5  # fingers away from where reset puts them
+    env.forward()
+    robot.update()
+    robot.gravity_torques()
+
+    def hook(ctx: mjk.ResetContext) -> None:
+        robot.set_joint_pos(HOME, call_forward=False)
+        robot.fk_frame()  # reads before MuJoCo has forwarded the reset data
+
+    env.on_reset = hook
+    env.reset()
+    robot.update()
+    g = robot.gravity_torques()
+    assert np.isfinite(g).all()
+    assert np.allclose(g, env.data.qfrc_bias[:7], rtol=0, atol=1e-9)

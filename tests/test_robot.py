@@ -414,3 +414,96 @@ def test_every_robots_commands_apply_in_the_same_step() -> None:
         a.step()  # steps the scene: b's command goes out in this step too
         assert scene.data.qfrc_actuator[:7].tolist() == [1.0] * 7
         assert scene.data.qfrc_actuator[7:14].tolist() == [2.0] * 7
+
+
+def test_second_handle_reads_but_may_not_drive_the_same_joints(gen3) -> None:
+    scene, first = gen3
+    first.ctrl_mode = mjk.CtrlMode.TORQUE
+    first.update()
+    reader = scene.create_robot("base_link", "half_arm_2_link")
+    reader.set_joint_pos(reader.jnt_pos_msr)  # reading and setting state is fine
+    assert reader.fk_frame().translation.shape == (3,)
+    with pytest.raises(ValueError, match="already driven by the Robot 'base_link'"):
+        reader.update()
+    assert scene.model.actuator_gainprm[0, 0] == 1.0  # the first handle's TORQUE mode stands
+
+
+def test_mode_change_then_step_applies_the_new_mode(gen3) -> None:
+    scene, robot = gen3
+    robot.update()  # POSITION
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.jnt_trq_cmd = np.full(7, 0.5)
+    robot.step()
+    assert scene.data.qfrc_actuator[:7].tolist() == [0.5] * 7
+
+
+def test_unused_handle_leaves_actuators_alone(tutorial_scene) -> None:
+    scene = tutorial_scene()
+    authored = scene.model.actuator_biasprm[:7].copy()
+    scene.data.ctrl[:7] = HOME
+    robot = scene.create_robot("base_link", "bracelet_link")
+    scene.step(5)
+    robot.fk_frame()
+    assert np.array_equal(scene.model.actuator_biasprm[:7], authored)
+    assert np.array_equal(scene.data.ctrl[:7], HOME)
+
+
+def test_gravity_override_must_be_a_finite_number(gen3) -> None:
+    _, robot = gen3
+    for bad in ("abc", np.nan, None if False else np.inf):
+        with pytest.raises(ValueError, match="gravity_z must be a finite number"):
+            robot.gravity_torques(bad)
+
+
+def test_ft_sensor_kind_is_checked(tmp_path) -> None:
+    tool_xml = tmp_path / "ft_tool.xml"
+    tool_xml.write_text(FT_TOOL)
+    ft = mjk.AttachmentSpec(
+        mjcf_path=str(tool_xml),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site"),
+        prefix="ft_",
+    )
+    scene = mjk.Scene.build(base_spec(robots=[mjk.RobotSpec(path=menagerie("kinova_gen3"),
+                                                            attachments=[ft])]))
+    swapped = mjk.ForceTorqueSensorSpec(
+        name="wrist", force_sensor="ft_torque", torque_sensor="ft_force"
+    )
+    with pytest.raises(ValueError, match="'ft_torque' is not a force sensor"):
+        scene.create_robot(
+            "base_link", "bracelet_link", tool=mjk.ToolFrameSpec(ft_sensors=[swapped])
+        )
+    scene.close()
+
+
+UNNAMED = """
+<mujoco>
+  <worldbody>
+    <body name="base">
+      <body pos="0 0 0.1">
+        <joint axis="0 0 1"/>
+        <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.02"/>
+        <body pos="0.5 0 0">
+          <joint axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+          <body name="tip" pos="0.3 0 0">
+            <body pos="0.01 0 0.1">
+              <geom type="sphere" size="0.02"/>
+              <site name="tcp"/>
+            </body>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_unnamed_bodies_keep_the_tcp_where_mujoco_has_it(tmp_path) -> None:
+    path = tmp_path / "unnamed.xml"
+    path.write_text(UNNAMED)
+    with mjk.Scene.build(base_spec(robots=[mjk.RobotSpec(path=str(path))])) as scene:
+        robot = scene.create_robot("base", "tip", tool=mjk.ToolFrameSpec(tcp_site="tcp"))
+        robot.set_joint_pos([0.4, -0.3])
+        site = scene.data.site_xpos[scene.site_id("tcp")]
+        assert np.abs(robot.fk_frame().translation - site).max() < 1e-12

@@ -1,0 +1,435 @@
+"""Offscreen MP4 recording of a scene: `mujoco.Renderer` in, H.264 through imageio-ffmpeg out.
+
+Frames follow simulation time, not calls: call `record_frame()` after every step and the
+recorder keeps one frame per 1/fps simulated seconds, so N simulated seconds make an N-second
+video at any timestep. Encoding (imageio-ffmpeg's own ffmpeg, libx264, yuv420p) runs on a
+background thread behind a small bounded queue, so it overlaps with rendering.
+
+Headless machines: set ``MUJOCO_GL=egl`` before importing mujoco (or mjkdl). When MuJoCo picked
+its GLFW backend and there is no X display, the recorder renders through EGL anyway.
+
+Quality vs speed: shadows and reflections (MuJoCo's ``mjRND_SHADOW``/``mjRND_REFLECTION`` scene
+flags) are on by default and cost most of the render time on software OpenGL (Mesa llvmpipe):
+at 1280x720 about 5-6 frames/s with both on against 18-19 with both off
+(`benchmarks/record.py`). Pass ``shadows=False, reflections=False`` for fast previews.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import enum
+import math
+import os
+import queue
+import sys
+import threading
+import weakref
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import imageio_ffmpeg
+import mujoco
+import numpy as np
+
+from .errors import MjkdlError, SpecError, unknown_name
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+    from .scene import Scene
+
+# libx264 "ultrafast": the encoder must not take CPU from software rendering (benchmarks/record.py).
+_X264_PARAMS = ["-preset", "ultrafast", "-crf", "23"]
+_QUEUE_FRAMES = 4
+_EPS = 1e-6
+
+
+class VideoWriteError(MjkdlError, OSError):
+    """The video cannot be written: missing folder, no permission, or the encoder failed."""
+
+
+class OffscreenRenderError(MjkdlError, RuntimeError):
+    """No OpenGL context for offscreen rendering could be created on this machine."""
+
+
+class VideoResolution(enum.Enum):
+    """Preset frame sizes (16:9), as (width, height)."""
+
+    R480p = (854, 480)
+    R720p = (1280, 720)
+    R1080p = (1920, 1080)
+
+    @property
+    def width(self) -> int:
+        return self.value[0]
+
+    @property
+    def height(self) -> int:
+        return self.value[1]
+
+
+def offscreen_renderer(
+    model: mujoco.MjModel,
+    width: int,
+    height: int,
+    *,
+    shadows: bool = True,
+    reflections: bool = True,
+) -> mujoco.Renderer:
+    """A `mujoco.Renderer` of `width`x`height` with the given quality flags.
+
+    Checks the size against the model's offscreen buffer and falls back to EGL when MuJoCo's
+    GLFW backend has no display; raises `OffscreenRenderError` when no context can be made.
+    """
+    for field, value, limit, attr in (
+        ("width", width, model.vis.global_.offwidth, "offwidth"),
+        ("height", height, model.vis.global_.offheight, "offheight"),
+    ):
+        if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value <= 0:
+            raise SpecError(f"{field} must be a positive integer, got {value!r}")
+        if value > limit:
+            raise SpecError(
+                f"{field} {value} exceeds the model's offscreen buffer ({attr} = {limit}); "
+                f"use a smaller size or raise model.vis.global_.{attr} (<visual><global "
+                f'{attr}="..."/> in MJCF)'
+            )
+    try:
+        with _headless_backend():
+            renderer = mujoco.Renderer(model, height=int(height), width=int(width))
+    except mujoco.FatalError as err:
+        backend = os.environ.get("MUJOCO_GL") or "default (glfw)"
+        raise OffscreenRenderError(
+            f"cannot create an OpenGL context for offscreen rendering (MUJOCO_GL={backend}): "
+            f"{err}. On a machine without a display set MUJOCO_GL=egl (or osmesa) before "
+            "importing mujoco or mjkdl."
+        ) from None
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = bool(shadows)
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = bool(reflections)
+    return renderer
+
+
+_BACKEND_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _headless_backend() -> Iterator[None]:
+    """Make `mujoco.Renderer` use EGL while created, if its GLFW backend has no display.
+
+    MuJoCo fixes its offscreen GL backend from MUJOCO_GL when `mujoco` is imported and the
+    Renderer reads it from `mujoco.rendering.classic.gl_context.GLContext` at construction.
+    """
+    from mujoco.rendering.classic import gl_context
+
+    chosen = getattr(gl_context, "GLContext", None)
+    headless = not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY")
+    glfw_backend = getattr(chosen, "__module__", "") == "mujoco.glfw"
+    if not (sys.platform.startswith("linux") and glfw_backend and headless):
+        yield
+        return
+    try:
+        from mujoco.egl import GLContext as egl_context
+    except ImportError:  # no libEGL or PyOpenGL bound to another platform: keep MuJoCo's choice
+        yield
+        return
+    with _BACKEND_LOCK:
+        gl_context.GLContext = egl_context
+        try:
+            yield
+        finally:
+            gl_context.GLContext = chosen
+
+
+def _output_path(path: str | os.PathLike[str]) -> Path:
+    p = Path(path).expanduser()
+    if p.suffix.lower() != ".mp4":
+        raise SpecError(f"video path must end in .mp4, got {str(path)!r}")
+    folder = p.parent.resolve()
+    if not folder.is_dir():
+        raise VideoWriteError(
+            f"cannot write video {str(p)!r}: folder {str(folder)!r} does not exist"
+        )
+    if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise VideoWriteError(f"cannot write video {str(p)!r}: permission denied")
+    return p
+
+
+class _FrameClock:
+    """How many frames are due at a simulation time: one per 1/fps simulated seconds.
+
+    The first call is always due; a jump back in time (a reset) starts a new segment.
+    """
+
+    def __init__(self, fps: float) -> None:
+        self._fps = fps
+        self._t0: float | None = None
+        self._n0 = 0
+        self._last = 0.0
+
+    def due(self, t: float, written: int) -> int:
+        if self._t0 is None or t < self._last:
+            self._t0, self._n0 = t, written
+        self._last = t
+        target = self._n0 + math.floor((t - self._t0) * self._fps + _EPS) + 1
+        return max(0, target - written)
+
+
+class _Encoder:
+    """H.264 writer (imageio-ffmpeg) fed by a daemon thread from a bounded frame queue."""
+
+    def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
+        self._writer = imageio_ffmpeg.write_frames(
+            str(path),
+            (width, height),
+            fps=fps,
+            codec="libx264",
+            pix_fmt_in="rgb24",
+            pix_fmt_out="yuv420p",
+            quality=None,
+            macro_block_size=1,
+            ffmpeg_log_level="error",
+            output_params=_X264_PARAMS,
+        )
+        self._writer.send(None)  # starts ffmpeg
+        self._queue: queue.Queue[np.ndarray | None] = queue.Queue(maxsize=_QUEUE_FRAMES)
+        self._error: Exception | None = None
+        self._thread = threading.Thread(target=self._run, name="mjkdl-video-encoder", daemon=True)
+        self._thread.start()
+
+    def put(self, frame: np.ndarray, copies: int) -> None:
+        self._raise_error()
+        for _ in range(copies):
+            self._queue.put(frame)
+
+    def close(self) -> None:
+        """Flush the queue, finalise the MP4 and re-raise an encoder failure, if any."""
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join()
+        self._writer.close()
+        self._raise_error()
+
+    def _run(self) -> None:
+        while (frame := self._queue.get()) is not None:
+            if self._error is None:
+                try:
+                    self._writer.send(frame)
+                except Exception as err:  # ffmpeg died: keep draining so put() never blocks
+                    self._error = err
+
+    def _raise_error(self) -> None:
+        if self._error is not None:
+            err, self._error = self._error, None
+            raise VideoWriteError(f"video encoder failed: {err}") from err
+
+
+class VideoRecorder:
+    """Records what a camera sees in a `Scene` into an H.264 MP4, sampled by simulation time.
+
+    Open with `VideoRecorder.open` or `VideoRecorder.open_preset`; call `record_frame()` after
+    stepping; `close()` (or leave the `with` block, also on an exception) finalises the file.
+    The default camera is MuJoCo's free camera; `use_camera(name)` picks a model camera.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        path: Path,
+        width: int,
+        height: int,
+        fps: float,
+        shadows: bool,
+        reflections: bool,
+    ) -> None:
+        self._scene = scene
+        self._path = path
+        self._width, self._height, self._fps = width, height, fps
+        self._flags = {"shadows": shadows, "reflections": reflections}
+        self._model = scene.model
+        self._renderer = offscreen_renderer(self._model, width, height, **self._flags)
+        self._camera_name = ""
+        self._camera = self._make_camera("")
+        self._option: mujoco.MjvOption | None = None
+        self._overlay: Callable[[mujoco.MjvScene], None] | None = None
+        self._clock = _FrameClock(fps)
+        self._frames = 0
+        try:
+            self._encoder: _Encoder | None = _Encoder(path, width, height, fps)
+        except BaseException:
+            self._renderer.close()
+            raise
+        # Finalise the file at interpreter exit if the user never closes the recorder.
+        self._finalizer = weakref.finalize(self, _Encoder.close, self._encoder)
+
+    @classmethod
+    def open(
+        cls,
+        scene: Scene,
+        path: str | os.PathLike[str],
+        width: int,
+        height: int,
+        fps: float = 30.0,
+        *,
+        shadows: bool = True,
+        reflections: bool = True,
+    ) -> Self:
+        """Start an MP4 of `width`x`height` (even numbers, within the model's offscreen buffer)
+        at `fps` frames per simulated second. The folder must exist and be writable."""
+        from .scene import Scene
+
+        if not isinstance(scene, Scene):
+            raise SpecError(f"VideoRecorder needs a Scene or Env, got {type(scene).__name__}")
+        if scene.closed:
+            raise RuntimeError("VideoRecorder.open: the scene is closed")
+        for field, value in (("width", width), ("height", height)):
+            if isinstance(value, (int, np.integer)) and value > 0 and value % 2:
+                raise SpecError(f"{field} must be even for H.264 yuv420p video, got {value}")
+        try:
+            rate = float(fps)
+        except (TypeError, ValueError):
+            rate = float("nan")
+        if not (math.isfinite(rate) and rate > 0):
+            raise SpecError(f"fps must be a positive number, got {fps!r}")
+        out = _output_path(path)
+        return cls(scene, out, width, height, rate, bool(shadows), bool(reflections))
+
+    @classmethod
+    def open_preset(
+        cls,
+        scene: Scene,
+        path: str | os.PathLike[str],
+        resolution: VideoResolution,
+        fps: float = 60.0,
+        *,
+        shadows: bool = True,
+        reflections: bool = True,
+    ) -> Self:
+        """`open` with the frame size of a `VideoResolution` preset."""
+        if not isinstance(resolution, VideoResolution):
+            raise SpecError(f"resolution must be a VideoResolution, got {resolution!r}")
+        return cls.open(
+            scene,
+            path,
+            resolution.width,
+            resolution.height,
+            fps,
+            shadows=shadows,
+            reflections=reflections,
+        )
+
+    # ------------------------------------------------------------------ properties
+
+    @property
+    def path(self) -> Path:
+        """The MP4 being written."""
+        return self._path
+
+    @property
+    def fps(self) -> float:
+        """Frames per simulated second (and the video's playback rate)."""
+        return self._fps
+
+    @property
+    def frames_written(self) -> int:
+        """Frames sent to the video so far."""
+        return self._frames
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` was called."""
+        return self._encoder is None
+
+    # ------------------------------------------------------------------ camera
+
+    def use_camera(self, name: str) -> None:
+        """Record through model camera `name`; "" selects MuJoCo's free camera."""
+        self._check_open()
+        self._camera = self._make_camera(name)
+        self._camera_name = name
+        self._option = None
+        self._overlay = None
+
+    def follow_view(
+        self,
+        camera: mujoco.MjvCamera,
+        option: mujoco.MjvOption | None = None,
+        overlay: Callable[[mujoco.MjvScene], None] | None = None,
+    ) -> None:
+        """Record through a live `MjvCamera` (a viewer's), with its visualisation options;
+        `overlay(scene)` may append extra geoms (a trace) after each scene update."""
+        self._check_open()
+        self._camera, self._option, self._overlay = camera, option, overlay
+
+    def _make_camera(self, name: str) -> mujoco.MjvCamera:
+        model = self._model
+        cam = mujoco.MjvCamera()
+        if name == "":
+            mujoco.mjv_defaultFreeCamera(model, cam)
+            return cam
+        cid = (
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name)
+            if isinstance(name, str)
+            else -1
+        )
+        if cid < 0:
+            known = [model.camera(i).name for i in range(model.ncam)]
+            raise unknown_name("camera", str(name), known, where="the scene")
+        cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        cam.fixedcamid = cid
+        return cam
+
+    # ------------------------------------------------------------------ recording
+
+    def record_frame(self) -> bool:
+        """Capture the current state if a frame is due at this simulation time.
+
+        Returns whether a frame was rendered. When the simulation advanced by several frame
+        periods since the last capture, the frame is repeated so the video keeps real speed.
+        """
+        self._check_open()
+        if self._scene.closed:
+            raise RuntimeError("VideoRecorder.record_frame: the scene is closed")
+        data = self._scene.data
+        copies = self._clock.due(float(data.time), self._frames)
+        if copies == 0:
+            return False
+        if self._scene.model is not self._model:
+            self._rebind()
+        renderer = self._renderer
+        renderer.update_scene(data, camera=self._camera, scene_option=self._option)
+        if self._overlay is not None:
+            self._overlay(renderer.scene)
+        self._encoder.put(renderer.render(), copies)
+        self._frames += copies
+        return True
+
+    def _rebind(self) -> None:
+        """Follow a scene rebuilt by add_object/remove_object: new model, new GL context."""
+        self._renderer.close()
+        self._model = self._scene.model
+        self._renderer = offscreen_renderer(self._model, self._width, self._height, **self._flags)
+        if self._option is None:
+            self._camera = self._make_camera(self._camera_name)
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def close(self) -> None:
+        """Finalise the MP4 (waits for the encoder) and free the renderer; idempotent."""
+        if self._encoder is None:
+            return
+        self._encoder = None
+        try:
+            self._finalizer()
+        finally:
+            self._renderer.close()
+
+    def __enter__(self) -> Self:
+        self._check_open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _check_open(self) -> None:
+        if self._encoder is None:
+            raise RuntimeError("this VideoRecorder is closed")

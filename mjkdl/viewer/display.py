@@ -1,0 +1,61 @@
+"""Whether a window can open here, and the error that says what to do instead."""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import sys
+
+from ..errors import MjkdlError
+
+_ALTERNATIVES = (
+    "run without a window (the examples' --headless) and record with mjk.VideoRecorder "
+    "(MUJOCO_GL=egl), or start a virtual display: Xvfb :99 -screen 0 1280x1024x24 & "
+    "export DISPLAY=:99"
+)
+
+
+class NoDisplayError(MjkdlError, RuntimeError):
+    """No display to open the viewer window on (or, on macOS, not running under mjpython)."""
+
+
+def require_display() -> None:
+    """Raise `NoDisplayError` unless an X (or Wayland) display can be opened.
+
+    MuJoCo's viewer thread ends the whole process (`mju_error`) when GLFW cannot start, so the
+    display is probed here first.
+    """
+    if sys.platform == "darwin" or sys.platform.startswith("win"):
+        return
+    wayland = os.environ.get("PYGLFW_LIBRARY_VARIANT", "").lower() == "wayland"
+    if wayland and os.environ.get("WAYLAND_DISPLAY"):
+        return
+    name = os.environ.get("DISPLAY", "")
+    if not name:
+        raise NoDisplayError(
+            f"SimulateViewer needs a display and DISPLAY is not set: {_ALTERNATIVES}"
+        )
+    if not _x_display_opens(name):
+        raise NoDisplayError(f"SimulateViewer cannot open display {name!r}: {_ALTERNATIVES}")
+
+
+def no_display(reason: str) -> NoDisplayError:
+    """The error for a window that failed to open for `reason`, with what to do instead."""
+    return NoDisplayError(f"SimulateViewer could not open a window ({reason}): {_ALTERNATIVES}")
+
+
+def _x_display_opens(name: str) -> bool:
+    """Open and close X display `name` through libX11 (True when libX11 is not found)."""
+    lib = ctypes.util.find_library("X11")
+    if lib is None:
+        return True
+    x11 = ctypes.CDLL(lib)
+    x11.XOpenDisplay.restype = ctypes.c_void_p
+    x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    handle = x11.XOpenDisplay(name.encode())
+    if not handle:
+        return False
+    x11.XCloseDisplay(handle)
+    return True

@@ -1,0 +1,410 @@
+"""SimulateViewer: MuJoCo's passive viewer, stepped by the user's own control loop."""
+
+from __future__ import annotations
+
+import atexit
+import re
+import time
+import warnings
+from collections import deque
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+
+from ..errors import MjkdlError, SpecError, unknown_name
+from ..record import VideoRecorder, offscreen_renderer
+from ..robot import Robot
+from ..scene import Env, Scene
+from . import overlays as ov
+from .pacing import Pacer
+from .plots import Signal, SignalPlots
+from .trace import Trace
+from .window import Window
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+# Window refreshes: 60 per wall second and per simulated second (as MuJoCo's own viewer at
+# real time). Each refresh also renews the mouse-perturbation force, so it must not go stale
+# over many simulated steps when running faster than real time.
+_SYNC_PERIOD = 1.0 / 60.0
+_FULL_SYNC_PERIOD = 1.0
+_OVERLAY_PERIOD = 0.1
+_CLOSE_TIMEOUT = 5.0
+
+
+class SimulateViewer:
+    """An interactive window on a scene whose physics only the user's loop advances.
+
+    ``viewer = SimulateViewer.open(robot, "title")``, then per control period: read the state,
+    write commands, ``viewer.step()`` (one timestep, through ``robot.step()`` so pending
+    commands apply). MuJoCo's passive viewer never steps physics itself. The window is
+    refreshed at most 60 times per wall second; `realtime_factor` paces the loop.
+
+    Keys (besides MuJoCo's own; F1 lists those): F8 body/site frames, F9 trace, F10
+    real-time factor and time, F11 plots, F12 start/stop an MP4 of the view, Backspace reset
+    (`Env.reset()` with its hook, on your thread at the next `step()`). Mouse perturbation
+    (double-click a body, Ctrl+drag) is MuJoCo's: the window writes the spring force into
+    ``data.xfrc_applied`` at each refresh, so that field is the window's while it is open.
+
+    Needs a display (Linux: X11 or Xvfb); without one `open` raises `NoDisplayError`. On
+    macOS run the script with ``mjpython`` (MuJoCo's launcher), as `launch_passive` requires.
+    """
+
+    def __init__(self, scene: Scene, robot: Robot | None, title: str) -> None:
+        self._scene, self._robot, self._title = scene, robot, title
+        self._keys: deque[int] = deque()
+        self._overlays = ov.Overlays()
+        self._pacer = Pacer(1.0)
+        self._plots = SignalPlots()
+        if robot is not None:
+            names = robot.joint_names
+            self._plots.add("joint positions [rad]", lambda: robot.jnt_pos_msr, names)
+            self._plots.add("joint torques [Nm]", lambda: robot.jnt_trq_msr, names)
+        self._recorder: VideoRecorder | None = None
+        self._record_error: str | None = None
+        self._shot: mujoco.Renderer | None = None
+        self._sync_due = self._full_sync_due = self._overlay_due = 0.0
+        self._synced_time = -np.inf
+        self._closed = False
+        self._model = scene.model
+        self._window = Window.launch(self._model, scene.data, self._on_key)
+        atexit.register(self._window.close)
+        self._trace = Trace(self._window.handle.user_scn)
+        self._push_overlays()
+
+    @classmethod
+    def open(cls, robot_or_scene: Robot | Scene, title: str = "mjkdl") -> Self:
+        """Open a window on a Robot's scene (plotting its joint positions and torques) or on
+        a Scene/Env. Raises `NoDisplayError` when no window can be opened here."""
+        if isinstance(robot_or_scene, Robot):
+            robot = robot_or_scene
+            robot.n_joints  # noqa: B018  (a closed scene raises RuntimeError)
+            scene = robot._scene  # Robot has no public accessor for its owner
+        elif isinstance(robot_or_scene, Scene):
+            robot, scene = None, robot_or_scene
+        else:
+            kind = type(robot_or_scene).__name__
+            raise SpecError(f"SimulateViewer.open takes a Robot, Scene or Env, got {kind}")
+        if scene.closed:
+            raise RuntimeError("SimulateViewer.open: the scene is closed")
+        return cls(scene, robot, str(title))
+
+    @property
+    def handle(self):  # mujoco.viewer.Handle (mujoco.viewer is imported only when opening)
+        """MuJoCo's viewer handle (`cam`, `opt`, `perturb`, `user_scn`), for what mjkdl does
+        not wrap. Replaced when the scene is rebuilt (the window reopens on the new model)."""
+        return self._window.handle
+
+    # ------------------------------------------------------------------ loop
+
+    @property
+    def realtime_factor(self) -> float:
+        """Pacing of `step()`: 1.0 real time, 0.5 half speed, 0.0 as fast as possible."""
+        return self._pacer.factor
+
+    @realtime_factor.setter
+    def realtime_factor(self, value: float) -> None:
+        self._pacer.factor = value
+
+    @property
+    def measured_realtime_factor(self) -> float | None:
+        """Real-time factor achieved over the last half second (None until measured)."""
+        return self._pacer.measured
+
+    def is_running(self) -> bool:
+        """Whether the window is open."""
+        return not self._closed and self._window.is_running()
+
+    def step(self) -> bool:
+        """Advance one timestep (through the robot when opened on one), refresh the window,
+        pace to `realtime_factor`; False, without stepping, once the window is closed."""
+        self._check_open()
+        if not self._window.is_running():
+            return False
+        if self._scene.model is not self._model:
+            self._relaunch()
+        if self._robot is not None:
+            self._robot.step()
+        else:
+            self._scene.step()
+        t = self._scene.time()
+        self._plots.sample(t)
+        reset = self._handle_keys()
+        opt = self._window.handle.opt
+        if opt.frame != self._overlays.frames:
+            opt.frame = self._overlays.frames
+        now = time.perf_counter()
+        if reset or now >= self._sync_due or abs(t - self._synced_time) >= _SYNC_PERIOD:
+            self._sync(now)  # also applies MuJoCo's own pending Backspace reset
+        if reset:
+            self._reset()
+            self._sync(now)
+        if self._recorder is not None:
+            self._recorder.record_frame()
+        if now >= self._overlay_due:
+            self._push_overlays()
+            self._overlay_due = now + _OVERLAY_PERIOD
+        self._pacer.pace(self._scene.time())
+        return self._window.is_running()
+
+    def _on_key(self, key: int) -> None:
+        """GLFW key callback: runs on the window thread, so it only queues the key."""
+        self._keys.append(key)
+
+    def _handle_keys(self) -> bool:
+        """Apply queued keys on the user's thread; True when a reset was asked for."""
+        reset = False
+        while self._keys:
+            key = self._keys.popleft()
+            self._overlay_due = 0.0
+            if key == ov.KEY_FRAMES:
+                self._overlays.frames = int(self._window.handle.opt.frame)  # F6 may have moved it
+                self._overlays.cycle_frames()
+            elif key == ov.KEY_TRACE:
+                self._overlays.trace = not self._overlays.trace
+            elif key == ov.KEY_STATS:
+                self._overlays.stats = not self._overlays.stats
+            elif key == ov.KEY_PLOTS:
+                self._overlays.plots = not self._overlays.plots
+            elif key == ov.KEY_RECORD:
+                self._toggle_recording()
+            elif key == ov.KEY_RESET:
+                reset = True
+        return reset
+
+    def _sync(self, now: float) -> None:
+        full = now >= self._full_sync_due
+        self._window.sync(full, hide_user_geoms=not self._overlays.trace)
+        self._sync_due = now + _SYNC_PERIOD
+        self._synced_time = self._scene.time()
+        if full:
+            self._full_sync_due = now + _FULL_SYNC_PERIOD
+
+    def _reset(self) -> None:
+        scene = self._scene
+        if isinstance(scene, Env):
+            scene.reset()
+            return
+        mujoco.mj_resetData(scene.model, scene.data)
+        mujoco.mj_forward(scene.model, scene.data)
+        if self._robot is not None:
+            self._robot.sync_commands()
+
+    # ------------------------------------------------------------------ camera
+
+    def use_camera(self, name: str) -> None:
+        """Look through model camera `name`; "" returns to the free (mouse-driven) camera."""
+        self._check_open()
+        cam = self._window.handle.cam
+        if name == "":
+            cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+            return
+        cid = self._camera_id(name)
+        cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        cam.fixedcamid = cid
+
+    def _camera_id(self, name: str) -> int:
+        model = self._scene.model
+        cid = (
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name)
+            if isinstance(name, str)
+            else -1
+        )
+        if cid < 0:
+            raise unknown_name("camera", str(name), self._scene.camera_names(), where="the scene")
+        return cid
+
+    # ------------------------------------------------------------------ overlays
+
+    @property
+    def overlays(self) -> ov.Overlays:
+        """The overlay switches, which the keys flip: `frames` (`mjtFrame`: none, body or
+        site axes), `trace`, `stats` (time and real-time factor), `plots`."""
+        return self._overlays
+
+    def clear_trace(self) -> None:
+        """Remove every trace segment."""
+        self._check_open()
+        self._trace.clear()
+
+    def add_trace_segment(
+        self, a: Sequence[float], b: Sequence[float], rgba: Sequence[float]
+    ) -> bool:
+        """Draw a world-frame segment `a`-`b`; False (nothing drawn) once the user scene's
+        buffer (`user_scn.maxgeom`) is full, so keep traces bounded."""
+        self._check_open()
+        return self._trace.add(a, b, rgba)
+
+    @property
+    def trace_capacity(self) -> int:
+        """Most trace segments the window holds at once."""
+        return self._trace.capacity
+
+    def add_signal(self, name: str, fn: Signal, labels: Sequence[str] | None = None) -> None:
+        """Plot `fn()` (a float array, one line per entry) live against simulation time."""
+        self._plots.add(name, fn, labels)
+
+    def remove_signal(self, name: str) -> None:
+        """Stop plotting signal `name` (the defaults included)."""
+        self._plots.remove(name)
+
+    @property
+    def signal_names(self) -> list[str]:
+        """Plotted signals, in order."""
+        return self._plots.names
+
+    def _push_overlays(self) -> None:
+        recording = None
+        if self._recorder is not None:
+            recording = f"{self._recorder.path.name} ({self._recorder.frames_written} frames)"
+        elif self._record_error is not None:
+            recording = f"failed: {self._record_error}"
+        texts = ov.texts(
+            self._overlays,
+            self._title,
+            self._scene.time(),
+            self._pacer.measured,
+            self._pacer.factor,
+            recording,
+        )
+        viewport = self._window.handle.viewport
+        show_plots = self._overlays.plots and viewport is not None
+        self._window.show(texts, self._plots.figures(viewport) if show_plots else [])
+
+    def _draw_trace(self, scene: mujoco.MjvScene) -> None:
+        if self._overlays.trace:
+            self._trace.draw_into(scene)
+
+    # ------------------------------------------------------------------ images
+
+    def screenshot(self, width: int = 640, height: int = 480) -> np.ndarray:
+        """An RGB image (height, width, 3) of what the window's camera sees, trace included,
+        rendered offscreen."""
+        self._check_open()
+        model = self._scene.model
+        shot = self._shot
+        if shot is None or shot.model is not model or (shot.width, shot.height) != (width, height):
+            if shot is not None:
+                shot.close()
+            self._shot = shot = offscreen_renderer(model, width, height)
+        handle = self._window.handle
+        shot.update_scene(self._scene.data, camera=handle.cam, scene_option=handle.opt)
+        self._draw_trace(shot.scene)
+        return shot.render()
+
+    @property
+    def recording(self) -> bool:
+        """Whether the view is being recorded (F12 or `start_recording`)."""
+        return self._recorder is not None
+
+    def start_recording(
+        self,
+        path: str | Path | None = None,
+        width: int = 1280,
+        height: int = 720,
+        fps: float = 30.0,
+        *,
+        shadows: bool = True,
+        reflections: bool = True,
+    ) -> Path:
+        """Record what the window's camera shows to an MP4 (frames by simulation time, as
+        `VideoRecorder`); default path ``<title>-<date>-<time>.mp4`` in the working folder.
+        Rendering offscreen slows the loop: on software OpenGL turn shadows/reflections off."""
+        self._check_open()
+        if self._recorder is not None:
+            return self._recorder.path
+        if path is None:
+            slug = re.sub(r"[^A-Za-z0-9_.-]+", "_", self._title).strip("_") or "mjkdl"
+            path = Path.cwd() / f"{slug}-{time.strftime('%Y%m%d-%H%M%S')}.mp4"
+        recorder = VideoRecorder.open(
+            self._scene, path, width, height, fps, shadows=shadows, reflections=reflections
+        )
+        handle = self._window.handle
+        recorder.follow_view(handle.cam, handle.opt, self._draw_trace)
+        self._recorder, self._record_error = recorder, None
+        recorder.record_frame()
+        return recorder.path
+
+    def stop_recording(self) -> Path | None:
+        """Finalise the MP4 being recorded; its path (None when not recording)."""
+        recorder, self._recorder = self._recorder, None
+        if recorder is None:
+            return None
+        recorder.close()
+        return recorder.path
+
+    def _toggle_recording(self) -> None:
+        if self._recorder is not None:
+            self.stop_recording()
+            return
+        try:
+            self.start_recording()
+        except (MjkdlError, OSError) as err:  # from a key press: report, do not end the loop
+            self._record_error = str(err)
+            warnings.warn(f"SimulateViewer: recording did not start: {err}", stacklevel=3)
+
+    # ------------------------------------------------------------------ rebuilds
+
+    def _relaunch(self) -> None:
+        """The scene was rebuilt (add_object/remove_object): reopen the window on the new
+        model, keeping the camera, overlays, trace and recording."""
+        old_model, old = self._model, self._window
+        cam = old.handle.cam
+        fixed = (
+            old_model.camera(cam.fixedcamid).name
+            if cam.type == mujoco.mjtCamera.mjCAMERA_FIXED
+            else None
+        )
+        view = (int(cam.type), cam.lookat.copy(), cam.distance, cam.azimuth, cam.elevation)
+        atexit.unregister(old.close)
+        old.close(_CLOSE_TIMEOUT)
+        self._model = self._scene.model
+        self._window = Window.launch(self._model, self._scene.data, self._on_key)
+        atexit.register(self._window.close)
+        handle = self._window.handle
+        new = handle.cam
+        new.lookat[:], new.distance, new.azimuth, new.elevation = view[1:]
+        if fixed is not None:
+            self.use_camera(fixed)
+        elif view[0] != mujoco.mjtCamera.mjCAMERA_FIXED:
+            new.type = view[0]
+        handle.opt.frame = self._overlays.frames
+        self._trace.rebind(handle.user_scn)
+        if self._recorder is not None:
+            self._recorder.follow_view(handle.cam, handle.opt, self._draw_trace)
+        self._sync_due = self._full_sync_due = self._overlay_due = 0.0
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def close(self) -> None:
+        """Finalise a recording, close the window and wait (at most 5 s) for its thread."""
+        if self._closed:
+            return
+        self._closed = True
+        atexit.unregister(self._window.close)
+        try:
+            self.stop_recording()
+        finally:
+            if self._shot is not None:
+                self._shot.close()
+                self._shot = None
+            if not self._window.close(_CLOSE_TIMEOUT):
+                warnings.warn(
+                    f"SimulateViewer: the window thread did not stop within {_CLOSE_TIMEOUT} s",
+                    stacklevel=2,
+                )
+
+    def __enter__(self) -> Self:
+        self._check_open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("this SimulateViewer is closed")

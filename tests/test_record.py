@@ -1,0 +1,208 @@
+"""VideoRecorder: MP4s that play at simulated speed, finalised on errors, clear failures."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from conftest import HOME, ROOT, base_spec, tutorial_spec
+
+import mjkdl as mjk
+
+FAST = {"shadows": False, "reflections": False}
+
+
+def _moving_env(timestep: float = 0.002) -> tuple[mjk.Env, mjk.Robot]:
+    """The tutorial scene with the arm servoing from its zero pose towards HOME."""
+    spec = tutorial_spec()
+    spec.timestep = timestep
+    env = mjk.Env.build(spec)
+    robot = env.create_robot("base_link", "bracelet_link")
+    robot.jnt_pos_cmd = np.array(HOME)
+    return env, robot
+
+
+def _read_video(path: Path) -> tuple[int, int, float, list[np.ndarray]]:
+    cap = cv2.VideoCapture(str(path))
+    assert cap.isOpened(), f"OpenCV cannot open {path}"
+    width = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
+    height = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+    fps = cap.get(cv2.CAP_PROP_FPS)
+    frames = []
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        frames.append(frame)
+    cap.release()
+    return width, height, fps, frames
+
+
+def test_one_simulated_second_is_one_second_of_video(tmp_path: Path) -> None:
+    env, robot = _moving_env()
+    path = tmp_path / "one_second.mp4"
+    with env, mjk.VideoRecorder.open(env, path, 1280, 720, 30, **FAST) as rec:
+        captured = []  # MuJoCo's free camera (the default) frames the whole arm
+        for _ in range(500):  # 1.0 s at 2 ms
+            robot.update()
+            robot.step()
+            captured.append(rec.record_frame())
+        assert rec.frames_written == 30
+        assert sum(captured) == 30 and captured[0]
+    width, height, fps, frames = _read_video(path)
+    assert (width, height) == (1280, 720)
+    assert fps == pytest.approx(30.0, abs=0.01)
+    assert abs(len(frames) - 30) <= 1
+    change = np.abs(frames[0].astype(int) - frames[-1].astype(int)).mean()
+    assert change > 1.0, f"first and last frames are alike (mean abs difference {change:.2f})"
+
+
+@pytest.mark.parametrize("timestep", [0.001, 0.005, 0.02])
+def test_frame_count_does_not_depend_on_the_timestep(tmp_path: Path, timestep: float) -> None:
+    spec = base_spec(timestep=timestep)
+    spec.objects = [
+        mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.05], pos=[0, 0, 1], mass=0.2)
+    ]
+    path = tmp_path / f"dt_{timestep}.mp4"
+    with mjk.Scene.build(spec) as scene:
+        rec = mjk.VideoRecorder.open_preset(scene, path, mjk.VideoResolution.R480p, fps=30, **FAST)
+        for _ in range(round(1.0 / timestep)):
+            scene.step()
+            rec.record_frame()
+        rec.close()
+    assert rec.frames_written == 30
+    width, height, _, frames = _read_video(path)
+    assert (width, height) == (854, 480)
+    assert abs(len(frames) - 30) <= 1
+
+
+def test_record_frame_samples_by_simulation_time(tmp_path: Path) -> None:
+    scene = mjk.Scene.build(base_spec())
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "clock.mp4", 320, 240, 10, **FAST) as rec:
+        assert rec.record_frame() is True  # the first call always captures
+        assert rec.record_frame() is False  # same simulation time
+        scene.step(49)  # 0.098 s: the next frame is due at 0.1 s
+        assert rec.record_frame() is False
+        scene.step()
+        assert rec.record_frame() is True
+        scene.data.time = 0.0  # time going back (a reset) starts a new segment at once
+        assert rec.record_frame() is True
+        assert rec.frames_written == 3
+
+
+def test_a_loop_that_raises_still_leaves_a_playable_file(tmp_path: Path) -> None:
+    env, robot = _moving_env()
+    path = tmp_path / "interrupted.mp4"
+    raised = pytest.raises(RuntimeError, match="controller failed")
+    with env, raised, mjk.VideoRecorder.open(env, path, 640, 360, 30, **FAST) as rec:
+        for i in range(500):
+            robot.update()
+            robot.step()
+            rec.record_frame()
+            if i == 249:
+                raise RuntimeError("controller failed")
+    assert rec.closed
+    width, height, _, frames = _read_video(path)
+    assert (width, height) == (640, 360)
+    assert abs(len(frames) - 15) <= 1
+
+
+def test_bad_output_paths_are_named(tmp_path: Path) -> None:
+    with mjk.Scene.build(base_spec()) as scene:
+        missing = tmp_path / "no_such_folder" / "out.mp4"
+        with pytest.raises(mjk.VideoWriteError, match="does not exist") as err:
+            mjk.VideoRecorder.open(scene, missing, 320, 240, 30)
+        assert isinstance(err.value, OSError) and "no_such_folder" in str(err.value)
+        if os.geteuid() == 0:
+            locked = Path("/proc/self")  # not writable, even for root
+        else:
+            locked = tmp_path / "locked"
+            locked.mkdir(mode=0o500)
+        with pytest.raises(mjk.VideoWriteError, match="permission denied"):
+            mjk.VideoRecorder.open(scene, locked / "out.mp4", 320, 240, 30)
+        with pytest.raises(mjk.SpecError, match=r"\.mp4"):
+            mjk.VideoRecorder.open(scene, tmp_path / "out.avi", 320, 240, 30)
+
+
+def test_unknown_camera_lists_close_matches(tmp_path: Path) -> None:
+    scene = mjk.Scene.build(tutorial_spec())
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "cam.mp4", 320, 240, 30, **FAST) as rec:
+        with pytest.raises(mjk.UnknownNameError, match="close matches: task") as err:
+            rec.use_camera("tsak")
+        assert isinstance(err.value, KeyError)
+        rec.use_camera("task")
+        rec.use_camera("")  # back to the free camera
+        assert rec.record_frame()
+
+
+def test_sizes_beyond_the_offscreen_buffer_and_bad_numbers_are_refused(tmp_path: Path) -> None:
+    out = tmp_path / "size.mp4"
+    with mjk.Scene.build(base_spec()) as scene:
+        assert (scene.model.vis.global_.offwidth, scene.model.vis.global_.offheight) == (1920, 1080)
+        with pytest.raises(mjk.SpecError, match=r"width 2560 exceeds .*offwidth = 1920"):
+            mjk.VideoRecorder.open(scene, out, 2560, 1440, 30)
+        with pytest.raises(mjk.SpecError, match=r"height 1200 exceeds .*offheight = 1080"):
+            mjk.VideoRecorder.open(scene, out, 1920, 1200, 30)
+        with pytest.raises(mjk.SpecError, match="must be even"):
+            mjk.VideoRecorder.open(scene, out, 641, 480, 30)
+        with pytest.raises(mjk.SpecError, match="fps must be a positive number"):
+            mjk.VideoRecorder.open(scene, out, 640, 480, 0)
+        with pytest.raises(mjk.SpecError, match="VideoResolution"):
+            mjk.VideoRecorder.open_preset(scene, out, (640, 480))
+        assert not out.exists()
+
+
+def test_closed_scene_and_closed_recorder_raise_runtime_error(tmp_path: Path) -> None:
+    scene = mjk.Scene.build(base_spec())
+    rec = mjk.VideoRecorder.open(scene, tmp_path / "closed.mp4", 320, 240, 30, **FAST)
+    assert rec.record_frame()
+    scene.close()
+    with pytest.raises(RuntimeError, match="scene is closed"):
+        rec.record_frame()
+    with pytest.raises(RuntimeError, match="scene is closed"):
+        mjk.VideoRecorder.open(scene, tmp_path / "again.mp4", 320, 240, 30)
+    rec.close()
+    rec.close()  # idempotent
+    with pytest.raises(RuntimeError, match="VideoRecorder is closed"):
+        rec.record_frame()
+    with pytest.raises(RuntimeError, match="VideoRecorder is closed"):
+        rec.use_camera("")
+    assert rec.frames_written == 1 and rec.path.stat().st_size > 0
+
+
+def test_renders_headless_without_mujoco_gl(tmp_path: Path) -> None:
+    """No DISPLAY and no MUJOCO_GL (MuJoCo then picks GLFW): the recorder falls back to EGL."""
+    script = textwrap.dedent(
+        f"""
+        import sys
+        sys.path.insert(0, {str(ROOT)!r})
+        import mjkdl as mjk
+        spec = mjk.SceneSpec(timestep=0.01, add_floor=True, add_skybox=False)
+        path = {str(tmp_path / "headless.mp4")!r}
+        with mjk.Scene.build(spec) as scene, mjk.VideoRecorder.open(scene, path, 320, 240, 10) as r:
+            for _ in range(20):
+                scene.step()
+                r.record_frame()
+        print("frames", r.frames_written)
+        """
+    )
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MUJOCO_GL", "WAYLAND_DISPLAY")
+    }
+    env.pop("PYOPENGL_PLATFORM", None)
+    done = subprocess.run(
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert "frames 2" in done.stdout  # 0.01 s to 0.2 s at 10 fps
+    _, _, _, frames = _read_video(tmp_path / "headless.mp4")
+    assert len(frames) == 2
