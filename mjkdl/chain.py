@@ -74,7 +74,12 @@ class Chain:
         ]
         self._origin = pin.SE3.Identity()
         self._subtree_qpos = _qpos_span(mj_model, [sub.root for sub in self._subtrees])
-        nsub = len(mj_data.qpos[self._subtree_qpos])
+        # A view kept from construction: MjData's array properties build a new wrapper on
+        # every access, which the per-step check below would pay each time.
+        self._data = mj_data
+        span = self._subtree_qpos
+        self._subtree_q = mj_data.qpos[span] if isinstance(span, slice) else None
+        nsub = len(mj_data.qpos[span])
         self._lumped_q = np.full(nsub, np.nan)  # NaN: nothing lumped yet
         self._dq = np.zeros(nsub)
         # A base carried by joints of its own (a mobile base, another robot) moves: keep the
@@ -212,7 +217,9 @@ class Chain:
             return
         # The lumped inertia, in the frame of the joint carrying it, depends only on the
         # subtree's own joints: re-lump when they moved by more than RELUMP_TOL since.
-        q = d.qpos[self._subtree_qpos]
+        q = self._subtree_q
+        if q is None or d is not self._data:
+            q = d.qpos[self._subtree_qpos]
         dq = self._dq
         np.subtract(q, self._lumped_q, out=dq)
         if dq.dot(dq) <= RELUMP_TOL * RELUMP_TOL:

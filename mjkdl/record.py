@@ -5,8 +5,9 @@ recorder keeps one frame per 1/fps simulated seconds, so N simulated seconds mak
 video at any timestep. Encoding (imageio-ffmpeg's own ffmpeg, libx264, yuv420p) runs on a
 background thread behind a small bounded queue, so it overlaps with rendering.
 
-Headless machines: set ``MUJOCO_GL=egl`` before importing mujoco (or mjkdl). When MuJoCo picked
-its GLFW backend and there is no X display, the recorder renders through EGL anyway.
+Headless machines: set ``MUJOCO_GL=egl`` before importing mujoco (or mjkdl). On Linux the
+recorder renders through EGL also when MuJoCo picked GLFW because MUJOCO_GL was unset; set
+``MUJOCO_GL=glfw`` to insist on GLFW.
 
 Quality vs speed: shadows and reflections (MuJoCo's ``mjRND_SHADOW``/``mjRND_REFLECTION`` scene
 flags) are on by default and cost most of the render time on software OpenGL (Mesa llvmpipe):
@@ -16,7 +17,6 @@ at 1280x720 about 5-6 frames/s with both on against 18-19 with both off
 
 from __future__ import annotations
 
-import contextlib
 import enum
 import math
 import os
@@ -24,7 +24,7 @@ import queue
 import sys
 import threading
 import weakref
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -79,8 +79,9 @@ def offscreen_renderer(
 ) -> mujoco.Renderer:
     """A `mujoco.Renderer` of `width`x`height` with the given quality flags.
 
-    Checks the size against the model's offscreen buffer and falls back to EGL when MuJoCo's
-    GLFW backend has no display; raises `OffscreenRenderError` when no context can be made.
+    Checks the size against the model's offscreen buffer, prefers EGL to an implicit GLFW
+    backend (see the module notes) and raises `OffscreenRenderError` when no OpenGL context
+    can be made.
     """
     for field, value, limit, attr in (
         ("width", width, model.vis.global_.offwidth, "offwidth"),
@@ -95,8 +96,7 @@ def offscreen_renderer(
                 f'{attr}="..."/> in MJCF)'
             )
     try:
-        with _headless_backend():
-            renderer = mujoco.Renderer(model, height=int(height), width=int(width))
+        renderer = _new_renderer(model, int(width), int(height))
     except mujoco.FatalError as err:
         backend = os.environ.get("MUJOCO_GL") or "default (glfw)"
         raise OffscreenRenderError(
@@ -112,32 +112,31 @@ def offscreen_renderer(
 _BACKEND_LOCK = threading.Lock()
 
 
-@contextlib.contextmanager
-def _headless_backend() -> Iterator[None]:
-    """Make `mujoco.Renderer` use EGL while created, if its GLFW backend has no display.
+def _new_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    """`mujoco.Renderer` on EGL when MuJoCo's backend is an implicit GLFW, else MuJoCo's own.
 
-    MuJoCo fixes its offscreen GL backend from MUJOCO_GL when `mujoco` is imported and the
-    Renderer reads it from `mujoco.rendering.classic.gl_context.GLContext` at construction.
+    MuJoCo fixes its offscreen GL backend from MUJOCO_GL when `mujoco` is imported (GLFW when
+    unset) and the Renderer reads it from `mujoco.rendering.classic.gl_context.GLContext`.
+    GLFW needs a display and is not thread-safe next to the viewer's own GLFW thread; EGL
+    needs neither. An explicit ``MUJOCO_GL=glfw`` is respected.
     """
     from mujoco.rendering.classic import gl_context
 
     chosen = getattr(gl_context, "GLContext", None)
-    headless = not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY")
     glfw_backend = getattr(chosen, "__module__", "") == "mujoco.glfw"
-    if not (sys.platform.startswith("linux") and glfw_backend and headless):
-        yield
-        return
-    try:
-        from mujoco.egl import GLContext as egl_context
-    except ImportError:  # no libEGL or PyOpenGL bound to another platform: keep MuJoCo's choice
-        yield
-        return
-    with _BACKEND_LOCK:
-        gl_context.GLContext = egl_context
-        try:
-            yield
-        finally:
-            gl_context.GLContext = chosen
+    asked_glfw = os.environ.get("MUJOCO_GL", "").strip().lower() == "glfw"
+    if sys.platform.startswith("linux") and glfw_backend and not asked_glfw:
+        with _BACKEND_LOCK:
+            try:
+                from mujoco.egl import GLContext as egl_context
+
+                gl_context.GLContext = egl_context
+                return mujoco.Renderer(model, height=height, width=width)
+            except Exception:  # no usable EGL here: fall back to MuJoCo's choice
+                pass
+            finally:
+                gl_context.GLContext = chosen
+    return mujoco.Renderer(model, height=height, width=width)
 
 
 def _output_path(path: str | os.PathLike[str]) -> Path:

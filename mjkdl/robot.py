@@ -205,6 +205,11 @@ class Robot:
     # ------------------------------------------------------------------ description
 
     @property
+    def scene(self) -> Scene:
+        """The Scene (or Env) this robot belongs to."""
+        return self._scene
+
+    @property
     def n_joints(self) -> int:
         """Number of joints in the chain."""
         self._check_open()

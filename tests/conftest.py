@@ -14,6 +14,8 @@ _SHARED_MENAGERIE = ROOT.parent / "shared" / "menagerie"
 
 if "MENAGERIE_ROOT" not in os.environ and _SHARED_MENAGERIE.is_dir():
     os.environ["MENAGERIE_ROOT"] = str(_SHARED_MENAGERIE)
+# Offscreen rendering without a display; MuJoCo reads this once, when first imported.
+os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mjkdl as mjk  # noqa: E402  (after MENAGERIE_ROOT is set)
 

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 import shutil
 import subprocess
 import sys
@@ -131,6 +128,28 @@ def test_a_rebuilt_scene_reopens_the_window(display: str) -> None:
             assert viewer.is_running() and not old.is_running()
         finally:
             viewer.close()
+
+
+def test_quitting_from_the_window_ends_the_users_loop(display: str) -> None:
+    """Ctrl+Q (MuJoCo's File > Quit) in the window: step() turns False, close() is quick."""
+    xdotool = shutil.which("xdotool")
+    if xdotool is None:
+        pytest.skip("xdotool is not installed")
+    with mjk.Scene.build(_object_spec()) as scene:
+        viewer = mjk.SimulateViewer.open(scene, "quit")
+        try:
+            _run(viewer, None, 5)
+            subprocess.run([xdotool, "mousemove", "400", "300", "key", "ctrl+q"], check=True)
+            deadline = time.monotonic() + 10.0
+            while viewer.step() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert not viewer.is_running()
+            stepped = scene.time()
+            assert viewer.step() is False and scene.time() == stepped  # no step once closed
+        finally:
+            start = time.perf_counter()
+            viewer.close()
+            assert time.perf_counter() - start < 5.0
 
 
 def test_open_without_a_display_says_what_to_do(monkeypatch) -> None:
@@ -264,14 +283,16 @@ def test_each_overlay_key_toggles_its_overlay(arm: Arm) -> None:
         viewer._on_key(key)
         _run(viewer, robot, 1)
         assert getattr(viewer.overlays, flag) is False
-    texts = keys.texts(viewer.overlays, "t", 1.0, 0.5, 1.0, None)
-    assert "real-time" not in texts[1][2] and "trace" in texts[1][2] and "F12" in texts[0][2]
+    ((_, _, labels, values),) = keys.texts(viewer.overlays, "t", 1.0, 0.5, 1.0, None)
+    assert labels.split("\n") == ["t", "F8", "F9", "F10", "F11", "F12", "Backspace"]
+    assert "trace: off" in values and "plots: off" in values and "record: off" in values
     for key in (keys.KEY_TRACE, keys.KEY_STATS, keys.KEY_PLOTS):
         viewer._on_key(key)
     _run(viewer, robot, 1)
     assert viewer.overlays == keys.Overlays()
-    texts = keys.texts(viewer.overlays, "t", 1.0, 0.5, 1.0, None)
-    assert "0.50x (target 1x)" in texts[1][3]
+    ((_, _, labels, values),) = keys.texts(viewer.overlays, "t", 1.0, 0.5, 1.0, "v.mp4")
+    assert labels.split("\n")[1:3] == ["time", "real-time"]
+    assert "0.50x (target 1x)" in values and "record: v.mp4" in values
     viewer.clear_trace()
     viewer.use_camera("")
 
@@ -294,6 +315,27 @@ def test_reset_key_runs_the_env_reset_hook_on_the_users_thread(arm: Arm) -> None
         assert env.time() == 0.0
         robot.update()
         assert np.allclose(robot.jnt_pos_msr, HOME)
+    finally:
+        env.on_reset = None
+
+
+def test_backspace_in_the_window_resets_through_env_reset(arm: Arm) -> None:
+    """A real key press: MuJoCo resets the data at the next sync, then the Env hook runs."""
+    xdotool = shutil.which("xdotool")
+    if xdotool is None:
+        pytest.skip("xdotool is not installed (the key handling itself is tested above)")
+    env, robot, viewer = arm
+    times = []
+    env.on_reset = lambda ctx: times.append(ctx.data.time)
+    try:
+        _run(viewer, robot, 20)
+        subprocess.run([xdotool, "mousemove", "400", "300", "key", "BackSpace"], check=True)
+        deadline = time.monotonic() + 10.0
+        while not times and time.monotonic() < deadline:
+            _run(viewer, robot, 1)
+            time.sleep(0.01)
+        assert times == [0.0]
+        assert env.time() == 0.0
     finally:
         env.on_reset = None
 

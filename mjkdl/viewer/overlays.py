@@ -7,16 +7,14 @@ from dataclasses import dataclass
 import mujoco
 
 # GLFW key codes (MuJoCo's mjKEY_* values). MuJoCo's viewer binds F1-F7, letters, digits and
-# most punctuation; F8-F12 are free. Backspace is MuJoCo's own Reset shortcut.
+# most punctuation; F8-F12 are free. Backspace is MuJoCo's own Reset shortcut. The on-screen
+# box of `texts` lists them.
 KEY_FRAMES = 297  # F8
 KEY_TRACE = 298  # F9
 KEY_STATS = 299  # F10
 KEY_PLOTS = 300  # F11
 KEY_RECORD = 301  # F12
 KEY_RESET = 259  # Backspace
-
-HELP_KEYS = "F8\nF9\nF10\nF11\nF12\nBackspace"
-HELP_ACTIONS = "frames\ntrace\nreal-time factor\nplots\nrecord video\nreset"
 
 _FRAME_CYCLE = (
     int(mujoco.mjtFrame.mjFRAME_NONE),
@@ -54,24 +52,24 @@ def texts(
     target_rtf: float,
     recording: str | None,
 ) -> list[tuple[int, int, str, str]]:
-    """Overlay texts for `Handle.set_texts`: the help line, and status when `stats` is on."""
-    out = [(_FONT, int(mujoco.mjtGridPos.mjGRID_BOTTOMRIGHT), HELP_KEYS, HELP_ACTIONS)]
-    labels, values = [title], [""]
+    """The overlay text for `Handle.set_texts`: one top-right box with the title, time and
+    real-time factor (when `stats` is on), and every key with the state it toggles."""
+    rows = [(title, "")]
     if overlays.stats:
         rtf = "-" if measured_rtf is None else f"{measured_rtf:.2f}x"
         target = "max" if target_rtf == 0 else f"{target_rtf:g}x"
-        labels += ["time", "real-time"]
-        values += [f"{sim_time:.3f} s", f"{rtf} (target {target})"]
-    if overlays.frames in _FRAME_NAMES:
-        labels.append("frames")
-        values.append(_FRAME_NAMES[overlays.frames])
-    if not overlays.trace:
-        labels.append("trace")
-        values.append("hidden")
-    if recording is not None:
-        labels.append("REC")
-        values.append(recording)
-    out.append(
-        (_FONT, int(mujoco.mjtGridPos.mjGRID_TOPRIGHT), "\n".join(labels), "\n".join(values))
-    )
-    return out
+        rows += [("time", f"{sim_time:.3f} s"), ("real-time", f"{rtf} (target {target})")]
+    rows += [
+        ("F8", f"frames: {_FRAME_NAMES.get(overlays.frames, 'off')}"),
+        ("F9", f"trace: {_on(overlays.trace)}"),
+        ("F10", f"time, real-time: {_on(overlays.stats)}"),
+        ("F11", f"plots: {_on(overlays.plots)}"),
+        ("F12", f"record: {recording or 'off'}"),
+        ("Backspace", "reset"),
+    ]
+    labels, values = zip(*rows, strict=True)
+    return [(_FONT, int(mujoco.mjtGridPos.mjGRID_TOPRIGHT), "\n".join(labels), "\n".join(values))]
+
+
+def _on(flag: bool) -> str:
+    return "on" if flag else "off"

@@ -7,10 +7,11 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import SpecError, unknown_name
 
-Signal = Callable[[], "np.typing.ArrayLike"]
+Signal = Callable[[], ArrayLike]
 
 
 @dataclass

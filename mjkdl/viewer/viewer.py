@@ -25,6 +25,7 @@ from .trace import Trace
 from .window import Window
 
 if TYPE_CHECKING:
+    from mujoco.viewer import Handle
     from typing_extensions import Self
 
 # Window refreshes: 60 per wall second and per simulated second (as MuJoCo's own viewer at
@@ -42,7 +43,8 @@ class SimulateViewer:
     ``viewer = SimulateViewer.open(robot, "title")``, then per control period: read the state,
     write commands, ``viewer.step()`` (one timestep, through ``robot.step()`` so pending
     commands apply). MuJoCo's passive viewer never steps physics itself. The window is
-    refreshed at most 60 times per wall second; `realtime_factor` paces the loop.
+    refreshed 60 times per wall second and per simulated second; `realtime_factor` paces the
+    loop.
 
     Keys (besides MuJoCo's own; F1 lists those): F8 body/site frames, F9 trace, F10
     real-time factor and time, F11 plots, F12 start/stop an MP4 of the view, Backspace reset
@@ -58,6 +60,7 @@ class SimulateViewer:
         self._scene, self._robot, self._title = scene, robot, title
         self._keys: deque[int] = deque()
         self._overlays = ov.Overlays()
+        self._frames_shown = self._overlays.frames
         self._pacer = Pacer(1.0)
         self._plots = SignalPlots()
         if robot is not None:
@@ -82,8 +85,7 @@ class SimulateViewer:
         a Scene/Env. Raises `NoDisplayError` when no window can be opened here."""
         if isinstance(robot_or_scene, Robot):
             robot = robot_or_scene
-            robot.n_joints  # noqa: B018  (a closed scene raises RuntimeError)
-            scene = robot._scene  # Robot has no public accessor for its owner
+            scene = robot.scene
         elif isinstance(robot_or_scene, Scene):
             robot, scene = None, robot_or_scene
         else:
@@ -94,7 +96,7 @@ class SimulateViewer:
         return cls(scene, robot, str(title))
 
     @property
-    def handle(self):  # mujoco.viewer.Handle (mujoco.viewer is imported only when opening)
+    def handle(self) -> Handle:
         """MuJoCo's viewer handle (`cam`, `opt`, `perturb`, `user_scn`), for what mjkdl does
         not wrap. Replaced when the scene is rebuilt (the window reopens on the new model)."""
         return self._window.handle
@@ -134,9 +136,8 @@ class SimulateViewer:
         t = self._scene.time()
         self._plots.sample(t)
         reset = self._handle_keys()
-        opt = self._window.handle.opt
-        if opt.frame != self._overlays.frames:
-            opt.frame = self._overlays.frames
+        if self._overlays.frames != self._frames_shown:  # leaves MuJoCo's own F6 cycling alone
+            self._window.handle.opt.frame = self._frames_shown = self._overlays.frames
         now = time.perf_counter()
         if reset or now >= self._sync_due or abs(t - self._synced_time) >= _SYNC_PERIOD:
             self._sync(now)  # also applies MuJoCo's own pending Backspace reset
@@ -260,7 +261,7 @@ class SimulateViewer:
     def _push_overlays(self) -> None:
         recording = None
         if self._recorder is not None:
-            recording = f"{self._recorder.path.name} ({self._recorder.frames_written} frames)"
+            recording = f"{self._recorder.path.name}, {self._recorder.frames_written} frames"
         elif self._record_error is not None:
             recording = f"failed: {self._record_error}"
         texts = ov.texts(
@@ -345,7 +346,7 @@ class SimulateViewer:
             self.start_recording()
         except (MjkdlError, OSError) as err:  # from a key press: report, do not end the loop
             self._record_error = str(err)
-            warnings.warn(f"SimulateViewer: recording did not start: {err}", stacklevel=3)
+            warnings.warn(f"SimulateViewer: recording did not start: {err}", stacklevel=4)
 
     # ------------------------------------------------------------------ rebuilds
 
@@ -354,12 +355,10 @@ class SimulateViewer:
         model, keeping the camera, overlays, trace and recording."""
         old_model, old = self._model, self._window
         cam = old.handle.cam
-        fixed = (
-            old_model.camera(cam.fixedcamid).name
-            if cam.type == mujoco.mjtCamera.mjCAMERA_FIXED
-            else None
-        )
-        view = (int(cam.type), cam.lookat.copy(), cam.distance, cam.azimuth, cam.elevation)
+        fixed = None
+        if cam.type == mujoco.mjtCamera.mjCAMERA_FIXED:
+            fixed = old_model.camera(cam.fixedcamid).name
+        view = (cam.lookat.copy(), cam.distance, cam.azimuth, cam.elevation)
         atexit.unregister(old.close)
         old.close(_CLOSE_TIMEOUT)
         self._model = self._scene.model
@@ -367,12 +366,9 @@ class SimulateViewer:
         atexit.register(self._window.close)
         handle = self._window.handle
         new = handle.cam
-        new.lookat[:], new.distance, new.azimuth, new.elevation = view[1:]
-        if fixed is not None:
-            self.use_camera(fixed)
-        elif view[0] != mujoco.mjtCamera.mjCAMERA_FIXED:
-            new.type = view[0]
-        handle.opt.frame = self._overlays.frames
+        new.lookat[:], new.distance, new.azimuth, new.elevation = view
+        self.use_camera(fixed if fixed in self._scene.camera_names() else "")
+        handle.opt.frame = self._frames_shown = self._overlays.frames
         self._trace.rebind(handle.user_scn)
         if self._recorder is not None:
             self._recorder.follow_view(handle.cam, handle.opt, self._draw_trace)

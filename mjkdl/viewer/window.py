@@ -6,10 +6,15 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import mujoco
 
 from .display import no_display, require_display
+
+if TYPE_CHECKING:
+    from mujoco.viewer import Handle
 
 _OPEN_TIMEOUT = 60.0
 _PUSHER_JOIN = 2.0
@@ -27,7 +32,7 @@ class Window:
     under Xvfb with software OpenGL).
     """
 
-    def __init__(self, handle: object, thread: threading.Thread | None) -> None:
+    def __init__(self, handle: Handle, thread: threading.Thread | None) -> None:
         self._handle = handle
         self._thread = thread
         self._cv = threading.Condition()
@@ -58,7 +63,7 @@ class Window:
     # ------------------------------------------------------------------ state
 
     @property
-    def handle(self):  # mujoco.viewer.Handle
+    def handle(self) -> Handle:
         """MuJoCo's viewer handle (camera `cam`, options `opt`, `user_scn`, `viewport`)."""
         return self._handle
 
@@ -118,12 +123,21 @@ class Window:
                     return
                 texts, figures = self._pending
                 self._pending = None
-            if self._handle.is_running():
+            if not self._handle.is_running():
+                continue
+            try:
                 self._handle.set_texts(texts)
                 self._handle.set_figures(figures)
+            except mujoco.UnexpectedError:  # the window went away between check and call
+                return
 
 
-def _launch_watched(mjviewer, model, data, on_key) -> tuple[object, threading.Thread | None]:
+def _launch_watched(
+    mjviewer: ModuleType,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    on_key: Callable[[int], None],
+) -> tuple[Handle, threading.Thread | None]:
     """`launch_passive` from a helper thread, watched: it waits forever for a handle when the
     window thread dies before creating one."""
     result: dict[str, object] = {}
@@ -132,7 +146,7 @@ def _launch_watched(mjviewer, model, data, on_key) -> tuple[object, threading.Th
     def launch() -> None:
         try:
             result["handle"] = mjviewer.launch_passive(model, data, key_callback=on_key)
-        except BaseException as err:
+        except Exception as err:
             result["error"] = err
 
     helper = threading.Thread(target=launch, name="mjkdl-viewer-launch", daemon=True)
