@@ -1,12 +1,12 @@
 """Benchmark VideoRecorder at 720p on the tutorial scene: render only vs render + encode.
 
-    MUJOCO_GL=egl python benchmarks/record.py [--frames 60] [--rounds 3] [--menagerie DIR]
+    python benchmarks/record.py [--frames 60] [--rounds 3]
 
-The scene is the tutorial's (Gen3 + 2F-85 on the table, a cube, the `task` camera), built here
-without the test helpers. The arm servos from its zero pose to HOME while `--frames` states,
-1/30 s of simulated time apart, are stored; each variant then renders the same states through
-the `task` camera at 1280x720, with shadows and reflections on and off. The first state of each
-run warms the renderer up (shader compilation, texture upload) and is not timed.
+The scene is the tutorial's (Gen3 + 2F-85 on the table, a cube, the `task` camera). The arm
+servos from its zero pose to HOME while `--frames` states, 1/30 s of simulated time apart, are
+stored; each variant then renders the same states through the `task` camera at 1280x720, with
+shadows and reflections on and off. The first state of each run warms the renderer up (shader
+compilation, texture upload) and is not timed.
 
 * render only: `mujoco.Renderer` update + render (the frame is read back to memory);
 * render + encode: `VideoRecorder.record_frame()` for every state, then `close()`, which waits
@@ -20,71 +20,42 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+import mujoco
+import numpy as np
+from scenes import HOME, TOOL, tabletop_spec
 
-import mjkdl as mjk  # noqa: E402
-from mjkdl.record import offscreen_renderer  # noqa: E402
+import mjkdl as mjk
+from mjkdl.record import offscreen_renderer
 
-HOME = np.array([0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708])
 WIDTH, HEIGHT, FPS = 1280, 720, 30
 
 
-def tutorial_env(menagerie: Path) -> tuple[mjk.Env, mjk.Robot]:
-    """Gen3 + 2F-85 on the table's `table_top`, a cube and the `task` camera."""
-    table = mjk.SceneObject(
-        name="table", mjcf_path=str(ROOT / "assets" / "table.xml"), pos=[0, 0, 0.7], fixed=True
-    )
-    cube = mjk.SceneObject(
-        name="cube",
-        shape=mjk.Shape.BOX,
-        size=[0.025, 0.025, 0.025],
-        pos=[0.35, 0.10, 0.725],
-        rgba=[0.1, 0.25, 1.0, 1.0],
-        mass=0.1,
-        condim=mjk.Condim.Torsional,
-        friction=[0.8, 0.02, 0.001],
-    )
-    gripper = mjk.AttachmentSpec(
-        mjcf_path=str(menagerie / "robotiq_2f85" / "2f85.xml"),
-        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site"),
-        prefix="g_",
-    )
-    arm = mjk.RobotSpec(
-        path=str(menagerie / "kinova_gen3" / "gen3.xml"),
-        attach_to=mjk.AttachTarget(
-            mjk.AttachKind.Site, mjk.scene_object_site_name(table, "table_top")
-        ),
-        attachments=[gripper],
-    )
-    camera = mjk.CameraSpec(name="task", pos=[0.1, -0.9, 1.45], euler=[35.0, 0.0, 5.0], fovy=45.0)
-    spec = mjk.SceneSpec(
-        timestep=0.002,
-        add_floor=True,
-        add_skybox=False,
-        objects=[table, cube],
-        robots=[arm],
-        cameras=[camera],
+def tutorial_env() -> tuple[mjk.Env, mjk.Robot]:
+    """The tabletop scene with a cube on the table in front of the arm."""
+    spec = tabletop_spec()
+    spec.objects.append(
+        mjk.SceneObject(
+            name="cube",
+            shape=mjk.Shape.BOX,
+            size=[0.025, 0.025, 0.025],
+            pos=[0.35, 0.10, 0.725],
+            rgba=[0.1, 0.25, 1.0, 1.0],
+            mass=0.1,
+        )
     )
     env = mjk.Env.build(spec)
-    robot = env.create_robot(
-        "base_link", "bracelet_link", tool=mjk.ToolFrameSpec(tool_body="g_base", tcp_site="g_pinch")
-    )
-    return env, robot
+    return env, env.create_robot("base_link", "bracelet_link", tool=TOOL)
 
 
 def record_states(env: mjk.Env, robot: mjk.Robot, frames: int) -> list[np.ndarray]:
     """Full physics states 1/FPS simulated seconds apart while the arm moves to HOME."""
-    robot.jnt_pos_cmd = HOME
+    robot.jnt_pos_cmd = np.array(HOME)
     steps = round(1.0 / (FPS * env.timestep()))
     size = mujoco.mj_stateSize(env.model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
     states = []
@@ -135,14 +106,12 @@ def render_encode(env: mjk.Env, states: list[np.ndarray], quality: bool, out: Pa
 
 def main() -> None:
     """Run the benchmark and print the figures."""
-    default_root = os.environ.get("MENAGERIE_ROOT", str(ROOT.parent / "shared" / "menagerie"))
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=60)
     parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--menagerie", type=Path, default=Path(default_root))
     args = parser.parse_args()
 
-    env, robot = tutorial_env(args.menagerie)
+    env, robot = tutorial_env()
     states = record_states(env, robot, args.frames)
     print(
         f"mjkdl VideoRecorder, {WIDTH}x{HEIGHT}, {args.frames} frames, best of {args.rounds} "
