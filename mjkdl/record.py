@@ -32,6 +32,7 @@ import imageio_ffmpeg
 import mujoco
 import numpy as np
 
+from .closable import Closable
 from .errors import MjkdlError, SpecError, unknown_name
 
 if TYPE_CHECKING:
@@ -222,7 +223,7 @@ class _Encoder:
             raise VideoWriteError(f"video encoder failed: {err}") from err
 
 
-class VideoRecorder:
+class VideoRecorder(Closable):
     """Records what a camera sees in a `Scene` into an H.264 MP4, sampled by simulation time.
 
     Open with `VideoRecorder.open` or `VideoRecorder.open_preset`; call `record_frame()` after
@@ -422,13 +423,3 @@ class VideoRecorder:
         finally:
             self._renderer.close()
 
-    def __enter__(self) -> Self:
-        self._check_open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def _check_open(self) -> None:
-        if self._encoder is None:
-            raise RuntimeError("this VideoRecorder is closed")

@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from .chain import joint_sizes
+from .closable import Closable
 from .compile import compile_scene, vector
 from .errors import MjkdlError, SpecError, unknown_name
 from .robot import AuthoredActuators, Robot
@@ -27,7 +28,7 @@ def mujoco_version() -> str:
     return mujoco.__version__
 
 
-class Scene:
+class Scene(Closable):
     """A compiled scene: MuJoCo's `MjModel`/`MjData` plus name-based helpers."""
 
     def __init__(self, spec: SceneSpec, mjspec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
@@ -82,14 +83,8 @@ class Scene:
         self._mjspec = None
         self._robots = []
 
-    def __enter__(self) -> Self:
-        self._check_open()
-        return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def _check_open(self) -> None:
+    def _check_open(self) -> None:  # the same check as Closable's, without a property call
         if self._model is None:
             raise RuntimeError(f"this {type(self).__name__} is closed")
 

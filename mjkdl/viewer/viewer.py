@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from ..closable import Closable
 from ..errors import MjkdlError, SpecError, unknown_name
 from ..record import VideoRecorder, offscreen_renderer
 from ..robot import Robot
@@ -37,7 +38,7 @@ _OVERLAY_PERIOD = 0.1
 _CLOSE_TIMEOUT = 5.0
 
 
-class SimulateViewer:
+class SimulateViewer(Closable):
     """An interactive window on a scene whose physics only the user's loop advances.
 
     ``viewer = SimulateViewer.open(robot, "title")``, then per control period: read the state,
@@ -394,13 +395,8 @@ class SimulateViewer:
                     stacklevel=2,
                 )
 
-    def __enter__(self) -> Self:
-        self._check_open()
-        return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def _check_open(self) -> None:
-        if self._closed:
-            raise RuntimeError("this SimulateViewer is closed")
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` was called."""
+        return self._closed
