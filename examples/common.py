@@ -91,8 +91,8 @@ def gen3_with_gripper(
 
 
 def task_camera() -> mjk.CameraSpec:
-    """A fixed camera in front of the table, looking down at the work area."""
-    return mjk.CameraSpec(name="task", pos=[0.1, -0.9, 1.45], euler=[35.0, 0.0, 5.0], fovy=45.0)
+    """A fixed camera at the table's front corner, looking at the arm and the work area."""
+    return mjk.CameraSpec(name="task", pos=[1.25, -1.05, 1.55], euler=[57.5, 40.2, 22.3], fovy=45.0)
 
 
 def tutorial_spec(cube_pos: np.ndarray = CUBE_START) -> mjk.SceneSpec:
