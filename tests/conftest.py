@@ -64,6 +64,28 @@ def gripper_tool(prefix: str = "g_") -> mjk.ToolFrameSpec:
     return mjk.ToolFrameSpec(tool_body=f"{prefix}base", tcp_site=f"{prefix}pinch")
 
 
+def two_link_arm(actuators: str = "") -> str:
+    """MJCF of a small two-joint arm (bodies base, l1, l2; joints j1, j2) plus `actuators`."""
+    return f"""
+<mujoco model="two_link">
+  <worldbody>
+    <body name="base">
+      <geom type="cylinder" size="0.05 0.02"/>
+      <body name="l1" pos="0 0 0.05">
+        <joint name="j1" axis="0 0 1"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
+        <body name="l2" pos="0.3 0 0">
+          <joint name="j2" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.02" mass="0.5"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  {actuators}
+</mujoco>
+"""
+
+
 def tutorial_spec() -> mjk.SceneSpec:
     """Gen3 + 2F-85 on the table's `table_top`, a cube and a task camera."""
     table = table_object()

@@ -9,7 +9,7 @@ import gc
 import mujoco
 import numpy as np
 import pytest
-from conftest import HOME, base_spec, gripper_tool, table_object
+from conftest import HOME, base_spec, gripper_tool, table_object, two_link_arm
 
 import mjkdl as mjk
 
@@ -198,33 +198,10 @@ def _rss_mb() -> float:
     raise RuntimeError("no VmRSS")
 
 
-ARM = """
-<mujoco model="two_link">
-  <worldbody>
-    <body name="base">
-      <geom type="cylinder" size="0.05 0.02"/>
-      <body name="l1" pos="0 0 0.05">
-        <joint name="j1" axis="0 0 1"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-        <body name="l2" pos="0.3 0 0">
-          <joint name="j2" axis="0 1 0"/>
-          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.02"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-  <actuator>
-    <motor joint="j1" name="m1"/>
-    <motor joint="j2" name="m2"/>
-  </actuator>
-</mujoco>
-"""
-
-
 @pytest.mark.skipif(not __import__("os").path.exists("/proc/self/status"), reason="needs /proc")
 def test_two_hundred_rebuilds_do_not_grow_memory(tmp_path) -> None:
     arm_xml = tmp_path / "two_link.xml"
-    arm_xml.write_text(ARM)
+    arm_xml.write_text(two_link_arm('<actuator><motor joint="j1"/><motor joint="j2"/></actuator>'))
     spec = base_spec(objects=[table_object()], robots=[mjk.RobotSpec(path=str(arm_xml))])
     with mjk.Env.build(spec) as env:
         robot = env.create_robot("base", "l2")

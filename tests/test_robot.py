@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import HOME, base_spec, gripper_tool, menagerie, table_object
+from conftest import HOME, base_spec, gripper_tool, menagerie, table_object, two_link_arm
 
 import mjkdl as mjk
 from mjkdl.urdf import example_robot_data_path, load_urdf
@@ -300,7 +300,8 @@ FT_TOOL = """
 """
 
 
-def test_ft_sensor_reads_site_frame_wrench(tmp_path) -> None:
+def _gen3_with_ft_plate(tmp_path) -> mjk.Scene:
+    """A Gen3 with a small plate carrying force and torque sensors at its pinch site."""
     tool_xml = tmp_path / "ft_tool.xml"
     tool_xml.write_text(FT_TOOL)
     ft = mjk.AttachmentSpec(
@@ -309,7 +310,11 @@ def test_ft_sensor_reads_site_frame_wrench(tmp_path) -> None:
         prefix="ft_",
     )
     arm = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[ft])
-    scene = mjk.Scene.build(base_spec(robots=[arm]))
+    return mjk.Scene.build(base_spec(robots=[arm]))
+
+
+def test_ft_sensor_reads_site_frame_wrench(tmp_path) -> None:
+    scene = _gen3_with_ft_plate(tmp_path)
     sensor = mjk.ForceTorqueSensorSpec(
         name="wrist", force_sensor="ft_force", torque_sensor="ft_torque"
     )
@@ -349,29 +354,9 @@ def test_closed_scene_makes_robot_raise(tutorial_scene) -> None:
             call()
 
 
-PASSIVE_ARM = """
-<mujoco model="passive">
-  <worldbody>
-    <body name="base">
-      <geom type="cylinder" size="0.05 0.02"/>
-      <body name="l1" pos="0 0 0.05">
-        <joint name="j1" axis="0 0 1"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
-        <body name="l2" pos="0.3 0 0">
-          <joint name="j2" axis="0 1 0"/>
-          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.02" mass="0.5"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-  {actuators}
-</mujoco>
-"""
-
-
 def _passive_robot(tmp_path, actuators: str) -> tuple[mjk.Scene, mjk.Robot]:
     path = tmp_path / "arm.xml"
-    path.write_text(PASSIVE_ARM.replace("{actuators}", actuators))
+    path.write_text(two_link_arm(actuators))
     scene = mjk.Scene.build(base_spec(robots=[mjk.RobotSpec(path=str(path))]))
     return scene, scene.create_robot("base", "l2")
 
@@ -450,21 +435,13 @@ def test_unused_handle_leaves_actuators_alone(tutorial_scene) -> None:
 
 def test_gravity_override_must_be_a_finite_number(gen3) -> None:
     _, robot = gen3
-    for bad in ("abc", np.nan, None if False else np.inf):
+    for bad in ("abc", np.nan, np.inf):
         with pytest.raises(ValueError, match="gravity_z must be a finite number"):
             robot.gravity_torques(bad)
 
 
 def test_ft_sensor_kind_is_checked(tmp_path) -> None:
-    tool_xml = tmp_path / "ft_tool.xml"
-    tool_xml.write_text(FT_TOOL)
-    ft = mjk.AttachmentSpec(
-        mjcf_path=str(tool_xml),
-        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site"),
-        prefix="ft_",
-    )
-    scene = mjk.Scene.build(base_spec(robots=[mjk.RobotSpec(path=menagerie("kinova_gen3"),
-                                                            attachments=[ft])]))
+    scene = _gen3_with_ft_plate(tmp_path)
     swapped = mjk.ForceTorqueSensorSpec(
         name="wrist", force_sensor="ft_torque", torque_sensor="ft_force"
     )
