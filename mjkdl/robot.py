@@ -37,8 +37,8 @@ class _Actuation:
 class Robot:
     """A controllable serial chain of a `Scene`, modelled in Pinocchio.
 
-    Ports are NumPy arrays in chain order (base to tip). Measured ports are read-only live
-    arrays refreshed by `update()`; copy them to keep a snapshot. Commands are assigned as a
+    Ports are NumPy arrays in chain order (base to tip). Measured ports are read-only arrays
+    that `update()` refreshes in place; copy them to keep a snapshot. Commands are assigned as a
     whole (`robot.jnt_trq_cmd = tau`) and checked for length and finiteness.
 
     Control modes reconfigure the chain's own MuJoCo actuators (gain/bias parameters):
