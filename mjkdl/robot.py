@@ -63,6 +63,9 @@ class Robot:
         prefix: str = "",
         tool: ToolFrameSpec | None = None,
     ) -> None:
+        for field, value in (("base_body", base_body), ("tip_body", tip_body), ("prefix", prefix)):
+            if not isinstance(value, str):
+                raise SpecError(f"create_robot: {field} must be a string, got {value!r}")
         if tool is not None and not isinstance(tool, ToolFrameSpec):
             raise SpecError(f"tool must be a ToolFrameSpec, got {type(tool).__name__}")
         self._scene = scene

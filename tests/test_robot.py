@@ -255,6 +255,21 @@ def test_unknown_bodies_list_close_matches(tutorial_scene) -> None:
         scene.create_robot("bse_link", "bracelet_link")
 
 
+@pytest.mark.parametrize(
+    ("args", "kw", "field"),
+    [
+        ((None, "bracelet_link"), {}, "base_body"),
+        (("base_link", 5), {}, "tip_body"),
+        (("base_link", "bracelet_link"), {"prefix": None}, "prefix"),
+        (("base_link", "bracelet_link"), {"tool": "g_base"}, "tool"),
+    ],
+)
+def test_create_robot_argument_types(tutorial_scene, args, kw, field) -> None:
+    scene = tutorial_scene()
+    with pytest.raises(ValueError, match=field):
+        scene.create_robot(*args, **kw)
+
+
 def test_base_must_be_an_ancestor_of_tip(tutorial_scene) -> None:
     scene = tutorial_scene()
     with pytest.raises(ValueError, match="not an ancestor"):
