@@ -95,18 +95,28 @@ def task_camera() -> mjk.CameraSpec:
     return mjk.CameraSpec(name="task", pos=[1.25, -1.05, 1.55], euler=[57.5, 40.2, 22.3], fovy=45.0)
 
 
-def tutorial_spec(cube_pos: np.ndarray = CUBE_START) -> mjk.SceneSpec:
-    """Gen3 + 2F-85 mounted on the table's `table_top` site, a cube and the `task` camera."""
-    stand = table()
-    top = mjk.AttachTarget(mjk.AttachKind.Site, mjk.scene_object_site_name(stand, "table_top"))
+def table_top() -> mjk.AttachTarget:
+    """The table's surface site, where the arms are mounted."""
+    return mjk.AttachTarget(mjk.AttachKind.Site, mjk.scene_object_site_name(table(), "table_top"))
+
+
+def tabletop_spec(
+    robots: list[mjk.RobotSpec], objects: Sequence[mjk.SceneObject] = ()
+) -> mjk.SceneSpec:
+    """The table, then `objects`, the `robots` and the `task` camera, at 2 ms steps."""
     return mjk.SceneSpec(
         timestep=0.002,
         add_floor=True,
         add_skybox=True,
-        objects=[stand, cube(cube_pos)],
-        robots=[gen3_with_gripper(attach_to=top)],
+        objects=[table(), *objects],
+        robots=robots,
         cameras=[task_camera()],
     )
+
+
+def tutorial_spec(cube_pos: np.ndarray = CUBE_START) -> mjk.SceneSpec:
+    """Gen3 + 2F-85 mounted on the table's `table_top` site, a cube and the `task` camera."""
+    return tabletop_spec([gen3_with_gripper(attach_to=table_top())], [cube(cube_pos)])
 
 
 def gripper_tool() -> mjk.ToolFrameSpec:

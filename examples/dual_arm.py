@@ -27,8 +27,8 @@ from common import (
     parse_args,
     run,
     set_gripper,
-    table,
-    task_camera,
+    table_top,
+    tabletop_spec,
 )
 
 import mjkdl as mjk
@@ -45,16 +45,8 @@ def options(parser: argparse.ArgumentParser) -> None:
 
 
 def dual_arm_spec() -> mjk.SceneSpec:
-    stand = table()
-    top = mjk.AttachTarget(mjk.AttachKind.Site, mjk.scene_object_site_name(stand, "table_top"))
-    return mjk.SceneSpec(
-        timestep=0.002,
-        add_floor=True,
-        add_skybox=True,
-        objects=[stand],
-        robots=[gen3_with_gripper(prefix, top, pos) for prefix, (pos, _) in ARMS.items()],
-        cameras=[task_camera()],
-    )
+    top = table_top()
+    return tabletop_spec([gen3_with_gripper(prefix, top, pos) for prefix, (pos, _) in ARMS.items()])
 
 
 @dataclass

@@ -17,7 +17,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from common import gravity_compensation, parse_args, run, table, tcp_drift
+from common import gravity_compensation, parse_args, run, table_top, tabletop_spec, tcp_drift
 
 import mjkdl as mjk
 from mjkdl.urdf import UnreadableMeshWarning, example_robot_data_path
@@ -27,16 +27,8 @@ START = np.array([0.3, -1.2, 1.4, -1.5, -1.57, 0.2])  # a pose clear of the tabl
 
 
 def ur5_spec() -> mjk.SceneSpec:
-    stand = table()
-    arm = mjk.RobotSpec(
-        path=example_robot_data_path(UR5_URDF),
-        attach_to=mjk.AttachTarget(
-            mjk.AttachKind.Site, mjk.scene_object_site_name(stand, "table_top")
-        ),
-    )
-    return mjk.SceneSpec(
-        timestep=0.002, add_floor=True, add_skybox=True, objects=[stand], robots=[arm]
-    )
+    arm = mjk.RobotSpec(path=example_robot_data_path(UR5_URDF), attach_to=table_top())
+    return tabletop_spec([arm])
 
 
 def build() -> mjk.Env:
