@@ -48,10 +48,9 @@ _PLURAL = {AttachKind.Body: "bodies", AttachKind.Site: "sites", AttachKind.Frame
 _QUIET = ("Attach conflict when attaching", "Attaching a spec with an empty prefix")
 
 
-def compile_scene(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
+def compile_scene(spec: SceneSpec) -> mujoco.MjModel:
     """Build the `MjSpec` for `spec` and compile it; raises a clear error on bad input."""
-    mjspec = build_mjspec(spec)
-    return mjspec, compile_mjspec(mjspec)
+    return compile_mjspec(build_mjspec(spec))
 
 
 def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:

@@ -31,9 +31,8 @@ def mujoco_version() -> str:
 class Scene(Closable):
     """A compiled scene: MuJoCo's `MjModel`/`MjData` plus name-based helpers."""
 
-    def __init__(self, spec: SceneSpec, mjspec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
+    def __init__(self, spec: SceneSpec, model: mujoco.MjModel) -> None:
         self._spec = spec
-        self._mjspec = mjspec
         self._model: mujoco.MjModel | None = model
         self._data: mujoco.MjData | None = mujoco.MjData(model)
         self._robots: list[Robot] = []
@@ -46,8 +45,7 @@ class Scene(Closable):
         if not isinstance(spec, SceneSpec):
             raise SpecError(f"build() takes a SceneSpec, got {type(spec).__name__}")
         own = copy.deepcopy(spec)
-        mjspec, model = compile_scene(own)
-        return cls(own, mjspec, model)
+        return cls(own, compile_scene(own))
 
     # ------------------------------------------------------------------ ownership
 
@@ -80,7 +78,6 @@ class Scene(Closable):
         """Release MuJoCo's model and data; later calls on this scene raise RuntimeError."""
         self._model = None
         self._data = None
-        self._mjspec = None
         self._robots = []
 
 
@@ -256,12 +253,12 @@ class Scene(Closable):
 
     def _rebuild(self, spec: SceneSpec) -> None:
         """Compile `spec`, carry the state over by name, rebind robots; on error keep all."""
-        mjspec, model = compile_scene(spec)
+        model = compile_scene(spec)
         data = mujoco.MjData(model)
         _transfer_state(self._model, self._data, model, data)
         mujoco.mj_forward(model, data)
-        old = (self._spec, self._mjspec, self._model, self._data, self._authored_actuators)
-        self._spec, self._mjspec, self._model, self._data = spec, mjspec, model, data
+        old = (self._spec, self._model, self._data, self._authored_actuators)
+        self._spec, self._model, self._data = spec, model, data
         self._authored_actuators = AuthoredActuators.of(model)
         try:
             for robot in self._robots:
@@ -269,7 +266,7 @@ class Scene(Closable):
         except Exception:
             # A handle that cannot live on the new model (its chain was removed): put every
             # handle and the scene back on the previous model, which they were bound to.
-            self._spec, self._mjspec, self._model, self._data, self._authored_actuators = old
+            self._spec, self._model, self._data, self._authored_actuators = old
             for robot in self._robots:
                 robot._bind(self._model, self._data)
             raise
@@ -291,8 +288,8 @@ class ResetHookError(MjkdlError, RuntimeError):
 class Env(Scene):
     """A Scene with a reset hook; its robots stay in sync across resets and rebuilds."""
 
-    def __init__(self, spec: SceneSpec, mjspec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
-        super().__init__(spec, mjspec, model)
+    def __init__(self, spec: SceneSpec, model: mujoco.MjModel) -> None:
+        super().__init__(spec, model)
         self.on_reset: Callable[[ResetContext], None] | None = None
 
     def keyframe_id(self, key: int | str) -> int:
