@@ -48,6 +48,7 @@ class Chain:
         base_body: str,
         tip_body: str,
         tcp_site: str = "",
+        tcp_offset: pin.SE3 | None = None,
     ) -> None:
         self.base = _body_id(mj_model, base_body)
         self.tip = _body_id(mj_model, tip_body)
@@ -67,6 +68,13 @@ class Chain:
         self.tcp_frame = self.tip_frame
         if tcp_site:
             self.tcp_frame = self._add_site_frame(mj_model, tcp_site)
+        if tcp_offset is not None:
+            host = self.model.frames[self.tcp_frame]
+            self.tcp_frame = self.model.addFrame(
+                pin.Frame(
+                    f"{host.name}_tcp", host.parentJoint, host.placement * tcp_offset, pin.OP_FRAME
+                )
+            )
         self._static_inertias = [pin.Inertia(y) for y in self.model.inertias]
         joints = sorted({sub.joint for sub in self._subtrees})
         self._subtrees_by_joint = [

@@ -416,12 +416,41 @@ def _add_camera(s: mujoco.MjSpec, cam: CameraSpec, field: str) -> None:
         raise SpecError(f"{field}.fovy must lie in (0, 180) degrees, got {cam.fovy!r}")
     if s.camera(cam.name) is not None:
         raise BuildError(f"{field}: a camera named {cam.name!r} already exists in the scene")
-    s.worldbody.add_camera(
+    _camera_host(s, cam.attach_to, f"{field}.attach_to").add_camera(
         name=cam.name,
         pos=vector(cam.pos, 3, f"{field}.pos"),
         quat=euler_quat(cam.euler, f"{field}.euler"),
         fovy=fovy,
     )
+
+
+def _camera_host(
+    s: mujoco.MjSpec, target: AttachTarget | None, field: str
+) -> mujoco.MjsBody | mujoco.MjsFrame:
+    """The body, or a frame at the site, that a camera rides on (the world when None)."""
+    if target is None:
+        return s.worldbody
+    if not isinstance(target, AttachTarget) or target.kind not in (
+        AttachKind.Body,
+        AttachKind.Site,
+    ):
+        raise SpecError(
+            f"{field} must be an AttachTarget of kind Body or Site (or None), got {target!r}"
+        )
+    kind = target.kind.value
+    element = getattr(s, kind)(_text(target.name, f"{field}.name"))
+    if element is None:
+        known = [e.name for e in getattr(s, _PLURAL[target.kind])]
+        raise unknown_name(kind, target.name, known, where=f"the scene ({field})")
+    if target.kind is AttachKind.Body:
+        return element
+    # A frame at the site's own placement in its body: the site's orientation may still be
+    # an alternative form (euler, axis-angle) that MuJoCo resolves only when compiling.
+    frame = element.parent.add_frame(pos=element.pos, quat=element.quat)
+    frame.alt = element.alt
+    if element.frame is not None:
+        frame.set_frame(element.frame)
+    return frame
 
 
 class _quiet_attach_notices(warnings.catch_warnings):

@@ -12,6 +12,7 @@ import numpy as np
 import pinocchio as pin
 
 from .chain import Chain
+from .compile import euler_quat, vector
 from .errors import SpecError, unknown_name
 from .ik import IKResult, IKSolver
 from .spec import CtrlMode, ToolFrameSpec
@@ -73,6 +74,7 @@ class Robot:
         self._base_name = prefix + base_body
         self._tip_name = prefix + tip_body
         self._tool = copy.deepcopy(tool) if tool is not None else ToolFrameSpec()
+        self._tcp_offset = _tcp_offset(self._tool)
         self._mode = CtrlMode.POSITION
         self._applied_mode: CtrlMode | None = None
         self._active = False
@@ -86,7 +88,7 @@ class Robot:
     def _bind(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """(Re)build everything that depends on the compiled model and its data."""
         tcp = self._prefixed(self._tool.tcp_site)
-        self._chain = Chain(model, data, self._base_name, self._tip_name, tcp)
+        self._chain = Chain(model, data, self._base_name, self._tip_name, tcp, self._tcp_offset)
         self._check_tool_body(model)
         self._ft = {s.name: self._ft_ids(model, s) for s in self._tool.ft_sensors}
         self._model, self._data = model, data
@@ -232,7 +234,7 @@ class Robot:
 
     @property
     def has_tcp_frame(self) -> bool:
-        """Whether FK refers to a TCP site (else to the tip body)."""
+        """Whether FK refers to a TCP (a site or an offset), else to the tip body."""
         self._check_open()
         return self._chain.tcp_frame != self._chain.tip_frame
 
@@ -634,6 +636,15 @@ def _servo_gains(authored: AuthoredActuators, a: int) -> tuple[float, float]:
         and bias[1] == -gain[0]
     )
     return (float(gain[0]), float(-bias[2])) if is_servo else (0.0, 0.0)
+
+
+def _tcp_offset(tool: ToolFrameSpec) -> pin.SE3 | None:
+    """The TCP's placement in `tcp_site` (or the tip body), None when there is no offset."""
+    pos = vector(tool.tcp_pos, 3, "tool.tcp_pos")
+    quat = euler_quat(tool.tcp_euler, "tool.tcp_euler")
+    if not np.any(pos) and np.array_equal(quat, [1.0, 0.0, 0.0, 0.0]):
+        return None
+    return pin.SE3(pin.Quaternion(*quat).matrix(), pos)
 
 
 def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:

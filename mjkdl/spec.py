@@ -63,7 +63,11 @@ class AttachmentSpec:
 
 @dataclass
 class RobotSpec:
-    """A robot from an MJCF or URDF file, in the world at `pos`/`euler` or on `attach_to`."""
+    """A robot from an MJCF or URDF file, in the world at `pos`/`euler` or on `attach_to`.
+
+    URDF only: `srdf` names an SRDF whose `disable_collisions` pairs are excluded (found next
+    to the URDF when empty); `floating=True` gives the root link a free joint.
+    """
 
     path: str | Path = ""
     prefix: str = ""
@@ -71,6 +75,8 @@ class RobotSpec:
     pos: list[float] = field(default_factory=_zeros3)
     euler: list[float] = field(default_factory=_zeros3)
     attachments: list[AttachmentSpec] = field(default_factory=list)
+    srdf: str | Path = ""
+    floating: bool = False
 
 
 @dataclass
@@ -92,12 +98,17 @@ class SceneObject:
 
 @dataclass
 class CameraSpec:
-    """A fixed world camera; `pos` and `fovy` (degrees) are required."""
+    """A camera; `pos` and `fovy` (degrees) are required.
+
+    With `attach_to` (a body or site) the camera rides on it, `pos`/`euler` relative to it —
+    a wrist camera; without, it is fixed in the world.
+    """
 
     name: str = ""
     pos: list[float] | None = None
     euler: list[float] = field(default_factory=_zeros3)
     fovy: float | None = None
+    attach_to: AttachTarget | None = None
 
 
 @dataclass
@@ -111,10 +122,16 @@ class ForceTorqueSensorSpec:
 
 @dataclass
 class ToolFrameSpec:
-    """The tool mounted below a robot's tip: its root body, TCP site and F/T sensors."""
+    """The tool mounted below a robot's tip: its root body, TCP and F/T sensors.
+
+    The TCP is `tcp_site` (or the tip body when empty) offset by `tcp_pos`/`tcp_euler` in
+    that frame: Panda's hand has no TCP site, its fingertip centre is `tcp_pos=[0, 0, 0.1034]`.
+    """
 
     tool_body: str = ""
     tcp_site: str = ""
+    tcp_pos: list[float] = field(default_factory=_zeros3)
+    tcp_euler: list[float] = field(default_factory=_zeros3)
     ft_sensors: list[ForceTorqueSensorSpec] = field(default_factory=list)
 
 
