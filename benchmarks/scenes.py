@@ -19,7 +19,7 @@ if "MENAGERIE_ROOT" not in os.environ and _shared.is_dir():
 def tabletop_spec() -> mjk.SceneSpec:
     """Gen3 with a 2F-85 (prefix `g_`) on the table's `table_top` site, and a task camera."""
     table = mjk.SceneObject(
-        name="table", mjcf_path=str(ROOT / "assets" / "table.xml"), pos=[0, 0, 0.7], fixed=True
+        name="table", mjcf_path=mjk.assets.path("table"), pos=[0, 0, 0.7], fixed=True
     )
     gripper = mjk.AttachmentSpec(
         mjcf_path=mjk.menagerie.model_path("robotiq_2f85"),

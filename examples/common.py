@@ -9,14 +9,18 @@ Each example reads on its own; this module holds only the pieces several of them
 * `parse_args` (``--headless``, ``--duration``) and `run`, which drives one control loop either
   in the interactive viewer or headless.
 
-Set ``MENAGERIE_ROOT`` to a MuJoCo Menagerie checkout (otherwise the models are downloaded
-once).
+Menagerie models are found as the tests find them: ``MENAGERIE_ROOT`` when set, else the
+checkout next to this repository (``../shared/menagerie``) when there is one, else the
+`mujoco-menagerie` package's cache (downloading once). When none has the model, the example
+exits with one line saying how to point it at one.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,11 +31,13 @@ import pinocchio as pin
 import mjkdl as mjk
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-ASSETS = REPO_ROOT / "assets"
+_SHARED_MENAGERIE = REPO_ROOT.parent / "shared" / "menagerie"
+if "MENAGERIE_ROOT" not in os.environ and _SHARED_MENAGERIE.is_dir():
+    os.environ["MENAGERIE_ROOT"] = str(_SHARED_MENAGERIE)
 
 # The Gen3's "home" keyframe, in chain order (radians).
 HOME = np.array([0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708])
-TABLE_HEIGHT = 0.7  # `assets/table.xml` has its surface at the model origin
+TABLE_HEIGHT = 0.7  # the table asset has its surface at the model origin
 CUBE_HALF = 0.025
 CUBE_START = np.array([0.35, 0.10, TABLE_HEIGHT + CUBE_HALF])
 
@@ -48,10 +54,18 @@ def table() -> mjk.SceneObject:
     """The table asset, fixed, standing on the floor; its site `table_top` is the surface."""
     return mjk.SceneObject(
         name="table",
-        mjcf_path=str(ASSETS / "table.xml"),
+        mjcf_path=mjk.assets.path("table"),
         pos=[0.0, 0.0, TABLE_HEIGHT],
         fixed=True,
     )
+
+
+def menagerie_model(name: str) -> str:
+    """Path of Menagerie model `name`; when it is not available, exit with the one-line reason."""
+    try:
+        return mjk.menagerie.model_path(name)
+    except mjk.ModelFileError as err:
+        raise SystemExit(f"{Path(sys.argv[0]).name}: {err}") from None
 
 
 def cube(pos: np.ndarray = CUBE_START) -> mjk.SceneObject:
@@ -76,12 +90,12 @@ def gen3_with_gripper(
 ) -> mjk.RobotSpec:
     """A Gen3 from Menagerie with a 2F-85 on its `pinch_site` (gripper names get `g_`)."""
     gripper = mjk.AttachmentSpec(
-        mjcf_path=mjk.menagerie.model_path("robotiq_2f85"),
+        mjcf_path=menagerie_model("robotiq_2f85"),
         attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "pinch_site"),
         prefix=GRIPPER_PREFIX,
     )
     return mjk.RobotSpec(
-        path=mjk.menagerie.model_path("kinova_gen3"),
+        path=menagerie_model("kinova_gen3"),
         prefix=prefix,
         attach_to=attach_to,
         pos=list(pos),

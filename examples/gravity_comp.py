@@ -18,7 +18,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import HOME, gravity_compensation, parse_args, run, tcp_drift
+from common import HOME, gravity_compensation, menagerie_model, parse_args, run, tcp_drift
 
 import mjkdl as mjk
 
@@ -33,7 +33,7 @@ def bare_gen3_spec() -> mjk.SceneSpec:
         timestep=0.002,
         add_floor=True,
         add_skybox=True,
-        robots=[mjk.RobotSpec(path=mjk.menagerie.model_path("kinova_gen3"))],
+        robots=[mjk.RobotSpec(path=menagerie_model("kinova_gen3"))],
     )
 
 

@@ -1,6 +1,6 @@
 """mjkdl: MuJoCo scenes from plain dataclasses, Pinocchio kinematics and dynamics on top."""
 
-from . import menagerie
+from . import assets, menagerie
 from .errors import BuildError, MjkdlError, ModelFileError, SpecError, UnknownNameError
 from .ik import IKResult
 from .record import OffscreenRenderError, VideoRecorder, VideoResolution, VideoWriteError
@@ -59,6 +59,7 @@ __all__ = [
     "VideoRecorder",
     "VideoResolution",
     "VideoWriteError",
+    "assets",
     "menagerie",
     "mujoco_version",
     "scene_object_site_name",

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-ASSETS = ROOT / "assets"
+ASSETS = ROOT / "mjkdl" / "assets"
 _SHARED_MENAGERIE = ROOT.parent / "shared" / "menagerie"
 
 if "MENAGERIE_ROOT" not in os.environ and _SHARED_MENAGERIE.is_dir():
@@ -48,7 +48,7 @@ def base_spec(**kw) -> mjk.SceneSpec:
 
 def table_object() -> mjk.SceneObject:
     return mjk.SceneObject(
-        name="table", mjcf_path=str(ASSETS / "table.xml"), pos=[0.0, 0.0, 0.7], fixed=True
+        name="table", mjcf_path=mjk.assets.path("table"), pos=[0.0, 0.0, 0.7], fixed=True
     )
 
 

@@ -1,11 +1,15 @@
-"""`mjk.menagerie.model_path`: known names, unknown names, models missing under MENAGERIE_ROOT."""
+"""`mjk.menagerie.model_path`: known names, unknown names, models missing under MENAGERIE_ROOT;
+the examples' one-line message when a model is missing."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
-from conftest import menagerie
+from conftest import ROOT, menagerie
 
 import mjkdl as mjk
 
@@ -13,21 +17,29 @@ import mjkdl as mjk
 @pytest.mark.parametrize(
     ("name", "file"), [("kinova_gen3", "gen3.xml"), ("robotiq_2f85", "2f85.xml")]
 )
-def test_known_names_resolve_to_existing_files(name, file):
-    path = Path(menagerie(name))
+def test_known_names_resolve_under_menagerie_root(name, file):
+    menagerie(name)  # skips when the model is not on this machine
+    root = os.environ.get("MENAGERIE_ROOT")
+    if not root:
+        pytest.skip("MENAGERIE_ROOT is not set: the models come from the package's cache")
+    path = Path(mjk.menagerie.model_path(name))
     assert path.is_file()
-    assert path.name == file
-    assert path.parent.name == name
-    assert mjk.menagerie.model_path(name) == str(path)
+    assert path.resolve() == (Path(root) / name / file).resolve()
 
 
-def test_model_path_honours_menagerie_root():
-    gen3 = Path(menagerie("kinova_gen3"))
-    root = gen3.parent.parent
-    assert (
-        Path(mjk.menagerie.model_path("kinova_gen3")).resolve()
-        == (root / "kinova_gen3" / "gen3.xml").resolve()
-    )
+def test_model_path_follows_menagerie_root(tmp_path, monkeypatch):
+    real = Path(menagerie("kinova_gen3")).parent
+    (tmp_path / "kinova_gen3").symlink_to(real, target_is_directory=True)
+    monkeypatch.setenv("MENAGERIE_ROOT", str(tmp_path))
+    path = mjk.menagerie.model_path("kinova_gen3")
+    assert Path(path).parent.parent == tmp_path
+    assert Path(path).name == "gen3.xml"
+    with mjk.Scene.build(
+        mjk.SceneSpec(
+            timestep=0.002, add_floor=False, add_skybox=False, robots=[mjk.RobotSpec(path=path)]
+        )
+    ) as scene:
+        assert scene.model.njnt == 7
 
 
 def test_names_lists_known_robots():
@@ -50,3 +62,22 @@ def test_model_missing_under_menagerie_root(tmp_path, monkeypatch):
     message = str(err.value)
     assert "kinova_gen3" in message
     assert str(tmp_path) in message
+
+
+def test_example_without_menagerie_exits_with_one_line(tmp_path):
+    env = dict(os.environ, MENAGERIE_ROOT=str(tmp_path), MUJOCO_GL="egl")
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "gravity_comp.py"), "--headless"],
+        env=env,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 1
+    assert done.stdout == ""
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith("gravity_comp.py: MuJoCo Menagerie model 'kinova_gen3'")
+    assert f"MENAGERIE_ROOT={tmp_path} has no folder 'kinova_gen3'" in lines[0]
