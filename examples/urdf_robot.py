@@ -2,8 +2,8 @@
 
 `RobotSpec.path` takes a URDF as readily as an MJCF. mjkdl resolves its `package://` meshes,
 keeps its fixed-joint links (`tool0`) as bodies and gives every actuated joint a `motor`
-limited to the URDF's effort. MuJoCo cannot read the UR5's `.dae` visual meshes, so they are
-replaced by the collision meshes, with a warning that this script shows once and moves on.
+limited to the URDF's effort. MuJoCo cannot read the UR5's `.dae` visual meshes: they are
+converted once through trimesh into mjkdl's mesh cache (`mjkdl.urdf.mesh_cache_dir()`).
 
 The arm runs in TORQUE mode on `robot.gravity_torques()` alone and the script prints the
 drift of `tool0`.

@@ -175,11 +175,18 @@ def _model_file(path: str | Path, field: str) -> Path:
     return p
 
 
-def load_model_file(path: str | Path, field: str) -> mujoco.MjSpec:
-    """Parse an MJCF or URDF file into an `MjSpec`, naming the file on failure."""
+def load_model_file(
+    path: str | Path, field: str, srdf: str | Path = "", floating: bool = False
+) -> mujoco.MjSpec:
+    """Parse an MJCF or URDF file into an `MjSpec`, naming the file on failure.
+
+    `srdf` and `floating` apply to URDF files only (see `urdf.load_urdf`).
+    """
     p = _model_file(path, field)
     if p.suffix.lower() == ".urdf":
-        child = urdf.load_urdf(p)
+        child = urdf.load_urdf(p, srdf=srdf, floating=floating)
+    elif str(srdf) or floating:
+        raise SpecError(f"{field}: srdf and floating apply to URDF files only, not {p.name}")
     else:
         try:
             child = mujoco.MjSpec.from_file(str(p))
@@ -309,7 +316,9 @@ def _add_mjcf_object(
 def _add_robot(s: mujoco.MjSpec, robot: RobotSpec, field: str) -> None:
     _text(robot.prefix, f"{field}.prefix")
     _check_entries(robot.attachments, AttachmentSpec, f"{field}.attachments")
-    child = load_model_file(robot.path, f"{field}.path")
+    if robot.floating and robot.attach_to is not None:
+        raise SpecError(f"{field}: a floating robot stands in the world; leave attach_to unset")
+    child = load_model_file(robot.path, f"{field}.path", robot.srdf, bool(robot.floating))
     roots = [b.name for b in child.worldbody.bodies]
     for j, att in enumerate(robot.attachments):
         _add_attachment(child, att, f"{field}.attachments[{j}]")

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import copy
 import difflib
+import hashlib
 import importlib.metadata
+import math
 import os
 import site
 import sysconfig
+import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
@@ -16,12 +19,17 @@ from pathlib import Path
 from urllib.parse import unquote
 
 import mujoco
+import trimesh
 
 from mjkdl.errors import BuildError, ModelFileError, SpecError
 
 # The only mesh decoders built into MuJoCo 4.0; any other file (.dae, .ply, .glb, ...) fails to
 # compile with "no decoder found for mesh file".
 READABLE_MESH_SUFFIXES = frozenset({".stl", ".obj", ".msh"})
+# What trimesh (with pycollada for .dae) reads; such meshes are converted to OBJ in the cache.
+CONVERTIBLE_MESH_SUFFIXES = frozenset({".dae", ".ply", ".glb", ".gltf", ".off"})
+# Bump when the conversion changes, so stale cache entries are not reused.
+_CONVERTER_VERSION = "1"
 
 # MuJoCo's URDF reader defaults to strippath, fusestatic and discardvisual all true: that strips
 # the folders off mesh files, merges every fixed-joint link (tool0, ee_link, ...) into its parent
@@ -34,7 +42,8 @@ _ERD_ROBOTS = "cmeel.prefix/share/example-robot-data/robots"
 
 
 class UnreadableMeshWarning(UserWarning):
-    """URDF meshes MuJoCo cannot decode were replaced by collision meshes or dropped."""
+    """URDF meshes neither MuJoCo nor trimesh can decode were replaced by collision meshes or
+    dropped."""
 
 
 @dataclass
@@ -47,26 +56,34 @@ class _MeshReport:
 
 @dataclass(frozen=True)
 class _UrdfJoint:
-    """What the actuator pass needs from one URDF `<joint>`."""
+    """What the actuator and collision passes need from one URDF `<joint>`."""
 
     kind: str
     effort: float
     mimic: bool
+    parent: str
+    child: str
 
 
-def load_urdf(path: str | Path) -> mujoco.MjSpec:
+def load_urdf(path: str | Path, srdf: str | Path = "", floating: bool = False) -> mujoco.MjSpec:
     """Read a URDF file into a `MjSpec` with resolved meshes, Menagerie geom groups and motors.
 
     Every mesh path becomes absolute (`package://`, `file://`, absolute or URDF-relative), so the
-    spec compiles on its own and can be attached into another spec. Links on fixed joints stay
-    bodies. Visual geoms get `contype=conaffinity=0, group=2`; collision geoms `group=3`.
-    A visual mesh MuJoCo cannot read (e.g. `.dae`) is replaced by the link's readable collision
-    meshes, else dropped; an unreadable collision mesh is dropped; one `UnreadableMeshWarning`
-    lists them. Each revolute, continuous or prismatic joint gets a `motor` named like the joint
-    (`gear=1`, control and force limited to ±effort when effort > 0). A `<mimic>` joint gets no
-    motor: MuJoCo ties it to its leader with a `joint` equality (polycoef
-    `[offset, multiplier, 0, 0, 0]`), named like the mimic joint. The root link is welded to
-    the world. Inertias are kept as authored (`balanceinertia` stays off).
+    spec compiles on its own and can be attached into another spec. Meshes MuJoCo cannot decode
+    (`.dae`, `.ply`, `.glb`, `.gltf`, `.off`) are converted through trimesh into OBJ files in
+    `mesh_cache_dir()`, keyed by the file's content. Links on fixed joints stay bodies. Visual
+    geoms get `contype=conaffinity=0, group=2`; collision geoms `group=3`. Each revolute,
+    continuous or prismatic joint gets a `motor` named like the joint (`gear=1`, control and
+    force limited to ±effort when effort > 0; a NaN, infinite or negative effort is an error).
+    A `<mimic>` joint gets no motor: MuJoCo ties it to its leader with a `joint` equality
+    (polycoef `[offset, multiplier, 0, 0, 0]`), named like the mimic joint. Inertias are kept
+    as authored (`balanceinertia` stays off).
+
+    The root link is welded to the world, or free (a free joint named `root_joint`) when
+    `floating`. Contacts are excluded between the two links of every joint, between the link
+    pairs of the SRDF's `<disable_collisions>` (`srdf`, else `<urdf stem>.srdf` or
+    `<robot name>.srdf` next to the URDF or in a `srdf` folder beside or above it) and between
+    links that touch at the reference pose (qpos0), as MoveIt's setup assistant does.
     """
     urdf = _existing_file(path)
     root = _read_robot_xml(urdf)
@@ -74,6 +91,8 @@ def load_urdf(path: str | Path) -> mujoco.MjSpec:
     for link in root.findall("link"):
         _rewrite_link_meshes(link, urdf, report)
     _override_compiler(root)
+    joints = _urdf_joints(root, urdf)
+    srdf_file = _srdf_file(urdf, root, srdf)
     # MuJoCo's URDF reader (mjXURDF::AddToTree) creates no body for a link named "world": its
     # children hang straight off the worldbody, so UR5's `world` link and fixed `world_joint`
     # leave nothing behind and its root body is `base_link`. It adds no free joint either.
@@ -81,11 +100,38 @@ def load_urdf(path: str | Path) -> mujoco.MjSpec:
     spec.strippath = False
     spec.meshdir = ""  # every mesh file is absolute, whatever spec it ends up attached to
     _set_geom_groups(spec)
-    joints = _urdf_joints(root, urdf)
     _add_motors(spec, joints)
     _name_mimic_equalities(spec, joints)
+    if floating:
+        _add_free_joint(spec, urdf)
+    pairs = {(j.parent, j.child) for j in joints.values()}
+    if srdf_file is not None:
+        pairs |= _srdf_pairs(srdf_file, spec, explicit=bool(str(srdf)))
+    _exclude(spec, pairs)
+    _exclude(spec, _touching_at_rest(spec, urdf))
     _warn_unreadable(urdf, report)
     return spec
+
+
+def mesh_cache_dir() -> Path:
+    """Where converted meshes are kept: `$MJKDL_CACHE_DIR/meshes`, else
+    `$XDG_CACHE_HOME/mjkdl/meshes`, else `~/.cache/mjkdl/meshes`. Safe to delete."""
+    base = os.environ.get("MJKDL_CACHE_DIR")
+    if base:
+        return Path(base).expanduser() / "meshes"
+    cache = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(cache).expanduser() / "mjkdl" / "meshes"
+
+
+def root_links(path: str | Path) -> list[str]:
+    """Names of the URDF's root links as MuJoCo compiles them (a `world` link's children)."""
+    root = _read_robot_xml(_existing_file(path))
+    children = {_child(j) for j in root.findall("joint")}
+    roots = [link.get("name", "") for link in root.findall("link")]
+    roots = [name for name in roots if name not in children]
+    if roots == ["world"]:
+        return [_child(j) for j in root.findall("joint") if _parent(j) == "world"]
+    return roots
 
 
 def example_robot_data_path(relative: str) -> Path:
@@ -160,7 +206,10 @@ def _rewrite_link_meshes(link: ET.Element, urdf: Path, report: _MeshReport) -> N
 
 
 def _resolve_mesh_element(element: ET.Element, urdf: Path, link_name: str) -> Path | None:
-    """The absolute mesh file of a `<visual>`/`<collision>`, written back; None if no mesh."""
+    """The absolute mesh file of a `<visual>`/`<collision>`, written back; None if no mesh.
+
+    A mesh trimesh can convert is replaced by its converted OBJ file.
+    """
     mesh = element.find("geometry/mesh")
     if mesh is None:
         return None
@@ -171,8 +220,36 @@ def _resolve_mesh_element(element: ET.Element, urdf: Path, link_name: str) -> Pa
             f"{urdf}: mesh {uri!r} of link {link_name!r} not found (package:// searches "
             "ROS_PACKAGE_PATH, cmeel share folders and the URDF's parent folders)"
         )
+    if mesh_file.suffix.lower() in CONVERTIBLE_MESH_SUFFIXES:
+        mesh_file = _converted_mesh(mesh_file, urdf, link_name)
     mesh.set("filename", str(mesh_file))
     return mesh_file
+
+
+def _converted_mesh(source: Path, urdf: Path, link_name: str) -> Path:
+    """`source` as an OBJ file in metres in the mesh cache (converted once per content)."""
+    data = source.read_bytes()
+    digest = hashlib.sha256(data + _CONVERTER_VERSION.encode()).hexdigest()[:20]
+    target = mesh_cache_dir() / f"{source.stem}-{digest}.obj"
+    if target.is_file():
+        return target
+    where = f"{urdf}: mesh {source} of link {link_name!r}"
+    try:
+        scene = trimesh.load_scene(source)
+        if scene.units not in (None, "meters"):  # COLLADA <unit meter="0.001"/> and the like
+            scene = scene.convert_units("meters")
+        mesh = scene.to_mesh()
+    except Exception as err:  # trimesh and pycollada raise many unrelated types
+        raise ModelFileError(f"{where} cannot be read: {type(err).__name__}: {err}") from None
+    if len(mesh.faces) == 0:
+        raise ModelFileError(f"{where} has no triangles")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    text = trimesh.exchange.obj.export_obj(mesh, include_texture=False, include_color=False)
+    # Written under a temporary name and renamed: parallel processes never read half a file.
+    with tempfile.NamedTemporaryFile("w", dir=target.parent, suffix=".tmp", delete=False) as out:
+        out.write(text)
+    os.replace(out.name, target)
+    return target
 
 
 def _resolve_uri(uri: str, urdf: Path) -> Path | None:
@@ -253,18 +330,36 @@ def _set_geom_groups(spec: mujoco.MjSpec) -> None:
 def _urdf_joints(root: ET.Element, path: Path) -> dict[str, _UrdfJoint]:
     joints = {}
     for joint in root.findall("joint"):
+        name = joint.get("name", "")
         limit = joint.find("limit")
         text = limit.get("effort", "0") if limit is not None else "0"
         try:
-            effort = abs(float(text))
+            effort = float(text)
         except ValueError:
+            effort = math.nan
+        if not math.isfinite(effort) or effort < 0:
             raise SpecError(
-                f"{path}: joint {joint.get('name', '')!r} has a non-numeric effort {text!r}"
-            ) from None
-        joints[joint.get("name", "")] = _UrdfJoint(
-            kind=joint.get("type", ""), effort=effort, mimic=joint.find("mimic") is not None
+                f"{path}: joint {name!r} has effort {text!r}; the force limit must be a finite "
+                "number >= 0 (0 or no <limit>: unlimited)"
+            )
+        joints[name] = _UrdfJoint(
+            kind=joint.get("type", ""),
+            effort=effort,
+            mimic=joint.find("mimic") is not None,
+            parent=_parent(joint),
+            child=_child(joint),
         )
     return joints
+
+
+def _parent(joint: ET.Element) -> str:
+    element = joint.find("parent")
+    return element.get("link", "") if element is not None else ""
+
+
+def _child(joint: ET.Element) -> str:
+    element = joint.find("child")
+    return element.get("link", "") if element is not None else ""
 
 
 def _add_motors(spec: mujoco.MjSpec, joints: dict[str, _UrdfJoint]) -> None:
@@ -284,7 +379,7 @@ def _add_motors(spec: mujoco.MjSpec, joints: dict[str, _UrdfJoint]) -> None:
 
 def _effort_limits(effort: float) -> dict[str, object]:
     """Actuator control and force limits of ±effort; unlimited when URDF gives no effort."""
-    if effort <= 0:
+    if effort == 0:
         unlimited = mujoco.mjtLimited.mjLIMITED_FALSE
         return {"ctrllimited": unlimited, "forcelimited": unlimited}
     bounds = [-effort, effort]
@@ -303,6 +398,77 @@ def _name_mimic_equalities(spec: mujoco.MjSpec, joints: dict[str, _UrdfJoint]) -
         mimic = joints.get(equality.name1)
         if equality.type == mujoco.mjtEq.mjEQ_JOINT and not equality.name and mimic and mimic.mimic:
             equality.name = equality.name1
+
+
+def _add_free_joint(spec: mujoco.MjSpec, urdf: Path) -> None:
+    roots = list(spec.worldbody.bodies)
+    if len(roots) != 1:
+        names = ", ".join(b.name for b in roots) or "none"
+        raise SpecError(f"{urdf}: floating=True needs one root link, found {names}")
+    if not any(j.type == mujoco.mjtJoint.mjJNT_FREE for j in roots[0].joints):
+        roots[0].add_freejoint(name="root_joint")
+
+
+def _srdf_file(urdf: Path, root: ET.Element, given: str | Path) -> Path | None:
+    """The SRDF to read: `given`, else one named like the URDF or its robot, else None."""
+    if str(given):
+        file = Path(given).expanduser()
+        if not file.is_file():
+            raise ModelFileError(f"SRDF file not found: {file} (given for {urdf})")
+        return file.resolve()
+    folders = (urdf.parent, urdf.parent / "srdf", urdf.parent.parent / "srdf")
+    for name in dict.fromkeys(n for n in (urdf.stem, root.get("name", "")) if n):
+        for folder in folders:
+            if (folder / f"{name}.srdf").is_file():
+                return (folder / f"{name}.srdf").resolve()
+    return None
+
+
+def _srdf_pairs(srdf: Path, spec: mujoco.MjSpec, explicit: bool) -> set[tuple[str, str]]:
+    """The SRDF's `<disable_collisions>` link pairs that name two links of this robot.
+
+    An SRDF written for a whole robot may name links a partial URDF lacks (talos.srdf for
+    `talos_left_arm.urdf`); those pairs do not apply. An SRDF given explicitly must match.
+    """
+    try:
+        root = ET.parse(srdf).getroot()
+    except ET.ParseError as err:
+        raise SpecError(f"SRDF {srdf} is not valid XML: {err}") from None
+    if root.tag != "robot":
+        raise SpecError(f"{srdf} is not an SRDF file: its root element is <{root.tag}>")
+    pairs = set()
+    for element in root.iter("disable_collisions"):
+        link1, link2 = element.get("link1"), element.get("link2")
+        if not link1 or not link2:
+            raise SpecError(
+                f"{srdf}: <disable_collisions> needs link1 and link2, got {element.attrib}"
+            )
+        pairs.add((link1, link2))
+    known = {(a, b) for a, b in pairs if spec.body(a) is not None and spec.body(b) is not None}
+    if explicit and pairs and not known:
+        raise SpecError(f"SRDF {srdf}: none of its disable_collisions links are in this robot")
+    return known
+
+
+def _exclude(spec: mujoco.MjSpec, pairs: set[tuple[str, str]]) -> None:
+    for a, b in sorted(pairs):
+        if a != b and spec.body(a) is not None and spec.body(b) is not None:
+            spec.add_exclude(bodyname1=a, bodyname2=b)
+
+
+def _touching_at_rest(spec: mujoco.MjSpec, urdf: Path) -> set[tuple[str, str]]:
+    """Body pairs whose geoms touch at qpos0 despite the exclusions so far."""
+    try:
+        model = spec.compile()
+    except ValueError as err:
+        raise BuildError(f"MuJoCo cannot compile URDF {urdf}: {err}") from None
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    pairs = set()
+    for contact in data.contact[: data.ncon]:
+        pair = (model.geom_bodyid[contact.geom1], model.geom_bodyid[contact.geom2])
+        pairs.add((model.body(pair[0]).name, model.body(pair[1]).name))
+    return pairs
 
 
 def _warn_unreadable(urdf: Path, report: _MeshReport) -> None:

@@ -28,8 +28,7 @@ def ur5():
         path=example_robot_data_path("ur_description/urdf/ur5_robot.urdf"),
         attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "table/table_top"),
     )
-    with pytest.warns(UserWarning, match="dae"):
-        scene = mjk.Scene.build(base_spec(objects=[table], robots=[arm]))
+    scene = mjk.Scene.build(base_spec(objects=[table], robots=[arm]))
     robot = scene.create_robot("base_link", "tool0")
     robot.set_joint_pos([0.3, -1.2, 1.4, -1.5, -1.57, 0.2])
     robot.sync_commands()
@@ -154,8 +153,7 @@ def test_position_hold_gen3(gen3) -> None:
 
 def test_position_hold_urdf_ur5_with_motor_actuators(ur5) -> None:
     scene, robot = ur5
-    with pytest.warns(UserWarning, match="dae"):
-        authored = load_urdf(example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
+    authored = load_urdf(example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
     assert all(a.biastype == mujoco.mjtBias.mjBIAS_NONE for a in authored.actuators)  # motors
     robot.ctrl_mode = mjk.CtrlMode.POSITION
     assert _run(scene, robot, 2.0) < 1e-3

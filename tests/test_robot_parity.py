@@ -83,8 +83,7 @@ def _ur5_urdf() -> Case:
         ),
         euler=[0.0, 0.0, 30.0],
     )
-    with pytest.warns(UserWarning, match="dae"):
-        scene = mjk.Scene.build(base_spec(objects=[table], robots=[arm]))
+    scene = mjk.Scene.build(base_spec(objects=[table], robots=[arm]))
     robot = scene.create_robot("base_link", "tool0")
     return Case(scene, robot, tip_body="tool0")
 
