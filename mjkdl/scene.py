@@ -15,7 +15,8 @@ import pinocchio as pin
 from .chain import joint_sizes
 from .closable import Closable
 from .compile import compile_scene, vector
-from .errors import MjkdlError, SpecError, unknown_name
+from .describe import describe, summary, tree_for
+from .errors import MjkdlError, SpecError, UnknownNameError, unknown_name
 from .robot import AuthoredActuators, Robot
 from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
 
@@ -226,9 +227,26 @@ class Scene(Closable):
     ) -> Robot:
         """A `Robot` handle on the chain from `base_body` to `tip_body` (names without prefix)."""
         self._check_open()
-        robot = Robot(self, base_body, tip_body, prefix=prefix, tool=tool)
+        try:
+            robot = Robot(self, base_body, tip_body, prefix=prefix, tool=tool)
+        except UnknownNameError as err:  # show the names there are, as a tree
+            tree = tree_for(self._model, self._spec, prefix)
+            raise UnknownNameError(f"{err}\nthe names there are:\n{tree}") from None
         self._robots.append(robot)
         return robot
+
+    # ------------------------------------------------------------------ description
+
+    def describe(self) -> str:
+        """The kinematic tree with body, joint, site, actuator and camera names, and a
+        suggested `create_robot(...)` call per robot (see `mjkdl.describe`)."""
+        return describe(self.model, self._spec)
+
+    def __str__(self) -> str:
+        """Counts, objects and one suggested `create_robot(...)` call per robot."""
+        if self._model is None:
+            return f"{type(self).__name__} (closed)"
+        return summary(self._model, self._spec)
 
     # ------------------------------------------------------------------ rebuild
 

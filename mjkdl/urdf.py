@@ -153,7 +153,7 @@ def _example_robot_data_robots() -> Path:
         raise ModelFileError(
             "example-robot-data is not installed: pip install example-robot-data"
         ) from err
-    robots = Path(distribution.locate_file(_ERD_ROBOTS))
+    robots = Path(str(distribution.locate_file(_ERD_ROBOTS)))
     if not robots.is_dir():
         raise ModelFileError(
             f"example-robot-data has no robots folder at {robots}: "
