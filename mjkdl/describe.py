@@ -6,8 +6,10 @@ serial chain is followed down while exactly one child carries further joints; th
 first attachment (`RobotSpec.attachments`) below the chain, else the body where the chain
 forks into several jointed branches (a hand with fingers). The tip is the body the tool hangs
 from, else the chain's last jointed body, or a rigid body below it named like a tool frame
-(`tool0`, `flange`, ...). The TCP site is the tool's (else the tip's) site named most like a
-TCP (`tcp`, `pinch`, `grip`, ...), else the tool's first site.
+(`tool0`, `flange`, ...). A bare mounting plate (no joint, no site, one child) at the top of
+an attachment is passed over: the 2F-85's `base_mount` leads to its `base`. The TCP site is
+the tool's (else the tip's) site named most like a TCP (`tcp`, `pinch`, `grip`, ...), else the
+tool's first site.
 """
 
 from __future__ import annotations
@@ -180,6 +182,8 @@ def _suggest(
     if tool is None and path[-1] != last:
         tool = path[-1]  # a rigid body that forks into several jointed branches: a hand
     tip = int(m.body_parentid[tool]) if tool is not None else last
+    while tool is not None and _is_plate(m, children, tool):
+        tool = children[tool][0]
     tcp = _best_site(m, _subtree(children, tool if tool is not None else tip))
     if tool is not None and not tcp:
         sites = [s for s in range(m.nsite) if m.site_bodyid[s] in _subtree(children, tool)]
@@ -193,6 +197,11 @@ def _suggest(
         tool_body=_unprefixed(m.body(tool).name, prefix) if tool is not None else "",
         tcp_site=_unprefixed(tcp, prefix),
     )
+
+
+def _is_plate(m: mujoco.MjModel, children: list[list[int]], body: int) -> bool:
+    sites = any(m.site_bodyid[s] == body for s in range(m.nsite))
+    return m.body_jntnum[body] == 0 and not sites and len(children[body]) == 1
 
 
 def _children(m: mujoco.MjModel) -> list[list[int]]:

@@ -169,13 +169,14 @@ def _existing_file(path: str | Path) -> Path:
     return file.resolve()
 
 
-def _read_robot_xml(urdf: Path) -> ET.Element:
+def _read_robot_xml(file: Path, kind: str = "a URDF") -> ET.Element:
+    """The `<robot>` root of a URDF or SRDF (`kind`) file."""
     try:
-        root = ET.parse(urdf).getroot()
+        root = ET.parse(file).getroot()
     except ET.ParseError as err:
-        raise SpecError(f"{urdf} is not valid XML: {err}") from err
+        raise SpecError(f"{file} is not valid XML: {err}") from None
     if root.tag != "robot":
-        raise SpecError(f"{urdf} is not a URDF file: its root element is <{root.tag}>, not <robot>")
+        raise SpecError(f"{file} is not {kind} file: its root element is <{root.tag}>, not <robot>")
     return root
 
 
@@ -430,12 +431,7 @@ def _srdf_pairs(srdf: Path, spec: mujoco.MjSpec, explicit: bool) -> set[tuple[st
     An SRDF written for a whole robot may name links a partial URDF lacks (talos.srdf for
     `talos_left_arm.urdf`); those pairs do not apply. An SRDF given explicitly must match.
     """
-    try:
-        root = ET.parse(srdf).getroot()
-    except ET.ParseError as err:
-        raise SpecError(f"SRDF {srdf} is not valid XML: {err}") from None
-    if root.tag != "robot":
-        raise SpecError(f"{srdf} is not an SRDF file: its root element is <{root.tag}>")
+    root = _read_robot_xml(srdf, "an SRDF")
     pairs = set()
     for element in root.iter("disable_collisions"):
         link1, link2 = element.get("link1"), element.get("link2")

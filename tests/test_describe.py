@@ -114,7 +114,7 @@ def _tcp_matches(robot: mjk.Robot, scene: mjk.Scene, site: str = "", body: str =
 def test_gen3_2f85_suggestion_builds_the_tutorial_robot(tutorial_scene) -> None:
     scene = tutorial_scene()
     (s,) = suggest(scene.model, scene.spec)
-    assert s == RobotSuggestion("", "base_link", "bracelet_link", "g_base_mount", "g_pinch")
+    assert s == RobotSuggestion("", "base_link", "bracelet_link", "g_base", "g_pinch")
     text = str(scene)
     call = re.search(r"scene\.(create_robot\(.*\))$", text, flags=re.M).group(1)
     robot = eval(f"scene.{call}", {"scene": scene, "mjk": mjk})  # the printed call runs
@@ -131,7 +131,7 @@ def test_prefixed_second_arm() -> None:
         bare, tooled = suggest(scene.model, scene.spec)
         assert bare == RobotSuggestion("", "base_link", "bracelet_link", "", "pinch_site")
         assert tooled == RobotSuggestion(
-            "r2_", "base_link", "bracelet_link", "g_base_mount", "g_pinch"
+            "r2_", "base_link", "bracelet_link", "g_base", "g_pinch"
         )
         assert '└─ r2_base_link  [robot 1 (gen3.xml, prefix "r2_")]' in scene.describe()
         robot = _build(scene, tooled)

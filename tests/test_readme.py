@@ -20,6 +20,9 @@ def test_quickstart_runs_and_holds(tmp_path, monkeypatch, capsys) -> None:
     robot = namespace["robot"]
     printed = capsys.readouterr().out
     assert "R =" in printed and "p =" in printed  # a pinocchio.SE3 was printed
+    # print(env) suggested the very call the quickstart makes
+    tool = 'tool=mjk.ToolFrameSpec(tool_body="g_base", tcp_site="g_pinch")'
+    assert f'scene.create_robot("base_link", "bracelet_link", {tool})' in printed
     assert namespace["env"].closed  # the with-block closed it
     key_home = np.array([0, 0.26179939, 3.14159265, -2.26892803, 0, 0.95993109, 1.57079633])
     assert np.abs(robot._pos_msr - key_home).max() < 1e-3  # gravity compensation held it

@@ -553,7 +553,7 @@ def test_bad_srdf_names_the_file(tmp_path: Path, content: str, message: str) -> 
 def test_malformed_srdf_found_next_to_the_urdf_names_it(tmp_path: Path) -> None:
     urdf = _swing_arm(tmp_path / "tiny.urdf")
     (tmp_path / "tiny.srdf").write_text("<robot")
-    with pytest.raises(SpecError, match=f"SRDF {tmp_path / 'tiny.srdf'} is not valid XML"):
+    with pytest.raises(SpecError, match=f"{tmp_path / 'tiny.srdf'} is not valid XML"):
         load_urdf(urdf)
 
 
