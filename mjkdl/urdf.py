@@ -244,12 +244,20 @@ def _converted_mesh(source: Path, urdf: Path, link_name: str) -> Path:
         raise ModelFileError(f"{where} cannot be read: {type(err).__name__}: {err}") from None
     if len(mesh.faces) == 0:
         raise ModelFileError(f"{where} has no triangles")
-    target.parent.mkdir(parents=True, exist_ok=True)
     text = trimesh.exchange.obj.export_obj(mesh, include_texture=False, include_color=False)
-    # Written under a temporary name and renamed: parallel processes never read half a file.
-    with tempfile.NamedTemporaryFile("w", dir=target.parent, suffix=".tmp", delete=False) as out:
-        out.write(text)
-    os.replace(out.name, target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        # Written under a temporary name and renamed: parallel processes never read half a file.
+        with tempfile.NamedTemporaryFile(
+            "w", dir=target.parent, suffix=".tmp", delete=False
+        ) as out:
+            out.write(text)
+        os.replace(out.name, target)
+    except OSError as err:
+        raise ModelFileError(
+            f"{where}: cannot write its converted copy to {target.parent} ({err}); "
+            "set MJKDL_CACHE_DIR to a writable folder"
+        ) from None
     return target
 
 

@@ -330,6 +330,19 @@ def test_malformed_dae_names_file_and_link(tmp_path, monkeypatch) -> None:
     )
 
 
+def test_unwritable_mesh_cache_says_how_to_move_it(tmp_path, monkeypatch) -> None:
+    blocker = tmp_path / "cache"
+    blocker.write_text("a file where the cache folder should be")
+    monkeypatch.setenv("MJKDL_CACHE_DIR", str(blocker))
+    _write_dae(tmp_path / "part.dae", [0.1, 0.1, 0.1])
+    urdf = _write_urdf(tmp_path / "tiny.urdf", _mesh("visual", "part.dae"))
+    with pytest.raises(ModelFileError) as info:
+        load_urdf(urdf)
+    message = str(info.value)
+    assert f"cannot write its converted copy to {blocker / 'meshes'}" in message
+    assert message.endswith("set MJKDL_CACHE_DIR to a writable folder")
+
+
 def test_missing_dae_names_uri_and_link(tmp_path: Path) -> None:
     urdf = _write_urdf(tmp_path / "tiny.urdf", _mesh("visual", "meshes/gone.dae"))
     with pytest.raises(ModelFileError, match=r"mesh 'meshes/gone\.dae' of link 'arm' not found"):
