@@ -9,7 +9,8 @@ from, else the chain's last jointed body, or a rigid body below it named like a 
 (`tool0`, `flange`, ...). A bare mounting plate (no joint, no site, one child) at the top of
 an attachment is passed over: the 2F-85's `base_mount` leads to its `base`. The TCP site is
 the tool's (else the tip's) site named most like a TCP (`tcp`, `pinch`, `grip`, ...), else the
-tool's first site.
+tool's first site; without a site, a rigid body named so inside the tool becomes a `tcp_pos` /
+`tcp_euler` offset from the tip (the Panda URDF's `panda_hand_tcp`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from . import urdf
 from .errors import MjkdlError
@@ -55,6 +57,8 @@ class RobotSuggestion:
     tip_body: str
     tool_body: str = ""
     tcp_site: str = ""
+    tcp_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tcp_euler: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def call(self) -> str:
         """The suggestion as Python source: `create_robot("base", "tip", ...)`."""
@@ -65,6 +69,11 @@ class RobotSuggestion:
             f"{field}={_quote(value)}"
             for field, value in (("tool_body", self.tool_body), ("tcp_site", self.tcp_site))
             if value
+        ]
+        tool += [
+            f"{field}=[{', '.join(repr(v) for v in values)}]"
+            for field, values in (("tcp_pos", self.tcp_pos), ("tcp_euler", self.tcp_euler))
+            if any(values)
         ]
         if tool:
             args.append(f"tool=mjk.ToolFrameSpec({', '.join(tool)})")
@@ -188,15 +197,47 @@ def _suggest(
     if tool is not None and not tcp:
         sites = [s for s in range(m.nsite) if m.site_bodyid[s] in _subtree(children, tool)]
         tcp = m.site(sites[0]).name if sites else ""
-    if tool is None and not tcp:
-        tip = _best_body(m, _rigid_below(m, children, tip)) or tip
+    frame = None if tcp else _best_body(m, _rigid_below(m, children, tip))
+    offset = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    if frame is not None and tool is None:
+        tip = frame  # a tool frame of the arm itself (UR's tool0): the chain ends there
+    elif frame is not None:
+        offset = _offset(m, tip, frame)  # a TCP body inside the tool (panda_hand_tcp)
     return RobotSuggestion(
         prefix=prefix,
         base_body=_unprefixed(m.body(root).name, prefix),
         tip_body=_unprefixed(m.body(tip).name, prefix),
         tool_body=_unprefixed(m.body(tool).name, prefix) if tool is not None else "",
         tcp_site=_unprefixed(tcp, prefix),
+        tcp_pos=offset[0],
+        tcp_euler=offset[1],
     )
+
+
+def _offset(
+    m: mujoco.MjModel, ancestor: int, body: int
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """Position and intrinsic xyz Euler angles (degrees) of `body` in `ancestor`'s frame,
+    rounded to 1e-9: the form of `ToolFrameSpec.tcp_pos`/`tcp_euler`."""
+    rot, pos = np.eye(3), np.zeros(3)
+    while body != ancestor:
+        local = np.empty(9)
+        mujoco.mju_quat2Mat(local, m.body_quat[body])
+        pos = m.body_pos[body] + local.reshape(3, 3) @ pos
+        rot = local.reshape(3, 3) @ rot
+        body = int(m.body_parentid[body])
+    # R = Rx(a) Ry(b) Rz(c)
+    angles = (
+        np.arctan2(-rot[1, 2], rot[2, 2]),
+        np.arcsin(np.clip(rot[0, 2], -1.0, 1.0)),
+        np.arctan2(-rot[0, 1], rot[0, 0]),
+    )
+    return _rounded(pos), _rounded(np.rad2deg(angles))
+
+
+def _rounded(values: Iterable[float]) -> tuple[float, float, float]:
+    a, b, c = (round(float(v), 9) + 0.0 for v in values)  # + 0.0 turns -0.0 into 0.0
+    return (a, b, c)
 
 
 def _is_plate(m: mujoco.MjModel, children: list[list[int]], body: int) -> bool:

@@ -91,7 +91,12 @@ def test_counts_and_marks(tutorial_scene) -> None:
 
 
 def _build(scene: mjk.Scene, s: RobotSuggestion) -> mjk.Robot:
-    tool = mjk.ToolFrameSpec(tool_body=s.tool_body, tcp_site=s.tcp_site)
+    tool = mjk.ToolFrameSpec(
+        tool_body=s.tool_body,
+        tcp_site=s.tcp_site,
+        tcp_pos=list(s.tcp_pos),
+        tcp_euler=list(s.tcp_euler),
+    )
     return scene.create_robot(s.base_body, s.tip_body, prefix=s.prefix, tool=tool)
 
 
@@ -148,6 +153,21 @@ def test_panda_suggestion_splits_arm_and_hand() -> None:
         robot = _build(scene, s)
         assert robot.joint_names == [f"joint{i}" for i in range(1, 8)]  # fingers: the tool's
         _tcp_matches(robot, scene, body="link7")
+
+
+def test_panda_urdf_tcp_is_its_hand_tcp_link() -> None:
+    arm = mjk.RobotSpec(
+        path=example_robot_data_path("panda_description/urdf/panda.urdf"), euler=[10, 20, 30]
+    )
+    with mjk.Scene.build(base_spec(robots=[arm])) as scene:
+        (s,) = suggest(scene.model, scene.spec)
+        assert s == RobotSuggestion(
+            "", "panda_link0", "panda_link8", "panda_hand", "", (0, 0, 0.1034), (0, 0, -45)
+        )
+        assert "tcp_pos=[0.0, 0.0, 0.1034], tcp_euler=[0.0, 0.0, -45.0]" in s.call()
+        robot = _build(scene, s)
+        assert robot.n_joints == 7
+        _tcp_matches(robot, scene, body="panda_hand_tcp")
 
 
 def test_ur5_urdf_suggestion_ends_at_tool0() -> None:
