@@ -112,7 +112,7 @@ def _randomize(case: Case, rng: np.random.Generator, moving: bool) -> None:
     d.qpos[:] = m.qpos0
     d.qvel[:] = 0.0
     for j in range(m.njnt):
-        if m.jnt_type[j] not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+        if int(m.jnt_type[j]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
             continue
         lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.pi, np.pi)
         d.qpos[m.jnt_qposadr[j]] = rng.uniform(lo, hi)
