@@ -23,6 +23,9 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _SERVO_HZ = 10.0
 # MuJoCo zeroes (with a warning) any control above this magnitude (mjMAXVAL).
 _MAX_CTRL = 1e10
+_MAX_CTRL2 = _MAX_CTRL * _MAX_CTRL
+_F64 = np.dtype(np.float64)
+_gravity = pin.computeGeneralizedGravity
 
 
 @dataclass
@@ -116,9 +119,11 @@ class Robot:
         self._gfull = self._gdata.g  # a view of Pinocchio's buffer, fetched once
         n = len(chain.joint_ids)
         self._n = n
+        self._shape = (n,)
         self._qadr = chain.qpos_adr
         self._dadr = chain.dof_adr
         self._arm_q, self._arm_v = chain.arm_q, chain.arm_v
+        self._arm_only = self._arm_v == slice(0, pm.nv)  # no other joints in the model
         self._q = np.zeros(pm.nq)  # the whole model's measured q and v
         self._v = np.zeros(pm.nv)
         self._qx = np.zeros(pm.nq)  # scratch for calls at an explicit arm q
@@ -160,6 +165,7 @@ class Robot:
         self._actuator_ids = ids
         self._ctrl_view = _view(data.ctrl, ids)
         self._ctrl = self._ctrl_buf if self._ctrl_view is None else self._ctrl_view
+        self._motors = False  # TORQUE mode through contiguous actuators: the fast path
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
 
@@ -396,10 +402,22 @@ class Robot:
         return value
 
     def _assign(self, port: np.ndarray, value: object, name: str) -> None:
-        port[...] = self._vector(value, name, _MAX_CTRL)
+        # The checks of _vector for a float64 array on an active handle, inlined: a control
+        # loop assigns a command every step.
+        if (
+            type(value) is np.ndarray
+            and value.dtype is _F64
+            and value.shape == self._shape
+            and value.dot(value) <= _MAX_CTRL2
+            and self._active
+            and self._open
+        ):
+            port[...] = value
+        else:
+            port[...] = self._vector(value, name, _MAX_CTRL)
+            if not self._active:
+                self._activate()
         self._pending = True
-        if not self._active:
-            self._activate()
 
     def sync_commands(self) -> None:
         """Set the command ports to the measured state and apply them in the current mode.
@@ -514,14 +532,23 @@ class Robot:
             self._activate()
         if self._unactuated and (error := self._control_error()):
             raise SpecError(error)
-        if self._gravcomp:
-            self._gravity_into(self._gdata)
-            self._apply()
-        elif self._mode is not CtrlMode.TORQUE:
-            self._prepare()
-            self._apply()
-        elif self._pending:
-            self._apply()
+        if self._mode is self._applied_mode:
+            if self._gravcomp:
+                _gravity(self._pin, self._gdata, self._q)
+                if self._gc_model is not None or self._gather_ports:
+                    self._finish_gravity()
+                self._pending = False
+                if self._motors:
+                    np.add(self._trq_cmd, self._g_arm, out=self._ctrl)
+                    return
+            elif self._motors:
+                if self._pending:
+                    self._pending = False
+                    self._ctrl[...] = self._trq_cmd
+                return
+            else:
+                self._prepare()
+        self._apply()
 
     def step(self) -> None:
         """Advance the scene one timestep; pending commands (of every robot) apply first."""
@@ -529,57 +556,59 @@ class Robot:
             self._check_open()
         self._scene.step()
 
-    def _gravity_into(self, data: pin.Data) -> None:
-        """Gravity of the whole model at the measured q into `data.g`, gravcomp share out."""
-        pin.computeGeneralizedGravity(self._pin, data, self._q)
+    def _finish_gravity(self) -> None:
+        """`_gdata.g` less what MuJoCo's gravcomp cancels; the arm's entries gathered."""
         if self._gc_model is not None:
-            g = self._gfull if data is self._gdata else data.g
-            g -= pin.computeGeneralizedGravity(self._gc_model, self._pdata, self._q)
-        if self._gather_ports and data is self._gdata:
+            self._gfull -= _gravity(self._gc_model, self._pdata, self._q)
+        if self._gather_ports:
             np.take(self._gfull, self._arm_v, out=self._g_arm)
 
     def _prepare(self) -> None:
         """What the mode adds to the commands at the measured state: gravity, once per update."""
         if self._applied_mode is not self._mode:
             return  # _apply configures the mode first, then comes back here
-        if self._gravcomp:
-            self._gravity_into(self._gdata)
-        elif self._mode is not CtrlMode.TORQUE and self.gravity_feedforward and self._actuation:
-            self._gravity_into(self._gdata)
-            np.multiply(self._g_arm, self._ff_scale, out=self._ff)
+        if self._gravcomp or (self._mode is not CtrlMode.TORQUE and self.gravity_feedforward):
+            _gravity(self._pin, self._gdata, self._q)
+            self._finish_gravity()
+            if not self._gravcomp and self._actuation:
+                np.multiply(self._g_arm, self._ff_scale, out=self._ff)
 
     def _apply(self) -> None:
         """Write the command ports into MuJoCo's controls in the current mode.
 
+        The actuators' gains are set so the control is in joint units: the torque itself
+        (TORQUE), the position or velocity setpoint (servos), plus the scaled feed-forward.
         A handle that was never used for control leaves the actuators as authored.
         """
-        if not self._active:
-            return
         if self._mode is not self._applied_mode:
+            if not self._active:
+                return
             self._configure(self._mode)
             self._prepare()
         self._pending = False
         ctrl = self._ctrl
-        if not self._actuation:
-            if self._control_error() is None:
-                if self._gravcomp:
-                    np.add(self._trq_cmd, self._g_arm, out=ctrl)
-                    self._data.qfrc_applied[self._dadr] = ctrl
-                else:
-                    self._data.qfrc_applied[self._dadr] = self._trq_cmd
-            return
-        mode = self._mode
-        if mode is CtrlMode.TORQUE:
-            # The motors' gain is 1/gear: the control is the joint torque itself.
+        if self._motors:  # TORQUE mode through actuators whose controls are contiguous
             if self._gravcomp:
                 np.add(self._trq_cmd, self._g_arm, out=ctrl)
             else:
                 ctrl[...] = self._trq_cmd
+            return
+        mode = self._mode
+        if mode is CtrlMode.TORQUE:
+            if self._gravcomp:
+                np.add(self._trq_cmd, self._g_arm, out=ctrl)
+            else:
+                ctrl[...] = self._trq_cmd
+            if not self._actuation:
+                if self._control_error() is None:
+                    self._data.qfrc_applied[self._dadr] = ctrl
+                return
         else:
             cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd
-            np.multiply(cmd, self._cmd_scale, out=ctrl)
             if self.gravity_feedforward:
-                np.add(ctrl, self._ff, out=ctrl)
+                np.add(cmd, self._ff, out=ctrl)
+            else:
+                ctrl[...] = cmd
         if self._ctrl_view is None:
             self._data.ctrl[self._actuator_ids] = ctrl
 
@@ -624,6 +653,7 @@ class Robot:
         """Turn the chain's actuators into motors or servos for `mode`."""
         self._applied_mode = mode
         self._pending = True
+        self._motors = False
         if not self._actuation:
             return
         m = self._model
@@ -637,19 +667,20 @@ class Robot:
             m.actuator_ctrllimited[aid] = 0
             m.actuator_gainprm[aid, :] = 0.0
             m.actuator_biasprm[aid, :] = 0.0
+            # Force f acts as gear*f at the joint, servos act on the length gear*q: a gain of
+            # 1/gear (motors) or k*gear (servos) makes the control a joint torque or setpoint.
             if mode is CtrlMode.TORQUE:
                 m.actuator_gainprm[aid, 0] = 1.0 / gear[i]
             elif mode is CtrlMode.POSITION:
-                m.actuator_gainprm[aid, 0] = kp[i]
+                m.actuator_gainprm[aid, 0] = kp[i] * gear[i]
                 m.actuator_biasprm[aid, 1:3] = (-kp[i], -kv[i])
             else:
-                m.actuator_gainprm[aid, 0] = kv[i]
+                m.actuator_gainprm[aid, 0] = kv[i] * gear[i]
                 m.actuator_biasprm[aid, 2] = -kv[i]
-        # Servos act on the actuator length gear*q; their force f acts as gear*f at the joint.
-        if mode is CtrlMode.POSITION:
-            self._cmd_scale, self._ff_scale = gear, 1.0 / (gear * kp)
-        elif mode is CtrlMode.VELOCITY:
-            self._cmd_scale, self._ff_scale = gear, 1.0 / (gear * kv)
+        # The servo's joint torque is gear²·k·(setpoint - q): feed-forward enters scaled.
+        if mode is not CtrlMode.TORQUE:
+            self._ff_scale = 1.0 / (gear * gear * (kp if mode is CtrlMode.POSITION else kv))
+        self._motors = mode is CtrlMode.TORQUE and self._ctrl_view is not None
 
     # ------------------------------------------------------------------ state
 
@@ -718,10 +749,10 @@ class Robot:
         if not self._open:
             self._check_open()
         if gravity_z is None or gravity_z == self._gravity_z:
-            g = pin.computeGeneralizedGravity(self._pin, self._pdata, self._q)
+            g = _gravity(self._pin, self._pdata, self._q)
             if self._gc_model is not None:
-                g -= pin.computeGeneralizedGravity(self._gc_model, self._pdata, self._q)
-            return g[self._arm_v]
+                g -= _gravity(self._gc_model, self._pdata, self._q)
+            return g if self._arm_only else g[self._arm_v]
         try:
             gz = float(gravity_z)
         except (TypeError, ValueError):
@@ -756,11 +787,7 @@ class Robot:
         All joints' velocities count: the fingers' and a moving base's too.
         """
         self._check_open()
-        qf = self._full_q(q)
-        nle = pin.nonLinearEffects(self._pin, self._pdata, qf, self._full_v(v))
-        if self._gc_model is not None:
-            nle -= pin.computeGeneralizedGravity(self._gc_model, self._pdata, qf)
-        return nle[self._arm_v]
+        return self._rnea(self._full_q(q), self._full_v(v), None)
 
     def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """Joint torques that produce arm acceleration `a` at (`q`, `v`) (RNEA, armature in).
@@ -768,13 +795,24 @@ class Robot:
         The other joints keep their measured position and velocity and do not accelerate.
         """
         self._check_open()
-        qf, vf = self._full_q(q), self._full_v(v)
+        return self._rnea(self._full_q(q), self._full_v(v), self._vector(a, "a"))
+
+    def _rnea(self, q: np.ndarray, v: np.ndarray, arm_acc: np.ndarray | None) -> np.ndarray:
+        """The arm's rows of RNEA with the arm accelerating by `arm_acc`, the rest at rest.
+
+        "At rest" is MuJoCo's qacc = 0. For a free joint that is a world-frame linear
+        acceleration of zero, while Pinocchio's acceleration is the derivative of the
+        body-frame velocity: the two differ by ω × v.
+        """
         ax = self._ax
         ax.fill(0.0)
-        ax[self._arm_v] = self._vector(a, "a")
-        tau = pin.rnea(self._pin, self._pdata, qf, vf, ax)
+        if arm_acc is not None:
+            ax[self._arm_v] = arm_acc
+        for _, iv in self._chain.free:
+            ax[iv : iv + 3] = -np.cross(v[iv + 3 : iv + 6], v[iv : iv + 3])
+        tau = pin.rnea(self._pin, self._pdata, q, v, ax)
         if self._gc_model is not None:
-            tau -= pin.computeGeneralizedGravity(self._gc_model, self._pdata, qf)
+            tau -= _gravity(self._gc_model, self._pdata, q)
         return tau[self._arm_v]
 
     def ik(self, target: pin.SE3, q0: np.ndarray | None = None) -> IKResult:
@@ -818,6 +856,8 @@ class Robot:
         if self._active and self._actuation and self._scene._model is not None:
             self._scene._authored_actuators.restore(self._model, self._actuator_ids)
         self._active = False
+        self._applied_mode = None
+        self._motors = False
         self._open = False
         self._closed_why = why
 
