@@ -391,7 +391,9 @@ class Robot:
             )
         # v.v <= bound² holds when every entry is within bound (NaN compares false); only when
         # it does not is the exact, slower check needed: one BLAS call on the fast path.
-        if not value.dot(value) <= bound * bound:
+        with np.errstate(over="ignore", invalid="ignore"):
+            small = value.dot(value) <= bound * bound
+        if not small:
             if not np.isfinite(value).all():
                 raise SpecError(f"{name} must be finite, got {value!r}")
             if np.abs(value).max() > bound:

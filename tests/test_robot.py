@@ -470,6 +470,55 @@ def test_tool_errors(tutorial_scene) -> None:
         robot.ft_sensor("wrist")
 
 
+def test_base_held_by_an_equality_constraint_is_refused() -> None:
+    platform = mjk.SceneObject(
+        name="platform", mjcf_path=str(ASSETS_DIR / "platform_welded.xml"), pos=[0, 0, 0.5]
+    )
+    site = mjk.scene_object_site_name(platform, "mount")
+    arm = mjk.RobotSpec(
+        path=menagerie("kinova_gen3"), attach_to=mjk.AttachTarget(mjk.AttachKind.Site, site)
+    )
+    with mjk.Scene.build(base_spec(objects=[platform], robots=[arm])) as scene:
+        with pytest.raises(ValueError, match="held by equality constraint 'platform/hold'"):
+            scene.create_robot("base_link", "bracelet_link")
+
+
+def test_joint_type_pinocchio_cannot_represent_is_named(tutorial_scene) -> None:
+    scene = tutorial_scene()
+    finger = scene.model.joint("g_right_driver_joint").id
+    scene.model.jnt_type[finger] = 7  # no such MuJoCo joint type: as a future one would be
+    with pytest.raises(ValueError, match="'g_right_driver_joint'.*cannot represent"):
+        scene.create_robot("base_link", "bracelet_link")
+
+
+@pytest.mark.parametrize("port", ["jnt_pos_cmd", "jnt_vel_cmd", "jnt_trq_cmd"])
+def test_commands_mujoco_would_zero_are_refused(gen3, port: str) -> None:
+    _, robot = gen3
+    for huge in (1e300, 2e10):
+        with pytest.raises(ValueError, match=rf"{port} must be within ±1e\+10"):
+            setattr(robot, port, [huge] + [0.0] * 6)
+    setattr(robot, port, np.full(7, 9e9))  # several large values, each accepted
+    assert getattr(robot, port).tolist() == [9e9] * 7
+
+
+def test_set_joint_pos_outside_the_range_names_the_joint(gen3) -> None:
+    scene, robot = gen3
+    q = np.array(HOME)
+    q[1] = 2.5  # joint_2's range is ±2.24
+    with pytest.raises(ValueError, match=r"joint 'joint_2' at 2.5 is outside its range"):
+        robot.set_joint_pos(q)
+    assert scene.data.qpos[1] == pytest.approx(HOME[1])  # nothing written
+
+
+def test_ik_refuses_a_target_that_is_not_finite(gen3) -> None:
+    _, robot = gen3
+    for bad in (np.nan, np.inf):
+        target = robot.fk_frame()
+        target.translation = np.array([0.3, bad, 0.5])
+        with pytest.raises(ValueError, match="target must be finite"):
+            robot.ik(target)
+
+
 FT_TOOL = """
 <mujoco model="ft_tool">
   <worldbody>
