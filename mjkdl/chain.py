@@ -118,7 +118,10 @@ class Chain:
             return
         held = set(ancestors[ancestors.index(floating[0]) :])
         for e in range(m.neq):
-            if int(m.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_WELD), int(mujoco.mjtEq.mjEQ_CONNECT)):
+            if int(m.eq_type[e]) not in (
+                int(mujoco.mjtEq.mjEQ_WELD),
+                int(mujoco.mjtEq.mjEQ_CONNECT),
+            ):
                 continue
             if int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
                 continue
@@ -140,7 +143,9 @@ class Chain:
         mocap = int(m.body_mocapid[b])
         if mocap >= 0:
             # MuJoCo places a mocap body at mocap_pos/mocap_quat in the world.
-            joint = self._add_pin_joint(pin.JointModelFreeFlyer(), 0, pin.SE3.Identity(), _frame_name(m, b))
+            joint = self._add_pin_joint(
+                pin.JointModelFreeFlyer(), 0, pin.SE3.Identity(), _frame_name(m, b)
+            )
             iq, iv = self.model.idx_qs[joint], self.model.idx_vs[joint]
             self.mocap.append((iq, iv, mocap))
             q_src.extend([-1] * 7)
@@ -242,7 +247,6 @@ class Chain:
         self.model.lowerPositionLimit, self.model.upperPositionLimit = lo, hi
         return jid
 
-
     def _add_site_frame(self, m: mujoco.MjModel, site: str) -> int:
         s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)
         if s < 0:
@@ -310,7 +314,8 @@ class Chain:
             if m.jnt_actfrclimited[j]:
                 limit[iv] = np.abs(m.jnt_actfrcrange[j]).max()
             for a in np.flatnonzero(
-                (m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT)) & (m.actuator_trnid[:, 0] == j)
+                (m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT))
+                & (m.actuator_trnid[:, 0] == j)
             ):
                 if m.actuator_forcelimited[a]:
                     force = np.abs(m.actuator_forcerange[a]).max() * abs(m.actuator_gear[a, 0])

@@ -132,6 +132,8 @@ class Robot:
         # Measured ports are views of the model's q and v when the arm is contiguous in them
         # (the usual case), else gathered on every update.
         self._gather_ports = not (isinstance(self._arm_q, slice) and isinstance(self._arm_v, slice))
+        self._arm_q_idx = np.arange(pm.nq)[self._arm_q]  # index arrays for the gather path
+        self._arm_v_idx = np.arange(pm.nv)[self._arm_v]
         if self._gather_ports:
             self._pos_msr, self._vel_msr = np.zeros(n), np.zeros(n)
             self._g_arm = np.zeros(n)
@@ -141,9 +143,11 @@ class Robot:
         self._qsrc = None if chain.q_span is None else data.qpos[chain.q_span]
         self._vsrc = None if chain.v_span is None else data.qvel[chain.v_span]
         self._trq_src = _view(data.qfrc_actuator, self._dadr)
-        for name in ("_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd"):
-            old = getattr(self, name, None)
-            setattr(self, name, old if old is not None and old.shape == (n,) else np.zeros(n))
+        # Commands survive a rebind (a rebuild) when the chain keeps its length.
+        self._trq_msr: np.ndarray = self._kept("_trq_msr", n)
+        self._pos_cmd: np.ndarray = self._kept("_pos_cmd", n)
+        self._vel_cmd: np.ndarray = self._kept("_vel_cmd", n)
+        self._trq_cmd: np.ndarray = self._kept("_trq_cmd", n)
         self._ff = np.zeros(n)
         self._ctrl_buf = np.zeros(n)
         ports = ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd")
@@ -168,6 +172,10 @@ class Robot:
         self._motors = False  # TORQUE mode through contiguous actuators: the fast path
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
+
+    def _kept(self, name: str, n: int) -> np.ndarray:
+        old = getattr(self, name, None)
+        return old if old is not None and old.shape == (n,) else np.zeros(n)
 
     def _prefixed(self, name: str) -> str:
         return self._prefix + name if name else ""
@@ -563,7 +571,7 @@ class Robot:
         if self._gc_model is not None:
             self._gfull -= _gravity(self._gc_model, self._pdata, self._q)
         if self._gather_ports:
-            np.take(self._gfull, self._arm_v, out=self._g_arm)
+            np.take(self._gfull, self._arm_v_idx, out=self._g_arm)
 
     def _prepare(self) -> None:
         """What the mode adds to the commands at the measured state: gravity, once per update."""
@@ -642,8 +650,8 @@ class Robot:
         """The measured ports that are not plain views of MuJoCo's or Pinocchio's arrays."""
         d = self._data
         if self._gather_ports:
-            np.take(self._q, self._arm_q, out=self._pos_msr)
-            np.take(self._v, self._arm_v, out=self._vel_msr)
+            np.take(self._q, self._arm_q_idx, out=self._pos_msr)
+            np.take(self._v, self._arm_v_idx, out=self._vel_msr)
         if self._trq_src is not None:
             self._trq_msr[...] = self._trq_src
         else:
@@ -692,7 +700,10 @@ class Robot:
         Positions outside a joint's range are refused: MuJoCo would push the joint back.
         """
         q = self._vector(q, "set_joint_pos(q)")
-        lo, hi = self._pin.lowerPositionLimit[self._arm_q], self._pin.upperPositionLimit[self._arm_q]
+        lo, hi = (
+            self._pin.lowerPositionLimit[self._arm_q],
+            self._pin.upperPositionLimit[self._arm_q],
+        )
         outside = np.flatnonzero((q < lo) | (q > hi))
         if len(outside):
             i = int(outside[0])

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-import xml.etree.ElementTree as ET
-from pathlib import Path
-
 from conftest import HOME, base_spec, gripper_tool, menagerie, table_object, two_link_arm
 
 import mjkdl as mjk
@@ -342,8 +342,11 @@ def test_effort_limits_come_from_the_actuators(gen3, ur5) -> None:
     assert robot.model.lowerEffortLimit[:7].tolist() == [-105.0] * 4 + [-52.0] * 3
     _, arm = ur5
     urdf = ET.parse(example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
-    effort = {j.get("name"): float(j.find("limit").get("effort")) for j in urdf.iter("joint")
-              if j.find("limit") is not None}
+    effort = {
+        j.get("name"): float(j.find("limit").get("effort"))
+        for j in urdf.iter("joint")
+        if j.find("limit") is not None
+    }
     assert arm.model.effortLimit.tolist() == [effort[name] for name in arm.joint_names]
     geared = mjk.RobotSpec(path=str(ASSETS_DIR / "gravcomp_arm.xml"))
     with mjk.Scene.build(base_spec(robots=[geared])) as scene:
@@ -478,16 +481,16 @@ def test_base_held_by_an_equality_constraint_is_refused() -> None:
     arm = mjk.RobotSpec(
         path=menagerie("kinova_gen3"), attach_to=mjk.AttachTarget(mjk.AttachKind.Site, site)
     )
-    with mjk.Scene.build(base_spec(objects=[platform], robots=[arm])) as scene:
-        with pytest.raises(ValueError, match="held by equality constraint 'platform/hold'"):
-            scene.create_robot("base_link", "bracelet_link")
+    scene = mjk.Scene.build(base_spec(objects=[platform], robots=[arm]))
+    with scene, pytest.raises(ValueError, match="held by equality constraint 'platform/hold'"):
+        scene.create_robot("base_link", "bracelet_link")
 
 
 def test_joint_type_pinocchio_cannot_represent_is_named(tutorial_scene) -> None:
     scene = tutorial_scene()
     finger = scene.model.joint("g_right_driver_joint").id
     scene.model.jnt_type[finger] = 7  # no such MuJoCo joint type: as a future one would be
-    with pytest.raises(ValueError, match="'g_right_driver_joint'.*cannot represent"):
+    with pytest.raises(ValueError, match=r"'g_right_driver_joint'.*cannot represent"):
         scene.create_robot("base_link", "bracelet_link")
 
 

@@ -113,7 +113,10 @@ def _randomize(case: Case, rng: np.random.Generator, moving: bool) -> None:
     d.qpos[:] = m.qpos0
     d.qvel[:] = 0.0
     for j in range(m.njnt):
-        if int(m.jnt_type[j]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        if int(m.jnt_type[j]) not in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
+        ):
             continue
         lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.pi, np.pi)
         d.qpos[m.jnt_qposadr[j]] = rng.uniform(lo, hi)
@@ -330,7 +333,9 @@ def _rigid_tool_motion() -> Motion:
     arm = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[tool])
     scene = mjk.Scene.build(base_spec(robots=[arm]))
     robot = scene.create_robot(
-        "base_link", "bracelet_link", tool=mjk.ToolFrameSpec(tool_body="bt_block", tcp_site="bt_tcp")
+        "base_link",
+        "bracelet_link",
+        tool=mjk.ToolFrameSpec(tool_body="bt_block", tcp_site="bt_tcp"),
     )
     robot.set_joint_pos(HOME_Q)
     return Motion(Case(scene, robot, tcp_site="bt_tcp"), lambda scene, k: None, [])
