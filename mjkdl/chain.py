@@ -323,6 +323,16 @@ class Chain:
         model.effortLimit = limit  # the same memory as upperEffortLimit
         model.lowerEffortLimit = -limit
 
+    def set_velocity_limits(self, limits: dict[str, float]) -> None:
+        """Joint velocity limits by MuJoCo joint name (MJCF has none; URDF files do)."""
+        model = self.model
+        limit = np.full(model.nv, np.inf)
+        for jid in range(1, model.njoints):
+            if model.nvs[jid] == 1 and model.names[jid] in limits:
+                limit[model.idx_vs[jid]] = limits[model.names[jid]]
+        model.velocityLimit = limit  # the same memory as upperVelocityLimit
+        model.lowerVelocityLimit = -limit
+
     def load_parameters(self, m: mujoco.MjModel) -> None:
         """(Re)load inertias, gravcomp, armature and gravity from `m` (run-time edits too).
 

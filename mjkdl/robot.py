@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import copy
 import math
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -16,7 +18,7 @@ from .compile import euler_quat, vector
 from .errors import SpecError, unknown_name
 from .ik import IKResult, IKSolver
 from .scene import AuthoredActuators, Scene
-from .spec import CtrlMode, ForceTorqueSensorSpec, ToolFrameSpec
+from .spec import CtrlMode, ForceTorqueSensorSpec, SceneSpec, ToolFrameSpec
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # Default servo bandwidth for joints whose actuators are plain motors (URDF robots).
@@ -107,6 +109,7 @@ class Robot:
         chain = Chain(model, self._base_name, self._tip_name, tcp, self._tcp_offset)
         self._check_tool_body(model, chain)
         self._ft = {s.name: self._ft_ids(model, s) for s in self._tool.ft_sensors}
+        chain.set_velocity_limits(_urdf_velocity_limits(self._scene.spec))
         self._chain = chain
         self._model, self._data = model, data
         pm = chain.model
@@ -556,8 +559,12 @@ class Robot:
                     self._pending = False
                     self._ctrl[...] = self._trq_cmd
                 return
-            else:
-                self._prepare()
+            elif self._mode is not CtrlMode.TORQUE and self.gravity_feedforward:
+                # servos (actuated, else _control_error raised): _prepare, inlined
+                _gravity(self._pin, self._gdata, self._q)
+                if self._gc_model is not None or self._gather_ports:
+                    self._finish_gravity()
+                np.multiply(self._g_arm, self._ff_scale, out=self._ff)
         self._apply()
 
     def step(self) -> None:
@@ -902,6 +909,24 @@ def _tcp_offset(tool: ToolFrameSpec) -> pin.SE3 | None:
     if not np.any(pos) and np.array_equal(quat, [1.0, 0.0, 0.0, 0.0]):
         return None
     return pin.SE3(pin.Quaternion(*quat).matrix(), pos)
+
+
+def _urdf_velocity_limits(spec: SceneSpec) -> dict[str, float]:
+    """`<limit velocity>` of every URDF robot's joints, by compiled (prefixed) joint name."""
+    limits = {}
+    for robot in spec.robots:
+        path = Path(robot.path)
+        if path.suffix.lower() != ".urdf" or not path.is_file():
+            continue
+        for joint in ET.parse(path).iter("joint"):
+            limit = joint.find("limit")
+            try:
+                velocity = float(limit.get("velocity", "")) if limit is not None else math.nan
+            except ValueError:
+                continue
+            if velocity > 0:
+                limits[robot.prefix + joint.get("name", "")] = velocity
+    return limits
 
 
 def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:

@@ -348,6 +348,13 @@ def test_effort_limits_come_from_the_actuators(gen3, ur5) -> None:
         if j.find("limit") is not None
     }
     assert arm.model.effortLimit.tolist() == [effort[name] for name in arm.joint_names]
+    speed = {
+        j.get("name"): float(j.find("limit").get("velocity"))
+        for j in urdf.iter("joint")
+        if j.find("limit") is not None
+    }
+    assert arm.model.velocityLimit.tolist() == [speed[name] for name in arm.joint_names]
+    assert np.isinf(robot.model.velocityLimit).all()  # MJCF robots carry none
     geared = mjk.RobotSpec(path=str(ASSETS_DIR / "gravcomp_arm.xml"))
     with mjk.Scene.build(base_spec(robots=[geared])) as scene:
         # m1: forcerange ±10 with gear 2
