@@ -451,7 +451,7 @@ class Robot:
         self._pending = True
 
     def _after_reset(self) -> None:
-        """MuJoCo's data was reset: re-read the state and the model's dynamic parameters."""
+        """MuJoCo's data was reset: re-read the model's dynamic parameters and the state."""
         self.reload_inertias()
 
     def reload_inertias(self) -> None:
