@@ -175,6 +175,7 @@ class Robot:
         self._motors = False  # TORQUE mode through contiguous actuators: the fast path
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
+            self._prepare()
 
     def _kept(self, name: str, n: int) -> np.ndarray:
         old = getattr(self, name, None)

@@ -384,6 +384,17 @@ def test_env_reset_reloads_inertias(tutorial_scene) -> None:
     )
 
 
+def test_gravity_compensation_survives_a_rebuild(gen3) -> None:
+    scene, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.gravity_compensation = True
+    robot.update()
+    scene.add_object(mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.02], mass=0.1))
+    expected = _mujoco_gravity(scene, np.arange(7))
+    robot.step()  # the first step on the new model already carries gravity
+    np.testing.assert_allclose(scene.data.qfrc_actuator[:7], expected, rtol=0, atol=1e-9)
+
+
 # ---------------------------------------------------------------------- lifecycle
 
 
