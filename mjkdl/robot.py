@@ -40,6 +40,43 @@ class _Actuation:
     kv: float
 
 
+class _Command:
+    """A command port of a Robot: reads as a read-only view, assignment is checked and copied.
+
+    A descriptor rather than a property so the per-step assignment of a float64 array is
+    one Python call: its checks (type, length, finite and within MuJoCo's control range) are
+    inlined here, anything else goes through `Robot._assign`.
+    """
+
+    def __init__(self, doc: str) -> None:
+        self.__doc__ = doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name  # jnt_trq_cmd
+        self.attr = "_" + name[4:]  # _trq_cmd
+
+    def __get__(self, robot: Robot | None, owner: type | None = None) -> np.ndarray:
+        if robot is None:
+            return self  # type: ignore[return-value]  # the descriptor itself, for help()
+        robot._check_open()
+        return robot._ro[self.attr]
+
+    def __set__(self, robot: Robot, value: object) -> None:
+        port = robot.__dict__[self.attr]
+        # v.v <= bound² holds when every entry is within the bound (NaN compares false).
+        if (
+            type(value) is np.ndarray
+            and value.dtype is _F64
+            and value.shape == robot._shape
+            and robot._active  # an active handle is open
+            and value.dot(value) <= _MAX_CTRL2
+        ):
+            port[...] = value
+            robot._pending = True
+        else:
+            robot._assign(port, value, self.name)
+
+
 class Robot:
     """A controllable serial chain of a `Scene`, modelled in Pinocchio.
 
@@ -357,35 +394,11 @@ class Robot:
             self._check_open()
         return self._ro["_trq_msr"]
 
-    @property
-    def jnt_pos_cmd(self) -> np.ndarray:
-        """Joint position command (POSITION mode)."""
-        self._check_open()
-        return self._ro["_pos_cmd"]
-
-    @jnt_pos_cmd.setter
-    def jnt_pos_cmd(self, value: np.ndarray) -> None:
-        self._assign(self._pos_cmd, value, "jnt_pos_cmd")
-
-    @property
-    def jnt_vel_cmd(self) -> np.ndarray:
-        """Joint velocity command (VELOCITY mode)."""
-        self._check_open()
-        return self._ro["_vel_cmd"]
-
-    @jnt_vel_cmd.setter
-    def jnt_vel_cmd(self, value: np.ndarray) -> None:
-        self._assign(self._vel_cmd, value, "jnt_vel_cmd")
-
-    @property
-    def jnt_trq_cmd(self) -> np.ndarray:
-        """Joint torque command (TORQUE mode)."""
-        self._check_open()
-        return self._ro["_trq_cmd"]
-
-    @jnt_trq_cmd.setter
-    def jnt_trq_cmd(self, value: np.ndarray) -> None:
-        self._assign(self._trq_cmd, value, "jnt_trq_cmd")
+    jnt_pos_cmd = _Command("Joint position command (POSITION mode).")
+    jnt_vel_cmd = _Command("Joint velocity command (VELOCITY mode).")
+    jnt_trq_cmd = _Command(
+        "Joint torque command (TORQUE mode; on top of gravity with gravity_compensation)."
+    )
 
     def _vector(self, value: object, name: str, bound: float = math.inf) -> np.ndarray:
         """`value` checked to be n finite numbers, as a float64 array (no copy if it is one).
@@ -418,21 +431,10 @@ class Robot:
         return value
 
     def _assign(self, port: np.ndarray, value: object, name: str) -> None:
-        # The checks of _vector for a float64 array on an active handle, inlined: a control
-        # loop assigns a command every step.
-        if (
-            type(value) is np.ndarray
-            and value.dtype is _F64
-            and value.shape == self._shape
-            and value.dot(value) <= _MAX_CTRL2
-            and self._active
-            and self._open
-        ):
-            port[...] = value
-        else:
-            port[...] = self._vector(value, name, _MAX_CTRL)
-            if not self._active:
-                self._activate()
+        """Check `value` as command `name` and copy it into `port` (the slow path of _Command)."""
+        port[...] = self._vector(value, name, _MAX_CTRL)
+        if not self._active:
+            self._activate()
         self._pending = True
 
     def sync_commands(self) -> None:
@@ -535,14 +537,14 @@ class Robot:
 
     def update(self) -> None:
         """Read the measured state, then apply the command ports for the current mode."""
-        if not self._open:
-            self._check_open()
-        # _read_state, inlined: this runs once per control step.
+        # _read_state, inlined: this runs once per control step (a closed handle never reads
+        # plainly, so the check for it waits for the other branch).
         if self._plain_read:
             self._q[...] = self._qsrc
             self._v[...] = self._vsrc
             self._trq_msr[...] = self._trq_src
         else:
+            self._check_open()
             self._read_state()
         if not self._active:
             self._activate()
@@ -881,6 +883,7 @@ class Robot:
         self._active = False
         self._applied_mode = None
         self._motors = False
+        self._plain_read = False
         self._open = False
         self._closed_why = why
 
