@@ -212,6 +212,7 @@ class Robot:
         self._ctrl_view = _view(data.ctrl, ids)
         self._ctrl = self._ctrl_buf if self._ctrl_view is None else self._ctrl_view
         self._motors = False  # TORQUE mode through contiguous actuators: the fast path
+        self._servo_cmd: np.ndarray | None = None  # the servo mode's command, when contiguous
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
             self._prepare()
@@ -565,11 +566,15 @@ class Robot:
                     self._ctrl[...] = self._trq_cmd
                 return
             elif self._mode is not CtrlMode.TORQUE and self.gravity_feedforward:
-                # servos (actuated, else _control_error raised): _prepare, inlined
+                # servos (actuated, else _control_error raised): _prepare and _apply, inlined
                 _gravity(self._pin, self._gdata, self._q)
                 if self._gc_model is not None or self._gather_ports:
                     self._finish_gravity()
                 np.multiply(self._g_arm, self._ff_scale, out=self._ff)
+                if self._servo_cmd is not None:
+                    self._pending = False
+                    np.add(self._servo_cmd, self._ff, out=self._ctrl)
+                    return
         self._apply()
 
     def step(self) -> None:
@@ -614,6 +619,12 @@ class Robot:
                 np.add(self._trq_cmd, self._g_arm, out=ctrl)
             else:
                 ctrl[...] = self._trq_cmd
+            return
+        if self._servo_cmd is not None:  # the same for POSITION and VELOCITY
+            if self.gravity_feedforward:
+                np.add(self._servo_cmd, self._ff, out=ctrl)
+            else:
+                ctrl[...] = self._servo_cmd
             return
         mode = self._mode
         if mode is CtrlMode.TORQUE:
@@ -676,6 +687,7 @@ class Robot:
         self._applied_mode = mode
         self._pending = True
         self._motors = False
+        self._servo_cmd = None
         if not self._actuation:
             return
         m = self._model
@@ -702,7 +714,10 @@ class Robot:
         # The servo's joint torque is gear²·k·(setpoint - q): feed-forward enters scaled.
         if mode is not CtrlMode.TORQUE:
             self._ff_scale = 1.0 / (gear * gear * (kp if mode is CtrlMode.POSITION else kv))
-        self._motors = mode is CtrlMode.TORQUE and self._ctrl_view is not None
+        contiguous = self._ctrl_view is not None
+        self._motors = mode is CtrlMode.TORQUE and contiguous
+        if contiguous and mode is not CtrlMode.TORQUE:
+            self._servo_cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd
 
     # ------------------------------------------------------------------ state
 
@@ -883,6 +898,7 @@ class Robot:
         self._active = False
         self._applied_mode = None
         self._motors = False
+        self._servo_cmd = None
         self._plain_read = False
         self._open = False
         self._closed_why = why
