@@ -163,7 +163,8 @@ class Robot:
         self._qadr = chain.qpos_adr
         self._dadr = chain.dof_adr
         self._arm_q, self._arm_v = chain.arm_q, chain.arm_v
-        self._arm_only = self._arm_v == slice(0, pm.nv)  # no other joints in the model
+        # No other joints in the model: gravity is the arm's as it is.
+        self._arm_only = isinstance(self._arm_v, slice) and self._arm_v == slice(0, pm.nv)
         # The whole model's measured q and v; kept over a rebuild of the same model, so views
         # taken before (the measured ports) stay live.
         self._q = self._kept("_q", pm.nq)
