@@ -133,6 +133,7 @@ class Robot:
         self._applied_mode: CtrlMode | None = None
         self._active = False
         self._gravcomp = False
+        self._fast = 0  # which fast path update() takes, see _choose_path
         self.gravity_feedforward = True
         self._bind(scene.model, scene.data)
         self._hold_commands()
@@ -214,6 +215,7 @@ class Robot:
         self._ctrl = self._ctrl_buf if self._ctrl_view is None else self._ctrl_view
         self._motors = False  # TORQUE mode through contiguous actuators: the fast path
         self._servo_cmd: np.ndarray | None = None  # the servo mode's command, when contiguous
+        self._fast = 0
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
             self._prepare()
@@ -470,6 +472,7 @@ class Robot:
         self._check_open()
         self._chain.load_parameters(self._model)
         self._gc_model = self._chain.gravcomp_model
+        self._choose_path()
         self._gravity_z = float(self._model.opt.gravity[2])
         self._read_state()
 
@@ -488,6 +491,7 @@ class Robot:
                     "control (any number may read; close() the other to take over)"
                 )
         self._active = True
+        self._choose_path()
 
     # ------------------------------------------------------------------ control
 
@@ -511,6 +515,7 @@ class Robot:
             self._activate()
         self._mode = mode
         self._pending = True
+        self._choose_path()
 
     @property
     def gravity_compensation(self) -> bool:
@@ -536,9 +541,23 @@ class Robot:
             self._activate()
         self._gravcomp = bool(on)
         self._pending = True
+        self._choose_path()
 
     def update(self) -> None:
         """Read the measured state, then apply the command ports for the current mode."""
+        fast = self._fast
+        if fast:  # TORQUE through contiguous motors, all checks done beforehand (_choose_path)
+            self._q[...] = self._qsrc
+            self._v[...] = self._vsrc
+            self._trq_msr[...] = self._trq_src
+            if fast == 2:  # gravity compensation
+                _gravity(self._pin, self._gdata, self._q)
+                self._pending = False
+                np.add(self._trq_cmd, self._g_arm, out=self._ctrl)
+            elif self._pending:
+                self._pending = False
+                self._ctrl[...] = self._trq_cmd
+            return
         # _read_state, inlined: this runs once per control step (a closed handle never reads
         # plainly, so the check for it waits for the other branch).
         if self._plain_read:
@@ -577,6 +596,24 @@ class Robot:
                     np.add(self._servo_cmd, self._ff, out=self._ctrl)
                     return
         self._apply()
+
+    def _choose_path(self) -> None:
+        """Pick update()'s fast path: 1 for TORQUE through contiguous motors on plain reads of
+        an active handle, 2 for the same with gravity compensation (no gravcomp share to
+        remove), 0 for the general path."""
+        fast = (
+            self._open
+            and self._active
+            and self._plain_read
+            and self._motors
+            and self._mode is self._applied_mode
+        )
+        if not fast:
+            self._fast = 0
+        elif self._gravcomp:
+            self._fast = 2 if self._gc_model is None else 0
+        else:
+            self._fast = 1
 
     def step(self) -> None:
         """Advance the scene one timestep; pending commands (of every robot) apply first."""
@@ -719,6 +756,7 @@ class Robot:
         self._motors = mode is CtrlMode.TORQUE and contiguous
         if contiguous and mode is not CtrlMode.TORQUE:
             self._servo_cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd
+        self._choose_path()
 
     # ------------------------------------------------------------------ state
 
@@ -901,6 +939,7 @@ class Robot:
         self._motors = False
         self._servo_cmd = None
         self._plain_read = False
+        self._fast = 0
         self._open = False
         self._closed_why = why
 
