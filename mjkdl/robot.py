@@ -214,7 +214,8 @@ class Robot:
         self._ctrl_view = _view(data.ctrl, ids)
         self._ctrl = self._ctrl_buf if self._ctrl_view is None else self._ctrl_view
         self._motors = False  # TORQUE mode through contiguous actuators: the fast path
-        self._servo_cmd: np.ndarray | None = None  # the servo mode's command, when contiguous
+        self._servos = False  # POSITION/VELOCITY through contiguous actuators
+        self._servo_cmd = self._pos_cmd  # that mode's command port
         self._fast = 0
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
@@ -546,17 +547,25 @@ class Robot:
     def update(self) -> None:
         """Read the measured state, then apply the command ports for the current mode."""
         fast = self._fast
-        if fast:  # TORQUE through contiguous motors, all checks done beforehand (_choose_path)
+        if fast:  # contiguous actuators, all checks done beforehand (_choose_path)
             self._q[...] = self._qsrc
             self._v[...] = self._vsrc
             self._trq_msr[...] = self._trq_src
-            if fast == 2:  # gravity compensation
+            if fast == 1:  # TORQUE
+                if self._pending:
+                    self._pending = False
+                    self._ctrl[...] = self._trq_cmd
+                return
+            self._pending = False
+            if fast == 2:  # TORQUE with gravity compensation
                 _gravity(self._pin, self._gdata, self._q)
-                self._pending = False
                 np.add(self._trq_cmd, self._g_arm, out=self._ctrl)
-            elif self._pending:
-                self._pending = False
-                self._ctrl[...] = self._trq_cmd
+            elif self.gravity_feedforward:  # servos
+                _gravity(self._pin, self._gdata, self._q)
+                np.multiply(self._g_arm, self._ff_scale, out=self._ff)
+                np.add(self._servo_cmd, self._ff, out=self._ctrl)
+            else:
+                self._ctrl[...] = self._servo_cmd
             return
         # _read_state, inlined: this runs once per control step (a closed handle never reads
         # plainly, so the check for it waits for the other branch).
@@ -591,25 +600,28 @@ class Robot:
                 if self._gc_model is not None or self._gather_ports:
                     self._finish_gravity()
                 np.multiply(self._g_arm, self._ff_scale, out=self._ff)
-                if self._servo_cmd is not None:
+                if self._servos:
                     self._pending = False
                     np.add(self._servo_cmd, self._ff, out=self._ctrl)
                     return
         self._apply()
 
     def _choose_path(self) -> None:
-        """Pick update()'s fast path: 1 for TORQUE through contiguous motors on plain reads of
-        an active handle, 2 for the same with gravity compensation (no gravcomp share to
-        remove), 0 for the general path."""
-        fast = (
+        """Pick update()'s fast path, for an active handle that reads plainly and drives
+        contiguous actuators in the mode it asked for: 1 TORQUE, 2 TORQUE with gravity
+        compensation, 3 servos; 0 for the general path (also whenever MuJoCo's gravcomp
+        share has to come off the gravity)."""
+        ready = (
             self._open
             and self._active
             and self._plain_read
-            and self._motors
             and self._mode is self._applied_mode
+            and (self._motors or self._servos)
         )
-        if not fast:
+        if not ready:
             self._fast = 0
+        elif not self._motors:
+            self._fast = 3 if self._gc_model is None else 0
         elif self._gravcomp:
             self._fast = 2 if self._gc_model is None else 0
         else:
@@ -658,7 +670,7 @@ class Robot:
             else:
                 ctrl[...] = self._trq_cmd
             return
-        if self._servo_cmd is not None:  # the same for POSITION and VELOCITY
+        if self._servos:  # the same for POSITION and VELOCITY
             if self.gravity_feedforward:
                 np.add(self._servo_cmd, self._ff, out=ctrl)
             else:
@@ -725,7 +737,7 @@ class Robot:
         self._applied_mode = mode
         self._pending = True
         self._motors = False
-        self._servo_cmd = None
+        self._servos = False
         if not self._actuation:
             return
         m = self._model
@@ -754,8 +766,8 @@ class Robot:
             self._ff_scale = 1.0 / (gear * gear * (kp if mode is CtrlMode.POSITION else kv))
         contiguous = self._ctrl_view is not None
         self._motors = mode is CtrlMode.TORQUE and contiguous
-        if contiguous and mode is not CtrlMode.TORQUE:
-            self._servo_cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd
+        self._servos = contiguous and mode is not CtrlMode.TORQUE
+        self._servo_cmd = self._vel_cmd if mode is CtrlMode.VELOCITY else self._pos_cmd
         self._choose_path()
 
     # ------------------------------------------------------------------ state
@@ -937,7 +949,7 @@ class Robot:
         self._active = False
         self._applied_mode = None
         self._motors = False
-        self._servo_cmd = None
+        self._servos = False
         self._plain_read = False
         self._fast = 0
         self._open = False

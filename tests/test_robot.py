@@ -395,6 +395,35 @@ def test_gravity_compensation_survives_a_rebuild(gen3) -> None:
     np.testing.assert_allclose(scene.data.qfrc_actuator[:7], expected, rtol=0, atol=1e-9)
 
 
+@pytest.mark.parametrize("mode", ["seed", "gravity_compensation", "position"])
+def test_control_loops_retain_no_memory(gen3, mode: str) -> None:
+    """Nothing accumulates per step: 2000 more steps leave no more memory allocated."""
+    import tracemalloc
+
+    _, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.POSITION if mode == "position" else mjk.CtrlMode.TORQUE
+    robot.gravity_compensation = mode == "gravity_compensation"
+    home = np.array(HOME)
+
+    def run(steps: int) -> None:
+        for _ in range(steps):
+            robot.update()
+            if mode == "seed":
+                robot.jnt_trq_cmd = robot.gravity_torques()
+            elif mode == "position":
+                robot.jnt_pos_cmd = home
+            robot.step()
+
+    tracemalloc.start()
+    run(100)
+    before = tracemalloc.take_snapshot()
+    run(2000)
+    after = tracemalloc.take_snapshot()
+    tracemalloc.stop()
+    mjkdl_files = [s for s in after.compare_to(before, "filename") if "mjkdl" in str(s)]
+    assert sum(s.size_diff for s in mjkdl_files) <= 0
+
+
 # ---------------------------------------------------------------------- lifecycle
 
 
