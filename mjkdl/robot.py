@@ -72,7 +72,19 @@ class _Command:
             and value.dot(value) <= _MAX_CTRL2
         ):
             port[...] = value
-            robot._pending = True
+            fast = robot._fast
+            if not fast or port is not robot._driven:
+                robot._pending = True
+            # On update()'s fast paths the port the mode drives goes to MuJoCo at once, with
+            # what the last update() added to it (_apply would do the same at step()).
+            elif fast == 1:
+                robot._ctrl[...] = value
+            elif fast == 2:
+                np.add(value, robot._g_arm, out=robot._ctrl)
+            elif robot.gravity_feedforward:
+                np.add(value, robot._ff, out=robot._ctrl)
+            else:
+                robot._ctrl[...] = value
         else:
             robot._assign(port, value, self.name)
 
@@ -134,6 +146,7 @@ class Robot:
         self._active = False
         self._gravcomp = False
         self._fast = 0  # which fast path update() takes, see _choose_path
+        self._driven: np.ndarray | None = None  # the command port that path writes through
         self.gravity_feedforward = True
         self._bind(scene.model, scene.data)
         self._hold_commands()
@@ -618,6 +631,7 @@ class Robot:
             and self._mode is self._applied_mode
             and (self._motors or self._servos)
         )
+        self._driven = self._servo_cmd if self._servos else self._trq_cmd
         if not ready:
             self._fast = 0
         elif not self._motors:
