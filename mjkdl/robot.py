@@ -580,44 +580,15 @@ class Robot:
             else:
                 self._ctrl[...] = self._servo_cmd
             return
-        # _read_state, inlined: this runs once per control step (a closed handle never reads
-        # plainly, so the check for it waits for the other branch).
-        if self._plain_read:
-            self._q[...] = self._qsrc
-            self._v[...] = self._vsrc
-            self._trq_msr[...] = self._trq_src
-        else:
-            self._check_open()
-            self._read_state()
+        self._check_open()
+        self._read_state()
         if not self._active:
             self._activate()
         if self._unactuated and (error := self._control_error()):
             raise SpecError(error)
-        if self._mode is self._applied_mode:
-            if self._gravcomp:
-                _gravity(self._pin, self._gdata, self._q)
-                if self._gc_model is not None or self._gather_ports:
-                    self._finish_gravity()
-                self._pending = False
-                if self._motors:
-                    np.add(self._trq_cmd, self._g_arm, out=self._ctrl)
-                    return
-            elif self._motors:
-                if self._pending:
-                    self._pending = False
-                    self._ctrl[...] = self._trq_cmd
-                return
-            elif self._mode is not CtrlMode.TORQUE and self.gravity_feedforward:
-                # servos (actuated, else _control_error raised): _prepare and _apply, inlined
-                _gravity(self._pin, self._gdata, self._q)
-                if self._gc_model is not None or self._gather_ports:
-                    self._finish_gravity()
-                np.multiply(self._g_arm, self._ff_scale, out=self._ff)
-                if self._servos:
-                    self._pending = False
-                    np.add(self._servo_cmd, self._ff, out=self._ctrl)
-                    return
-        self._apply()
+        self._prepare()
+        if self._pending or self._gravcomp or self._mode is not CtrlMode.TORQUE:
+            self._apply()
 
     def _choose_path(self) -> None:
         """Pick update()'s fast path, for an active handle that reads plainly and drives
