@@ -12,12 +12,11 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from . import scene as _scene
 from .chain import Chain
 from .compile import euler_quat, vector
 from .errors import SpecError, unknown_name
 from .ik import IKResult, IKSolver
-from .scene import AuthoredActuators, Scene
+from .scene import AuthoredActuators, Scene, register_robot_factory
 from .spec import CtrlMode, ForceTorqueSensorSpec, SceneSpec, ToolFrameSpec
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -1001,4 +1000,4 @@ def _readonly(arr: np.ndarray) -> np.ndarray:
     return view
 
 
-_scene.register_robot_factory(Robot)
+register_robot_factory(Robot)
