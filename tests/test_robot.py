@@ -424,6 +424,27 @@ def test_control_loops_retain_no_memory(gen3, mode: str) -> None:
     assert sum(s.size_diff for s in mjkdl_files) <= 0
 
 
+def test_scene_does_not_import_the_robot_layer() -> None:
+    """Imports flow one way: scene.py names Robot for type checking only."""
+    import ast
+
+    import mjkdl.scene
+
+    tree = ast.parse(Path(mjkdl.scene.__file__).read_text())
+    guarded = {
+        id(node)
+        for block in ast.walk(tree)
+        if isinstance(block, ast.If) and "TYPE_CHECKING" in ast.unparse(block.test)
+        for node in ast.walk(block)
+    }
+    imports = [
+        node.module
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom) and id(node) not in guarded
+    ]
+    assert "robot" not in imports and "chain" not in imports and "ik" not in imports
+
+
 # ---------------------------------------------------------------------- lifecycle
 
 
