@@ -10,9 +10,9 @@ arm's servos off and write MuJoCo's own bias forces into `qfrc_applied` between 
                     against a raw loop with the same servos and qfrc_bias as feed-forward
     bare seed       the seed loop on a Gen3 without gripper
 
-each measured settled (after 3 s) and, for the gripper cases, over the first second after a
-reset while the fingers close. Loops run interleaved in blocks; each figure is the median of
-the per-block ratios to the raw loop of the same scene and phase.
+each measured settled (after 3 s at rest, fingers open) and, for the gripper cases, over the
+first second after a reset while the fingers close. Loops run interleaved in blocks; each
+figure is the median of the per-block ratios to the raw loop of the same scene and phase.
 
     python benchmarks/control_loop.py
     python benchmarks/control_loop.py --only "seed settled" --steps 1000   # e.g. for callgrind
@@ -57,12 +57,12 @@ def _spec(gripper: bool) -> mjk.SceneSpec:
     return spec
 
 
-def _home(scene: mjk.Scene) -> None:
-    """Arm at home, at rest; the fingers (if any) commanded closed, starting open."""
+def _home(scene: mjk.Scene, close_fingers: bool = False) -> None:
+    """Arm at home, at rest, fingers open; `close_fingers`: commanded to close from there."""
     m, d = scene.model, scene.data
     mujoco.mj_resetData(m, d)
     d.qpos[ARM] = HOME_Q
-    if scene.has_actuator(FINGERS):
+    if close_fingers and scene.has_actuator(FINGERS):
         d.ctrl[scene.actuator_id(FINGERS)] = 255.0
     mujoco.mj_forward(m, d)
 
@@ -99,7 +99,7 @@ def raw_loop(gripper: bool = True, servos_of: mjk.Scene | None = None) -> Loop:
             d.ctrl[ARM] = HOME_Q + d.qfrc_bias[ARM] * scale
             mujoco.mj_step2(m, d)
 
-    return Loop(run if servos_of is None else run_servo, lambda: _home(scene), scene)
+    return Loop(run if servos_of is None else run_servo, lambda: _home(scene, True), scene)
 
 
 def mjkdl_loop(kind: str, gripper: bool = True) -> Loop:
@@ -110,10 +110,11 @@ def mjkdl_loop(kind: str, gripper: bool = True) -> Loop:
     robot.gravity_compensation = kind == "gravcomp"
 
     def reset() -> None:
-        _home(scene)
+        _home(scene, close_fingers=True)
         robot.sync_commands()
 
-    reset()
+    _home(scene)
+    robot.sync_commands()
     if kind == "seed":
 
         def run(n: int) -> None:
@@ -154,18 +155,21 @@ def _retained(run: Callable[[int], None]) -> int:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--only", help="run one loop only: a case printed below, or 'raw gripper|bare|servos'"
+        "--only",
+        help="run one loop only: a case printed below, or 'raw gripper|bare|servos settled|first'",
     )
     parser.add_argument("--steps", type=int, default=1000, help="steps for --only")
     args = parser.parse_args()
 
     position = mjkdl_loop("position")
+    # A raw loop per scene and phase: a "first" phase restarts from a reset every block.
     raws = {
-        "gripper": raw_loop(),
-        "bare": raw_loop(gripper=False),
-        "servos": raw_loop(servos_of=position.scene),
+        ("gripper", "settled"): raw_loop(),
+        ("gripper", "first"): raw_loop(),
+        ("bare", "settled"): raw_loop(gripper=False),
+        ("servos", "settled"): raw_loop(servos_of=position.scene),
     }
-    # name -> (loop, its raw baseline, phase); a "first" phase restarts after a reset.
+    # name -> (loop, the scene of its raw baseline, phase)
     cases: dict[str, tuple[Loop, str, str]] = {
         "seed settled": (mjkdl_loop("seed"), "gripper", "settled"),
         "seed first second": (mjkdl_loop("seed"), "gripper", "first"),
@@ -178,9 +182,11 @@ def main() -> None:
     for loop in loops:
         loop.run(WARMUP)
     if args.only:
-        (raws[args.only[4:]] if args.only.startswith("raw ") else cases[args.only][0]).run(
-            args.steps
-        )
+        if args.only.startswith("raw "):
+            kind, phase = args.only.split()[1:]
+            raws[kind, phase].run(args.steps)
+        else:
+            cases[args.only][0].run(args.steps)
         return
 
     def timed(loop: Loop, phase: str) -> float:
@@ -193,9 +199,8 @@ def main() -> None:
 
     ratios: dict[str, list[float]] = {name: [] for name in cases}
     base: dict[tuple[str, str], list[float]] = {}
-    pairs = sorted({(key, phase) for _, key, phase in cases.values()})
     for _ in range(BLOCKS):
-        block = {(key, phase): timed(raws[key], phase) for key, phase in pairs}
+        block = {key: timed(loop, key[1]) for key, loop in raws.items()}
         for k, t in block.items():
             base.setdefault(k, []).append(t)
         for name, (loop, key, phase) in cases.items():
