@@ -93,7 +93,8 @@ class Robot:
 
     Ports are NumPy arrays in chain order (base to tip). Measured ports are read-only arrays
     that `update()` refreshes in place; copy them to keep a snapshot. Commands are assigned as a
-    whole (`robot.jnt_trq_cmd = tau`) and checked for length and finiteness.
+    whole (`robot.jnt_trq_cmd = tau`) and checked for length, finiteness and magnitude (at most
+    1e10, beyond which MuJoCo would zero the control); they reach MuJoCo by the next `step()`.
 
     `model` is one Pinocchio model of everything that moves the arm: the joints from the world
     to the base (a turning torso, a free or mocap base), the arm, and the tool and branches
