@@ -75,6 +75,16 @@ def test_chain_description(gen3) -> None:
     assert robot.model.names[8].startswith("g_")
 
 
+def test_world_as_base_leaves_other_trees_out(tutorial_scene) -> None:
+    scene = tutorial_scene()
+    robot = scene.create_robot("world", "bracelet_link")
+    # The arm and its gripper's fingers; the cube's free joint is not in the arm's model.
+    assert robot.model.nq == 15
+    assert not [name for name in robot.model.names if "cube" in name]
+    robot.set_joint_pos(HOME)
+    np.testing.assert_allclose(robot.gravity_torques(), scene.data.qfrc_bias[:7], atol=1e-9)
+
+
 def test_no_tool_means_fk_at_tip(tutorial_scene) -> None:
     scene = tutorial_scene()
     robot = scene.create_robot("base_link", "bracelet_link")
