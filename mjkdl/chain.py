@@ -75,7 +75,7 @@ class Chain:
         self._check_equality_mounts(m, ancestors)
         arm = set(path)
         # Below the world only the tree that holds the arm matters (not every free object).
-        below = _subtree(m, self.base) if self.base else [0] + _subtree(m, path[0])
+        below = _subtree(m, self.base) if self.base else [0, *_subtree(m, path[0])]
         for b in ancestors[:-1] + below:
             self._add_body(m, b, arm, q_src, v_src)
         if not self.joint_ids:
