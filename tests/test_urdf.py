@@ -663,3 +663,13 @@ def test_root_links_are_the_compiled_roots(relative: str, roots: list[str]) -> N
     model = _compile(relative)
     compiled = [model.body(b).name for b in range(1, model.nbody) if model.body_parentid[b] == 0]
     assert root_links(example_robot_data_path(relative)) == compiled == roots
+def test_link_without_inertial_has_no_mass(tmp_path) -> None:
+    """URDF: a link with geometry but no <inertial> has no mass (not one from its geoms)."""
+    box = '<collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision>'
+    flange = (
+        f'<link name="flange">{box}</link>'
+        '<joint name="mount" type="fixed"><parent link="arm"/><child link="flange"/></joint>'
+    )
+    model = load_urdf(_write_urdf(tmp_path / "tiny.urdf", box, flange)).compile()
+    assert model.body("flange").mass[0] == 0.0
+    assert model.body("arm").mass[0] == 1.0  # the authored <inertial>, the box not added
