@@ -1,0 +1,453 @@
+"""Cartesian velocity control: a TCP twist becomes joint velocities through one small QP.
+
+Every call solves, for the joint velocities qd of the arm,
+
+    minimise   |J qd - v|² + λ(σ) |qd|² + w |N (qd - k (q_ref - q))|²
+    subject to lb(q, dt) <= qd <= ub(q, dt)                 (position and velocity limits)
+               n_iᵀ (J_a,i - J_b,i) qd <= k_c (d_i - d_min)  (each close geom pair)
+
+with J the robot's world-aligned TCP Jacobian, v the twist rotated from the control frame into
+the world, λ a damping that grows as the smallest singular value of J falls (Levenberg-Marquardt
+style), N the projector onto the null space of J (the posture task cannot disturb the twist)
+and the last rows velocity dampers between geoms that should stay apart. DAQP solves it
+(see docs/control.md for the measurements behind that choice).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import warnings
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import daqp
+import mujoco
+import numpy as np
+
+from ..errors import SpecError, unknown_name
+from ..spec import CtrlMode
+
+if TYPE_CHECKING:
+    from ..robot import Robot
+
+# DAQP treats bounds at or beyond this magnitude as absent.
+_INF = 1e30
+
+
+class SolveStatus(enum.Enum):
+    """Outcome of the last `CartesianVelocityController.solve`."""
+
+    OPTIMAL = "optimal"
+    INFEASIBLE = "infeasible"  # the constraints cannot all hold: zero velocity was returned
+    FAILED = "failed"  # the solver stopped without a solution (or the state held NaN): zero
+
+
+class CartesianVelocityController:
+    """Joint velocities that make a robot's TCP move with a commanded twist.
+
+    The twist `[vx, vy, vz, wx, wy, wz]` is the TCP's linear velocity (of the TCP point) and
+    angular velocity, both along the axes of `control_frame` (a site or body name; "" is the
+    world). The frame is read afresh on every call, so it may move (a site on a turning
+    torso). `solve` uses the robot's state as of its last `update()`.
+
+    Joint position limits are never crossed: the velocity bounds shrink as a limit nears, so
+    that one period `dt` at the bound closes `limit_gain` of the remaining gap. Velocity
+    limits come from the model (`robot.model.velocityLimit`) where finite and positive, else
+    `max_joint_velocity`. `avoid=[(body_a, body_b), ...]` keeps every collision geom of body_a's
+    subtree at least `min_distance` from those of body_b's subtree: once a pair is closer than
+    `influence_distance`, its approach speed is capped at `collision_gain * (d - min_distance)`.
+
+    When the constraints cannot all hold (an infeasible QP), `solve` returns zero velocity,
+    sets `last_status` and warns once; it never raises for that.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        control_frame: str = "",
+        avoid: Sequence[tuple[str, str]] = (),
+        min_distance: float = 0.05,
+        *,
+        influence_distance: float | None = None,
+        collision_gain: float = 2.0,
+        max_joint_velocity: float | Sequence[float] = 1.0,
+        limit_gain: float = 0.5,
+        posture: Sequence[float] | None = None,
+        posture_gain: float = 1.0,
+        damping: float = 1e-5,
+        singular_damping: float = 0.05,
+        singular_threshold: float = 0.05,
+        dt: float | None = None,
+    ) -> None:
+        self._robot = robot
+        n = robot.n_joints
+        self._n = n
+        if not isinstance(control_frame, str):
+            raise SpecError(f"control_frame must be a site or body name, got {control_frame!r}")
+        self._frame_name = control_frame
+        self._min_distance = _number(min_distance, "min_distance")
+        self._influence = (
+            self._min_distance + 0.1
+            if influence_distance is None
+            else _number(influence_distance, "influence_distance")
+        )
+        if self._influence <= self._min_distance:
+            raise SpecError(
+                f"influence_distance ({self._influence}) must exceed min_distance "
+                f"({self._min_distance})"
+            )
+        self._collision_gain = _number(collision_gain, "collision_gain")
+        self._limit_gain = _number(limit_gain, "limit_gain", positive=True)
+        if self._limit_gain > 1.0:
+            raise SpecError(f"limit_gain must be in (0, 1], got {limit_gain!r}")
+        self._posture_gain = _number(posture_gain, "posture_gain")
+        self._damping = _number(damping, "damping")
+        self._singular_damping = _number(singular_damping, "singular_damping")
+        self._singular_threshold = _number(singular_threshold, "singular_threshold", positive=True)
+        self._dt = None if dt is None else _number(dt, "dt", positive=True)
+        self._vmax = self._velocity_limits(max_joint_velocity)
+        self._posture = (
+            robot.jnt_pos_msr.copy() if posture is None else _vector(posture, n, "posture")
+        )
+        limits = robot.joint_limits
+        self._lower, self._upper = limits[:, 0].copy(), limits[:, 1].copy()
+        self._pairs = _pair_names(avoid)
+        self._model: mujoco.MjModel | None = None
+        self._bind()
+        # Work arrays, reused every call.
+        self._v = np.zeros(6)
+        self._d = np.zeros(n)
+        self._qp_post = np.zeros(n)
+        self._H = np.zeros((n, n))
+        self._f = np.zeros(n)
+        rows = self._rows
+        self._A = np.zeros((rows, n))
+        self._bu = np.full(n + rows, _INF)
+        self._bl = np.full(n + rows, -_INF)
+        self._zero = np.zeros(n)
+        self._solver = daqp.Model()
+        self._ready = False
+        self.last_status = SolveStatus.OPTIMAL
+        self._warned = False
+
+    # ------------------------------------------------------------------ setup
+
+    def _velocity_limits(self, fallback: float | Sequence[float]) -> np.ndarray:
+        """Per joint: the model's velocity limit where finite and positive, else `fallback`."""
+        n = self._n
+        if isinstance(fallback, (int, float)):
+            default = np.full(n, _number(fallback, "max_joint_velocity", positive=True))
+        else:
+            default = _vector(fallback, n, "max_joint_velocity")
+        if np.any(default <= 0):
+            raise SpecError(f"max_joint_velocity must be positive, got {fallback!r}")
+        model = np.asarray(self._robot.model.velocityLimit, dtype=float)[:n]
+        usable = np.isfinite(model) & (model > 0)
+        return np.where(usable, model, default)
+
+    def _bind(self) -> None:
+        """Resolve names against the scene's current model (again after a rebuild)."""
+        scene = self._robot.scene
+        model = scene.model
+        self._model = model
+        self._data = scene.data
+        self._frame = _frame_rotation(model, self._data, self._frame_name)
+        dofs = [int(model.joint(name).dofadr[0]) for name in self._robot.joint_names]
+        self._dofs = np.array(dofs)
+        self._geom_pairs = [
+            (ga, gb)
+            for a, b in self._pairs
+            for ga in _collision_geoms(model, a, b)
+            for gb in _collision_geoms(model, b, a)
+        ]
+        self._rows = len(self._geom_pairs)
+        self._jac_a = np.zeros((3, model.nv))
+        self._jac_b = np.zeros((3, model.nv))
+        self._fromto = np.zeros(6)
+
+    # ------------------------------------------------------------------ public
+
+    @property
+    def robot(self) -> Robot:
+        """The robot this controller drives."""
+        return self._robot
+
+    @property
+    def control_frame(self) -> str:
+        """Site or body whose axes the twist is expressed along ("" = world)."""
+        return self._frame_name
+
+    @property
+    def velocity_limits(self) -> np.ndarray:
+        """Per-joint velocity limits the solution respects (rad/s or m/s)."""
+        return self._vmax.copy()
+
+    @property
+    def posture(self) -> np.ndarray:
+        """Joint positions the null-space posture task pulls toward."""
+        return self._posture.copy()
+
+    @posture.setter
+    def posture(self, value: Sequence[float]) -> None:
+        self._posture = _vector(value, self._n, "posture")
+
+    def solve(self, twist: Sequence[float], dt: float | None = None) -> np.ndarray:
+        """Joint velocities for `twist` (6: linear then angular, along the control frame).
+
+        `dt` is the period over which the result will be applied (default: the controller's,
+        else the scene's timestep); the position-limit bounds are computed for it.
+        """
+        v = self._twist(twist)
+        step = self._period(dt)
+        robot = self._robot
+        if robot.scene.model is not self._model:
+            self._bind()
+            self._ready = False
+        # In POSITION mode the command is the controller's state: it is what the integration
+        # advances and what must stay inside the limits; the servo follows it with some lag.
+        if robot.ctrl_mode is CtrlMode.POSITION:
+            q = robot.jnt_pos_cmd
+            J = robot.jacobian(q)
+        else:
+            q = robot.jnt_pos_msr
+            J = robot.jacobian()
+        if not np.isfinite(J).all():
+            return self._give_up(SolveStatus.FAILED, "the robot's state is not finite")
+        self._world_twist(v)
+        self._cost(J, q)
+        self._bounds(q, step)
+        if self._rows:
+            self._collision_rows()
+        x, exitflag = self._qp()
+        if exitflag < 0 or not np.isfinite(x).all():
+            status = SolveStatus.INFEASIBLE if exitflag == -1 else SolveStatus.FAILED
+            return self._give_up(status, f"DAQP exit flag {exitflag}")
+        self.last_status = SolveStatus.OPTIMAL
+        return x
+
+    def command(self, twist: Sequence[float], dt: float | None = None) -> np.ndarray:
+        """Solve for `twist` and write the robot's command; return the joint velocities.
+
+        VELOCITY mode writes them to `jnt_vel_cmd`; POSITION mode adds `qd * dt` to
+        `jnt_pos_cmd` (kept inside the joint limits). `dt` defaults to the scene's timestep:
+        one call per physics step; a slower loop passes its period.
+        """
+        step = self._period(dt)
+        mode = self._robot.ctrl_mode
+        if mode is CtrlMode.TORQUE:
+            raise SpecError(
+                "CartesianVelocityController.command needs the robot in VELOCITY or POSITION "
+                "mode, not TORQUE (use solve() for the joint velocities)"
+            )
+        qd = self.solve(twist, step)
+        robot = self._robot
+        if mode is CtrlMode.VELOCITY:
+            robot.jnt_vel_cmd = qd
+        else:
+            target = robot.jnt_pos_cmd + qd * step
+            np.clip(target, self._lower, self._upper, out=target)
+            robot.jnt_pos_cmd = target
+        return qd
+
+    # ------------------------------------------------------------------ the QP
+
+    def _twist(self, twist: Sequence[float]) -> np.ndarray:
+        if type(twist) is not np.ndarray or twist.dtype != np.float64:
+            try:
+                twist = np.asarray(twist, dtype=float)
+            except (TypeError, ValueError):
+                raise SpecError(f"twist must hold 6 numbers, got {twist!r}") from None
+        if twist.shape != (6,):
+            raise SpecError(
+                f"twist needs 6 values [vx, vy, vz, wx, wy, wz], got shape {twist.shape}"
+            )
+        if not math.isfinite(twist.dot(twist)) and not np.isfinite(twist).all():
+            raise SpecError(f"twist must be finite, got {twist!r}")
+        return twist
+
+    def _period(self, dt: float | None) -> float:
+        if dt is None:
+            return self._dt if self._dt is not None else self._robot.scene.timestep()
+        return _number(dt, "dt", positive=True)
+
+    def _world_twist(self, twist: np.ndarray) -> None:
+        """The twist with both halves rotated from the control frame into the world."""
+        v = self._v
+        if self._frame is None:
+            np.copyto(v, twist)
+            return
+        R = self._frame.reshape(3, 3)
+        np.matmul(R, twist[:3], out=v[:3])
+        np.matmul(R, twist[3:], out=v[3:])
+
+    def _cost(self, J: np.ndarray, q: np.ndarray) -> None:
+        """H and f of the tracking, damping and null-space posture terms."""
+        n = self._n
+        _, s, vt = np.linalg.svd(J)
+        # Levenberg-Marquardt style: more damping the closer J is to losing rank.
+        lam = self._damping
+        rank = min(6, n)
+        sigma = s[rank - 1] if len(s) >= rank else 0.0
+        if sigma < self._singular_threshold:
+            ratio = sigma / self._singular_threshold
+            lam += self._singular_damping * (1.0 - ratio * ratio)
+        d = self._d
+        d.fill(lam)
+        d[: len(s)] += s * s
+        null = vt[rank:]
+        post = self._qp_post
+        if len(null):
+            # Posture in the null space of J: the projector N = V_n V_nᵀ is orthogonal to the
+            # rows of J, so the posture term cannot change the TCP's twist.
+            d[rank:] += 1.0
+            np.subtract(self._posture, q, out=post)
+            post *= self._posture_gain
+            coef = null @ post
+        H = self._H
+        np.matmul(vt.T * d, vt, out=H)
+        f = self._f
+        np.matmul(self._v, J, out=f)
+        if len(null):
+            f += coef @ null
+        np.negative(f, out=f)
+
+    def _bounds(self, q: np.ndarray, dt: float) -> None:
+        """Joint velocity bounds: the velocity limits, tightened near position limits."""
+        n = self._n
+        gain = self._limit_gain / dt
+        ub, lb = self._bu[:n], self._bl[:n]
+        np.subtract(self._upper, q, out=ub)
+        ub *= gain
+        np.subtract(self._lower, q, out=lb)
+        lb *= gain
+        vmax = self._vmax
+        np.clip(ub, -vmax, vmax, out=ub)
+        np.clip(lb, -vmax, vmax, out=lb)
+
+    def _collision_rows(self) -> None:
+        """One velocity-damper row per geom pair closer than the influence distance."""
+        model, data = self._model, self._data
+        n = self._n
+        A, bu, ja, jb, ft = self._A, self._bu, self._jac_a, self._jac_b, self._fromto
+        dofs = self._dofs
+        for i, (ga, gb) in enumerate(self._geom_pairs):
+            dist = mujoco.mj_geomDistance(model, data, ga, gb, self._influence, ft)
+            if dist >= self._influence:
+                A[i] = 0.0
+                bu[n + i] = _INF
+                continue
+            normal = ft[3:] - ft[:3]  # from the point on geom a to the point on geom b
+            length = math.sqrt(normal.dot(normal))
+            if length < 1e-9:
+                # Touching: no direction from the points; use the centres' direction.
+                normal = data.geom_xpos[gb] - data.geom_xpos[ga]
+                length = math.sqrt(normal.dot(normal)) or 1.0
+            normal /= length
+            if dist < 0:
+                normal = -normal  # penetrating: the witness points cross over
+            mujoco.mj_jac(model, data, ja, None, ft[:3], model.geom_bodyid[ga])
+            mujoco.mj_jac(model, data, jb, None, ft[3:], model.geom_bodyid[gb])
+            # d' = nᵀ (v_b - v_a) >= -k (d - d_min)  <=>  nᵀ (J_a - J_b) qd <= k (d - d_min)
+            np.matmul(normal, ja[:, dofs] - jb[:, dofs], out=A[i])
+            bu[n + i] = self._collision_gain * (dist - self._min_distance)
+
+    def _qp(self) -> tuple[np.ndarray, int]:
+        if not self._ready:
+            self._solver.setup(self._H, self._f, self._A, self._bu, self._bl)
+            self._ready = True
+        else:
+            A = self._A if self._rows else None  # DAQP rejects an update with no rows
+            self._solver.update(H=self._H, f=self._f, A=A, bupper=self._bu, blower=self._bl)
+        x, _, exitflag, _ = self._solver.solve()
+        return x, int(exitflag)
+
+    def _give_up(self, status: SolveStatus, why: str) -> np.ndarray:
+        self.last_status = status
+        self._ready = False  # start the next solve from scratch, not from this one's state
+        if not self._warned:
+            self._warned = True
+            warnings.warn(
+                f"CartesianVelocityController: no solution ({status.value}: {why}); "
+                "commanding zero joint velocity (reported in last_status, warned once)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        return self._zero.copy()
+
+
+# ---------------------------------------------------------------------- helpers
+
+
+def _number(value: object, name: str, positive: bool = False) -> float:
+    """`value` as a finite float that is >= 0 (> 0 when `positive`)."""
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        x = math.nan
+    if not math.isfinite(x) or x < 0 or (positive and x == 0):
+        bound = "> 0" if positive else ">= 0"
+        raise SpecError(f"{name} must be a finite number {bound}, got {value!r}")
+    return x
+
+
+def _vector(value: object, n: int, name: str) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise SpecError(f"{name} must hold {n} numbers, got {value!r}") from None
+    if arr.shape != (n,):
+        raise SpecError(f"{name} needs {n} values (one per joint), got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise SpecError(f"{name} must be finite, got {value!r}")
+    return arr
+
+
+def _frame_rotation(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np.ndarray | None:
+    """A live view of the control frame's world rotation (9 values), None for the world."""
+    if not name:
+        return None
+    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+    if site >= 0:
+        return data.site_xmat[site]
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+    if body >= 0:
+        return data.xmat[body]
+    known = [model.site(i).name for i in range(model.nsite)]
+    known += [model.body(i).name for i in range(model.nbody)]
+    raise unknown_name("site or body", name, known, where="the scene (control_frame)")
+
+
+def _pair_names(avoid: object) -> list[tuple[str, str]]:
+    if isinstance(avoid, (str, bytes)) or not isinstance(avoid, Sequence):
+        raise SpecError(f"avoid must be a sequence of (body_a, body_b) pairs, got {avoid!r}")
+    pairs = []
+    for i, pair in enumerate(avoid):
+        if (
+            not isinstance(pair, (tuple, list))
+            or len(pair) != 2
+            or not all(isinstance(b, str) and b for b in pair)
+        ):
+            raise SpecError(f"avoid[{i}] must be a pair of body names, got {pair!r}")
+        pairs.append((pair[0], pair[1]))
+    return pairs
+
+
+def _collision_geoms(model: mujoco.MjModel, body: str, other: str) -> list[int]:
+    """Geoms that take part in collisions, in the subtree of `body` (paired with `other`)."""
+    root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    if root < 0:
+        known = [model.body(i).name for i in range(model.nbody)]
+        raise unknown_name("body", body, known, where=f"the scene (avoid pair {body!r}, {other!r})")
+    inside = np.zeros(model.nbody, dtype=bool)
+    inside[root] = True
+    for b in range(root + 1, model.nbody):  # parents come before their children
+        inside[b] = inside[model.body_parentid[b]]
+    geoms = [
+        g
+        for g in range(model.ngeom)
+        if inside[model.geom_bodyid[g]] and (model.geom_contype[g] or model.geom_conaffinity[g])
+    ]
+    if not geoms:
+        raise SpecError(f"avoid: body {body!r} and its subtree have no collision geoms")
+    return geoms
