@@ -135,7 +135,7 @@ def test_pose_initializer_unreachable_box_and_unknown_arm() -> None:
     with pytest.raises(ValueError, match=r"PoseInitializer\('panda'\).*2 draws"):
         env.reset(seed=0)
     env.task_spec.initializers = [PoseInitializer("pnda", [0] * 6, [0] * 6)]
-    with pytest.raises(KeyError, match="'pnda'.*close matches: panda"):
+    with pytest.raises(KeyError, match=r"'pnda'.*close matches: panda"):
         env.reset(seed=0)
     env.close()
 

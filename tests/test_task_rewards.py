@@ -47,7 +47,7 @@ def test_lift_reward_sparse_plus_shaped() -> None:
 
 
 def test_unknown_observation_names_it() -> None:
-    with pytest.raises(KeyError, match="'tcp_ps'.*close matches: tcp_pos"):
+    with pytest.raises(KeyError, match=r"'tcp_ps'.*close matches: tcp_pos"):
         distance(obs([0, 0, 0], [0, 0, 0]), "tcp_ps", "cube_pose")
     with pytest.raises(ValueError, match="'t' has no x, y, z"):
         height({"t": np.zeros(1)}, "t")

@@ -7,6 +7,7 @@ from .env import TaskEnv
 from .initializers import JointInitializer, PhysicsRandomizer, PoseInitializer, PropPlacer
 from .registry import register as _register
 from .rewards import Lifted, LiftReward, Reached, ReachReward, distance, height
+from .rollout import Episode, ray_collect, run_episode
 from .sensors import Sensor, intrinsics
 from .spec import (
     Actuation,
@@ -25,6 +26,7 @@ __all__ = [
     "ArmSpec",
     "BodyPoseSensor",
     "CameraSensor",
+    "Episode",
     "GripperSpec",
     "JointInitializer",
     "LiftReward",
@@ -40,5 +42,7 @@ __all__ = [
     "distance",
     "height",
     "intrinsics",
+    "ray_collect",
+    "run_episode",
     "view",
 ]
