@@ -146,3 +146,44 @@ def test_record_video(tmp_path: Path) -> None:
     simulated = number(r"fps, ", out)
     assert seconds == pytest.approx(simulated, abs=0.2)
     assert frames == pytest.approx(20 * simulated, abs=3)
+
+
+# ---------------------------------------------------------------------- task environments
+
+
+def test_rl_environment() -> None:
+    menagerie("franka_emika_panda")
+    out = run_example("rl_environment", "--duration", "4")
+    assert "wrist_cam_depth: (64, 64) float32" in out and "goal_pose: (7,) float64" in out
+    assert number("simulated:", out) == pytest.approx(4.0)
+    # The agent hovers 0.1 m above the ball: reward 1 - distance.
+    distance = number("distance:", out)
+    assert distance == pytest.approx(0.1, abs=0.01)
+    assert number("reward:", out) == pytest.approx(1.0 - distance, abs=1e-4)
+    near, far = numbers(r"wrist depth:", out)[0], number(r"\.\. ", out)
+    assert 0.0 < near < far < 1.0
+
+
+def test_random_agent() -> None:
+    menagerie("franka_emika_panda")
+    import gymnasium as gym
+
+    import mjkdl.task
+
+    out = run_example("random_agent", "--episodes", "2", "--duration", "1", "--seed", "5")
+    assert number("episodes:", out) == 2
+    env = gym.make("mjkdl/PandaReach-v0")  # the same seeded episodes, in this process
+    expected = [mjkdl.task.run_episode(env, s, max_steps=10).total_reward for s in (5, 6)]
+    env.close()
+    assert numbers(r"return", out)[:2] == pytest.approx(expected, abs=1e-4)
+    assert numbers(r"steps", out)[:2] == [10, 10]
+
+
+def test_ray_rollouts() -> None:
+    menagerie("franka_emika_panda")
+    pytest.importorskip("ray")
+    out = run_example("ray_rollouts", "--episodes", "4", "--actors", "2", "--duration", "0.3",
+                      "--verify")
+    assert number("episodes:", out) == 4
+    assert numbers(r"steps", out)[:4] == [3, 3, 3, 3]
+    assert "matches sequential: True" in out

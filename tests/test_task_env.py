@@ -26,10 +26,14 @@ def _panda() -> None:
 
 def make(**kw) -> TaskEnv:
     """A Panda task: `arms`/`scene`/... override the defaults (one Cartesian arm, a ball)."""
-    ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.03], mass=0.1,
-                           pos=[0.5, 0.0, 0.032])
-    fields = {"scene": panda_scene([ball]), "arms": [panda_arm()],
-              "sensors": [BodyPoseSensor("ball")]}
+    ball = mjk.SceneObject(
+        name="ball", shape=mjk.Shape.SPHERE, size=[0.03], mass=0.1, pos=[0.5, 0.0, 0.032]
+    )
+    fields = {
+        "scene": panda_scene([ball]),
+        "arms": [panda_arm()],
+        "sensors": [BodyPoseSensor("ball")],
+    }
     fields.update(kw)
     return TaskEnv(TaskSpec(**fields))
 
@@ -49,9 +53,15 @@ def test_spaces_follow_the_spec_exactly(env: TaskEnv) -> None:
     assert list(obs_space) == [f"panda_{k}" for k in ARM_KEYS] + ["ball_pose", "time"]
     shapes = {k: v.shape for k, v in obs_space.items()}
     assert shapes == {
-        "panda_joint_pos": (7,), "panda_joint_vel": (7,), "panda_joint_torques": (7,),
-        "panda_tcp_pos": (3,), "panda_tcp_quat": (4,), "panda_tcp_vel": (6,),
-        "panda_gripper": (1,), "ball_pose": (7,), "time": (1,),
+        "panda_joint_pos": (7,),
+        "panda_joint_vel": (7,),
+        "panda_joint_torques": (7,),
+        "panda_tcp_pos": (3,),
+        "panda_tcp_quat": (4,),
+        "panda_tcp_vel": (6,),
+        "panda_gripper": (1,),
+        "ball_pose": (7,),
+        "time": (1,),
     }
     assert all(v.dtype == np.float64 for v in obs_space.values())
     box = env.action_space
@@ -69,14 +79,27 @@ def test_spaces_follow_the_spec_exactly(env: TaskEnv) -> None:
 def test_joint_actuation_bounds_come_from_the_model() -> None:
     arms = [
         ArmSpec("p", "link0", "hand", actuation=Actuation.JOINT_POSITION, home=PANDA_HOME),
-        ArmSpec("v", "link0", "hand", prefix="b/", actuation=Actuation.JOINT_VELOCITY,
-                max_angular_velocity=0.7),
+        ArmSpec(
+            "v",
+            "link0",
+            "hand",
+            prefix="b/",
+            actuation=Actuation.JOINT_VELOCITY,
+            max_angular_velocity=0.7,
+        ),
         ArmSpec("t", "link0", "hand", prefix="c/", actuation=Actuation.JOINT_TORQUE),
     ]
     path = menagerie("franka_emika_panda")
-    scene = mjk.SceneSpec(timestep=0.002, add_floor=True, add_skybox=False, robots=[
-        mjk.RobotSpec(path=path), mjk.RobotSpec(path=path, prefix="b/", pos=[0, 1, 0]),
-        mjk.RobotSpec(path=path, prefix="c/", pos=[0, 2, 0])])
+    scene = mjk.SceneSpec(
+        timestep=0.002,
+        add_floor=True,
+        add_skybox=False,
+        robots=[
+            mjk.RobotSpec(path=path),
+            mjk.RobotSpec(path=path, prefix="b/", pos=[0, 1, 0]),
+            mjk.RobotSpec(path=path, prefix="c/", pos=[0, 2, 0]),
+        ],
+    )
     env = TaskEnv(TaskSpec(scene=scene, arms=arms))
     model = env.scene.model
     ranges = np.array([model.joint(f"joint{i}").range for i in range(1, 8)])
@@ -286,12 +309,21 @@ def test_step_before_reset_and_after_close(env: TaskEnv) -> None:
         (lambda s: setattr(s.arms[0], "tip_body", "hnad"), KeyError, r"arms\[0\].*'hnad'.*hand"),
         (lambda s: setattr(s.arms[0].gripper, "actuator", "act8"), KeyError, r"gripper.*act8"),
         (lambda s: setattr(s.arms[0], "control_frame", "lnk0"), KeyError, r"control_frame.*lnk0"),
-        (lambda s: s.sensors.append(BodyPoseSensor("bal")), KeyError,
-         r"sensors\[1\]\.body.*'bal'.*ball"),
-        (lambda s: s.sensors.append(CameraSensor("frnt")), KeyError,
-         r"sensors\[1\]\.camera.*'frnt'.*front"),
-        (lambda s: s.sensors.append(CameraSensor("front", width=0)), ValueError,
-         r"sensors\[1\]\.width"),
+        (
+            lambda s: s.sensors.append(BodyPoseSensor("bal")),
+            KeyError,
+            r"sensors\[1\]\.body.*'bal'.*ball",
+        ),
+        (
+            lambda s: s.sensors.append(CameraSensor("frnt")),
+            KeyError,
+            r"sensors\[1\]\.camera.*'frnt'.*front",
+        ),
+        (
+            lambda s: s.sensors.append(CameraSensor("front", width=0)),
+            ValueError,
+            r"sensors\[1\]\.width",
+        ),
         (lambda s: s.sensors.append(object()), ValueError, r"sensors\[1\] must be"),
         (lambda s: s.sensors.append(BodyPoseSensor("ball")), ValueError, "'ball_pose'.*twice"),
         (lambda s: setattr(s, "control_timestep", 0.003), ValueError, "whole number"),
@@ -304,8 +336,7 @@ def test_step_before_reset_and_after_close(env: TaskEnv) -> None:
 )
 def test_bad_specs_name_the_field(change, error, message) -> None:
     ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.03], mass=0.1)
-    spec = TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()],
-                    sensors=[BodyPoseSensor("ball")])
+    spec = TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()], sensors=[BodyPoseSensor("ball")])
     change(spec)
     with pytest.raises(error) as err:
         TaskEnv(spec)
@@ -330,8 +361,13 @@ def test_reset_rejects_options(env: TaskEnv) -> None:
 
 
 def test_rgb_array_render_shows_the_named_camera() -> None:
-    env = TaskEnv(TaskSpec(scene=panda_scene([]), arms=[panda_arm()]), render_mode="rgb_array",
-                  render_camera="front", render_width=160, render_height=120)
+    env = TaskEnv(
+        TaskSpec(scene=panda_scene([]), arms=[panda_arm()]),
+        render_mode="rgb_array",
+        render_camera="front",
+        render_width=160,
+        render_height=120,
+    )
     env.reset(seed=0)
     img = env.render()
     assert img.shape == (120, 160, 3) and img.dtype == np.uint8

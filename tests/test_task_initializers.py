@@ -30,11 +30,19 @@ def _panda() -> None:
 
 
 def props() -> list[mjk.SceneObject]:
-    shapes = [(mjk.Shape.BOX, [0.03, 0.02, 0.04]), (mjk.Shape.SPHERE, [0.035]),
-              (mjk.Shape.CYLINDER, [0.03, 0.03])]
+    shapes = [
+        (mjk.Shape.BOX, [0.03, 0.02, 0.04]),
+        (mjk.Shape.SPHERE, [0.035]),
+        (mjk.Shape.CYLINDER, [0.03, 0.03]),
+    ]
     return [
-        mjk.SceneObject(name=name, shape=shapes[i % 3][0], size=shapes[i % 3][1], mass=0.1,
-                        pos=[-1.0, 0.0, 0.05])  # all start in one spot, overlapping
+        mjk.SceneObject(
+            name=name,
+            shape=shapes[i % 3][0],
+            size=shapes[i % 3][1],
+            mass=0.1,
+            pos=[-1.0, 0.0, 0.05],
+        )  # all start in one spot, overlapping
         for i, name in enumerate(PROPS)
     ]
 
@@ -50,7 +58,8 @@ def prop_contacts(env: TaskEnv) -> int:
     mujoco.mj_forward(model, data)
     ids = {env.scene.body_id(name) for name in PROPS}
     return sum(
-        1 for c in data.contact[: data.ncon]
+        1
+        for c in data.contact[: data.ncon]
         if model.geom_bodyid[c.geom1] in ids or model.geom_bodyid[c.geom2] in ids
     )
 
@@ -75,11 +84,14 @@ def test_prop_placer_leaves_no_contact() -> None:
 def test_prop_placer_without_yaw_keeps_the_orientation() -> None:
     objects = props()[:2]
     objects[0].euler = [0.0, 0.0, 30.0]
-    env = env_with(PropPlacer(PROPS[:2], [0.3, -0.3, 0.05], [0.6, 0.3, 0.05], random_yaw=False),
-                   objects=objects)
+    env = env_with(
+        PropPlacer(PROPS[:2], [0.3, -0.3, 0.05], [0.6, 0.3, 0.05], random_yaw=False),
+        objects=objects,
+    )
     env.reset(seed=0)
-    np.testing.assert_allclose(env.scene.data.xquat[env.scene.body_id("prop0")],
-                               euler_quat([0, 0, 30], "q"), atol=1e-12)
+    np.testing.assert_allclose(
+        env.scene.data.xquat[env.scene.body_id("prop0")], euler_quat([0, 0, 30], "q"), atol=1e-12
+    )
     env.close()
 
 
@@ -94,8 +106,11 @@ def test_impossible_box_names_the_prop() -> None:
 @pytest.mark.parametrize(
     ("placer", "error", "message"),
     [
-        (PropPlacer(["prop0", "porp1"], [0, 0, 0.1], [0, 0, 0.1]), KeyError,
-         r"'porp1' in PropPlacer\.bodies\[1\]"),
+        (
+            PropPlacer(["prop0", "porp1"], [0, 0, 0.1], [0, 0, 0.1]),
+            KeyError,
+            r"'porp1' in PropPlacer\.bodies\[1\]",
+        ),
         (PropPlacer(["link3"], [0, 0, 0.1], [0, 0, 0.1]), ValueError, "'link3' is not a free"),
         (PropPlacer(["prop0"], [0, 0, 0.1], [0, 0]), ValueError, r"PropPlacer\.high"),
         (PropPlacer(["prop0"], [0, 0, 0.2], [0, 0, 0.1]), ValueError, "low must not exceed"),
@@ -154,8 +169,9 @@ def test_joint_initializer_draws_in_its_box() -> None:
 
 
 def test_physics_randomizer_edits_the_model_without_compounding() -> None:
-    rand = PhysicsRandomizer(["prop0", "prop1"], mass_scale=(0.5, 2.0),
-                             friction_scale=(0.8, 1.2), colors=True)
+    rand = PhysicsRandomizer(
+        ["prop0", "prop1"], mass_scale=(0.5, 2.0), friction_scale=(0.8, 1.2), colors=True
+    )
     env = env_with(rand)
     model = env.scene.model
     b0 = env.scene.body_id("prop0")

@@ -62,8 +62,9 @@ def test_pick_cube_pays_for_a_lift() -> None:
 
 
 def test_rgb_array_render_of_a_registered_task() -> None:
-    env = gym.make("mjkdl/PandaReach-v0", render_mode="rgb_array", render_width=96,
-                   render_height=64)
+    env = gym.make(
+        "mjkdl/PandaReach-v0", render_mode="rgb_array", render_width=96, render_height=64
+    )
     env.reset(seed=0)
     frame = env.render()
     assert frame.shape == (64, 96, 3) and frame.dtype == np.uint8 and frame.std() > 5

@@ -23,8 +23,14 @@ def _panda() -> None:
 
 def overhead_env(*sensors: object, fovy: float = 60.0) -> TaskEnv:
     """The Panda far away, and a camera `HEIGHT` m over the floor at (2, 0) looking down."""
-    mark = mjk.SceneObject(name="mark", shape=mjk.Shape.CYLINDER, size=[0.03, 0.0005],
-                           rgba=[1, 0, 0, 1], pos=[2 + MARK[0], MARK[1], 0.0005], fixed=True)
+    mark = mjk.SceneObject(
+        name="mark",
+        shape=mjk.Shape.CYLINDER,
+        size=[0.03, 0.0005],
+        rgba=[1, 0, 0, 1],
+        pos=[2 + MARK[0], MARK[1], 0.0005],
+        fixed=True,
+    )
     scene = panda_scene([mark])
     scene.cameras.append(mjk.CameraSpec(name="down", pos=[2.0, 0.0, HEIGHT], fovy=fovy))
     scene.cameras.append(mjk.CameraSpec(name="down2", pos=[2.0, 0.0, HEIGHT], fovy=fovy))
@@ -83,11 +89,20 @@ def test_cameras_of_one_size_share_a_renderer() -> None:
 
 def test_wrist_camera_moves_with_the_arm() -> None:
     scene = panda_scene([])
-    scene.cameras.append(mjk.CameraSpec(
-        name="wrist", pos=[0.1, 0, 0], euler=[180, 0, -90], fovy=90,
-        attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "hand")))
-    env = TaskEnv(TaskSpec(scene=scene, arms=[panda_arm()],
-                           sensors=[CameraSensor("wrist", 32, 32, depth=True)]))
+    scene.cameras.append(
+        mjk.CameraSpec(
+            name="wrist",
+            pos=[0.1, 0, 0],
+            euler=[180, 0, -90],
+            fovy=90,
+            attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "hand"),
+        )
+    )
+    env = TaskEnv(
+        TaskSpec(
+            scene=scene, arms=[panda_arm()], sensors=[CameraSensor("wrist", 32, 32, depth=True)]
+        )
+    )
     before, _ = env.reset(seed=0)
     for _ in range(5):
         after, *_ = env.step(np.array([0, 0, 0.2, 0, 0, 0, 0]))
@@ -107,8 +122,14 @@ def test_body_pose_sensor_reads_the_placed_pose() -> None:
     def place(env: TaskEnv, rng: np.random.Generator) -> None:
         env.scene.set_body_pose("ball", [0.4, -0.2, 0.5], [0.0, 0.0, 0.0, 1.0])
 
-    env = TaskEnv(TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()],
-                           sensors=[BodyPoseSensor("ball", name="goal")], initializers=[place]))
+    env = TaskEnv(
+        TaskSpec(
+            scene=panda_scene([ball]),
+            arms=[panda_arm()],
+            sensors=[BodyPoseSensor("ball", name="goal")],
+            initializers=[place],
+        )
+    )
     obs, _ = env.reset(seed=0)
     assert obs["goal_pose"].tolist() == [0.4, -0.2, 0.5, 0.0, 0.0, 0.0, 1.0]
     env.close()
@@ -135,9 +156,14 @@ def test_wrench_observation_is_the_tools_ft_sensor(tmp_path) -> None:
     xml = tmp_path / "ft_tool.xml"
     xml.write_text(FT_TOOL)
     scene = panda_scene([])
-    scene.robots[0].attachments.append(mjk.AttachmentSpec(
-        mjcf_path=str(xml), attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "hand"),
-        prefix="ft_", pos=[0, 0, 0.12]))
+    scene.robots[0].attachments.append(
+        mjk.AttachmentSpec(
+            mjcf_path=str(xml),
+            attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "hand"),
+            prefix="ft_",
+            pos=[0, 0, 0.12],
+        )
+    )
     arm = panda_arm()
     arm.tool.tool_body = "ft_plate"
     arm.tool.ft_sensors = [mjk.ForceTorqueSensorSpec("wrist", "ft_force", "ft_torque")]
@@ -170,17 +196,18 @@ class BallHeight:
 
 
 def test_user_sensors_follow_the_protocol() -> None:
-    ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.03], mass=0.1,
-                           pos=[0.5, 0, 0.3])
-    env = TaskEnv(TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()],
-                           sensors=[BallHeight()]))
+    ball = mjk.SceneObject(
+        name="ball", shape=mjk.Shape.SPHERE, size=[0.03], mass=0.1, pos=[0.5, 0, 0.3]
+    )
+    env = TaskEnv(TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()], sensors=[BallHeight()]))
     obs, _ = env.reset(seed=0)
     assert obs["ball_z"].tolist() == [0.3]
     obs, *_ = env.step(np.zeros(7))
     assert obs["ball_z"][0] == pytest.approx(0.3 - 0.5 * 9.81 * 0.1**2, abs=2e-3)  # falling
     env.close()
-    bad = TaskEnv(TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()],
-                           sensors=[BallHeight((2,))]))
+    bad = TaskEnv(
+        TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()], sensors=[BallHeight((2,))])
+    )
     with pytest.raises(ValueError, match=r"sensors\[0\]\.read\(env\)\['ball_z'\] has shape \(1,\)"):
         bad.reset(seed=0)
     bad.close()

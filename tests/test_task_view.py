@@ -44,8 +44,9 @@ def test_view_runs_the_policy_with_plots_and_resets_on_backspace(display: str) -
             viewers[0]._on_key(keys.KEY_RESET)
         return np.array([0.1, 0, 0, 0, 0, 0, 0], np.float32)
 
-    steps = view(env, policy, plots=["panda_tcp_pos", "goal_pose"], seed=1, realtime_factor=0.0,
-                 max_steps=5)
+    steps = view(
+        env, policy, plots=["panda_tcp_pos", "goal_pose"], seed=1, realtime_factor=0.0, max_steps=5
+    )
     assert steps == 5
     viewer = viewers[0]
     assert viewer.signal_names == ["panda_tcp_pos", "goal_pose", "action", "reward"]

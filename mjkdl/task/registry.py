@@ -62,7 +62,7 @@ def panda_reach_spec() -> TaskSpec:
         initializers=[
             PropPlacer(["ball"], low=[0.35, -0.3, z], high=[0.65, 0.3, z]),
             PoseInitializer(
-                "panda", low=[0.3, -0.2, 0.3, 165, -15, -60], high=[0.6, 0.2, 0.6, 195, 15, -30]
+                "panda", low=[0.3, -0.2, 0.3, 165, -15, -105], high=[0.6, 0.2, 0.6, 195, 15, -75]
             ),
         ],
         reward=ReachReward("panda_tcp_pos", "goal_pose"),
