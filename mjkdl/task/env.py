@@ -351,8 +351,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             self._diverged = why
             obs = {k: b.copy() for k, b in self._buffers}  # the last finite observation
             return obs, 0.0, True, truncated, {"diverged": True, "error": why}
-        scene = self.scene
-        mujoco.mj_forward(scene.model, scene.data)
+        _refresh_kinematics(self.scene.model, self.scene.data)
         obs = self._observe()
         spec = self.task_spec
         reward = 0.0 if spec.reward is None else float(spec.reward(obs))
@@ -432,6 +431,8 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._check_open()
         if self.render_mode == "rgb_array":
             r = self._renderer(*self._render_size)
+            flags = r.scene.flags  # shared with camera sensors of this size, which may differ
+            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 1
             r.update_scene(self.scene.data, camera=self._render_camera)
             return r.render()
         if self.render_mode == "human":
@@ -472,6 +473,21 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if scene is not None:
             scene.close()
         self._closed = True
+
+
+def _refresh_kinematics(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Poses, tendon/actuator lengths and velocities of the state `mj_step` left.
+
+    `mj_step` computes everything from the state it starts with, then integrates, so poses
+    would lag the joints by one physics step. These stages bring them up to date for a tenth
+    of an `mj_forward`; forces (joint torques, F/T sensors, contacts) stay those of the last
+    physics step, which are the ones that moved the arm there.
+    """
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    mujoco.mj_tendon(model, data)
+    mujoco.mj_transmission(model, data)
+    mujoco.mj_comVel(model, data)
 
 
 def _positive(value: object) -> bool:

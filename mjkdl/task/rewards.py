@@ -19,16 +19,16 @@ from ..errors import SpecError, unknown_name
 def _position(obs: Mapping[str, np.ndarray], key: str) -> np.ndarray:
     if key not in obs:
         raise unknown_name("observation", key, obs, where="the step's observation")
-    value = obs[key]
-    if np.shape(value)[0] < 3:
-        raise SpecError(f"observation {key!r} has no x, y, z (shape {np.shape(value)})")
+    value = np.asarray(obs[key], dtype=float)
+    if value.ndim != 1 or len(value) < 3:
+        raise SpecError(f"observation {key!r} has no x, y, z (shape {value.shape})")
     return value[:3]
 
 
 def distance(obs: Mapping[str, np.ndarray], a: str, b: str) -> float:
     """Metres between the positions held by observations `a` and `b`."""
-    pa, pb = _position(obs, a), _position(obs, b)
-    return math.dist(pa, pb)
+    d = _position(obs, a) - _position(obs, b)
+    return math.sqrt(d.dot(d))
 
 
 def height(obs: Mapping[str, np.ndarray], key: str) -> float:

@@ -2,8 +2,8 @@
 
 Each source is bound to the compiled model once and then copies MuJoCo's numbers into arrays
 allocated at binding, so reading a step's observation allocates nothing but what the caller
-returns. Derived quantities (poses, velocities, sensors) are read after `mj_forward`, i.e.
-consistent with the joint state of the same step.
+returns. Poses and velocities are those of the joint state of the same step; forces (joint
+torques, F/T wrenches) those MuJoCo applied over the last physics step (see `TaskEnv.step`).
 """
 
 from __future__ import annotations
@@ -285,12 +285,17 @@ class CameraReader(Reader):
         except SpecError as err:
             raise SpecError(f"{where}: {err}") from None
         self._data, self._cam = data, cam
+        self._flags = (bool(s.shadows), bool(s.reflections))
         self._rgb = self.buffers[f"{name}_rgb"]
         self._depth = self.buffers.get(f"{name}_depth")
         self.buffers[f"{name}_intrinsics"][:] = intrinsics(float(model.cam_fovy[cam]), w, h)
 
     def read(self) -> None:
         r = self._renderer
+        flags = r.scene.flags  # the renderer is shared: set this camera's look every time
+        flags[mujoco.mjtRndFlag.mjRND_SHADOW], flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
+            self._flags
+        )
         if self._depth is not None:
             r.enable_depth_rendering()
             r.update_scene(self._data, camera=self._cam)

@@ -69,6 +69,8 @@ class CameraSensor:
 
     Observations `{name}_rgb` (H×W×3 uint8), `{name}_depth` (H×W float32, metres along the
     optical axis) when `depth`, and `{name}_intrinsics` (3×3); `name` defaults to the camera's.
+    Shadows and reflections are off unless asked for: with software OpenGL (EGL on a machine
+    without a GPU) they make a 128x128 image about 9x slower.
     """
 
     camera: str
@@ -76,6 +78,8 @@ class CameraSensor:
     height: int = 128
     depth: bool = False
     name: str = ""
+    shadows: bool = False
+    reflections: bool = False
 
 
 @dataclass
