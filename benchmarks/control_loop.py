@@ -1,20 +1,20 @@
-"""Gravity-compensation control loop: mjkdl vs a hand-written raw-MuJoCo loop.
+"""Control loops of a Robot against hand-written raw-MuJoCo loops, in the same process.
 
-Gen3 + 2F-85 held at the home pose by gravity compensation in TORQUE mode, 2 ms steps.
-(a) raw MuJoCo: mj_step1, qfrc_applied[arm] = qfrc_bias[arm], mj_step2;
-(b) mjkdl: robot.update(), robot.jnt_trq_cmd = robot.gravity_torques(), robot.step();
-(c) for reference, a lean Pinocchio loop on the same chain model: copy q, Pinocchio's gravity
-    into qfrc_applied, mj_step — the floor for any loop that calls Pinocchio from Python.
-All three run interleaved in one process, in blocks, after the fingers have settled; the figure
-is the median of the per-block ratios to (a).
+Gen3 (+ Robotiq 2F-85 unless bare) held at the home pose, 2 ms steps. The raw loops switch the
+arm's servos off and write MuJoCo's own bias forces into `qfrc_applied` between `mj_step1` and
+`mj_step2` (a perfect gravity compensation, at no cost beyond reading them). The mjkdl cases:
+
+    seed            update(); jnt_trq_cmd = gravity_torques(); step()   (TORQUE)
+    gravcomp        update(); step()   with robot.gravity_compensation = True
+    position        update(); jnt_pos_cmd = HOME; step()   (POSITION, gravity feed-forward)
+    bare seed       the seed loop on a Gen3 without gripper
+
+each measured settled (after 3 s) and, for the gripper cases, over the first second after a
+reset while the fingers close. Loops run interleaved in blocks; each figure is the median of
+the per-block ratios to the raw loop of the same scene and phase.
 
     python benchmarks/control_loop.py
-    python benchmarks/control_loop.py --only mjkdl --steps 1000   # one loop, e.g. for callgrind
-
-Wall-clock time on a shared virtual machine is noisy; instruction counts are not:
-    valgrind --tool=callgrind --callgrind-out-file=/dev/null \\
-        python benchmarks/control_loop.py --only raw --steps N
-for two values of N gives the instructions per step of each loop.
+    python benchmarks/control_loop.py --only "seed settled" --steps 1000   # e.g. for callgrind
 """
 
 from __future__ import annotations
@@ -23,28 +23,56 @@ import argparse
 import time
 import tracemalloc
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 from scenes import HOME, TOOL, tabletop_spec
 
 import mjkdl as mjk
 
-BLOCKS = 60
-STEPS = 250
-WARMUP = 1500  # 3 s: the 2F-85's fingers settle, the steady hold is what is measured
+BLOCKS = 40
+STEPS = 250  # per block, settled phase
+FIRST = 500  # the first second after a reset
+WARMUP = 1500  # 3 s: the 2F-85's fingers settle
 ARM = np.arange(7)
+HOME_Q = np.array(HOME)
+FINGERS = "g_fingers_actuator"
 
 
-def raw_loop() -> tuple[Callable[[int], None], mjk.Scene]:
-    """The hand-written MuJoCo loop; the arm's servos are switched off, the force holds it."""
-    scene = mjk.Scene.build(tabletop_spec())
+@dataclass
+class Loop:
+    """A loop to time: `run(n)` steps it, `reset()` (untimed) starts a first-second phase."""
+
+    run: Callable[[int], None]
+    reset: Callable[[], None]
+    scene: mjk.Scene
+
+
+def _spec(gripper: bool) -> mjk.SceneSpec:
+    spec = tabletop_spec()
+    if not gripper:
+        spec.robots[0].attachments = []
+    return spec
+
+
+def _home(scene: mjk.Scene) -> None:
+    """Arm at home, at rest; the fingers (if any) commanded closed, starting open."""
     m, d = scene.model, scene.data
-    d.qpos[ARM] = HOME
+    mujoco.mj_resetData(m, d)
+    d.qpos[ARM] = HOME_Q
+    if scene.has_actuator(FINGERS):
+        d.ctrl[scene.actuator_id(FINGERS)] = 255.0
+    mujoco.mj_forward(m, d)
+
+
+def raw_loop(gripper: bool = True) -> Loop:
+    """The hand-written MuJoCo loop; the arm's servos are switched off, the force holds it."""
+    scene = mjk.Scene.build(_spec(gripper))
+    m, d = scene.model, scene.data
     m.actuator_gainprm[ARM] = 0.0
     m.actuator_biasprm[ARM] = 0.0
-    mujoco.mj_forward(m, d)
+    _home(scene)
 
     def run(n: int) -> None:
         for _ in range(n):
@@ -52,93 +80,117 @@ def raw_loop() -> tuple[Callable[[int], None], mjk.Scene]:
             d.qfrc_applied[ARM] = d.qfrc_bias[ARM]
             mujoco.mj_step2(m, d)
 
-    return run, scene
+    return Loop(run, lambda: _home(scene), scene)
 
 
-def lean_loop() -> tuple[Callable[[int], None], mjk.Scene]:
-    """Pinocchio's gravity on mjkdl's chain model, written straight into qfrc_applied."""
-    scene = mjk.Scene.build(tabletop_spec())
-    model = scene.create_robot("base_link", "bracelet_link", tool=TOOL).model
-    data = model.createData()
-    m, d = scene.model, scene.data
-    d.qpos[ARM] = HOME
-    m.actuator_gainprm[ARM] = 0.0
-    m.actuator_biasprm[ARM] = 0.0
-    mujoco.mj_forward(m, d)
-    q, qpos, applied = np.zeros(7), d.qpos[:7], d.qfrc_applied[:7]
+def mjkdl_loop(kind: str, gripper: bool = True) -> Loop:
+    scene = mjk.Scene.build(_spec(gripper))
+    tool = TOOL if gripper else None
+    robot = scene.create_robot("base_link", "bracelet_link", tool=tool)
+    robot.ctrl_mode = mjk.CtrlMode.POSITION if kind == "position" else mjk.CtrlMode.TORQUE
+    robot.gravity_compensation = kind == "gravcomp"
 
-    def run(n: int) -> None:
-        for _ in range(n):
-            np.copyto(q, qpos)
-            applied[:] = pin.computeGeneralizedGravity(model, data, q)
-            mujoco.mj_step(m, d)
+    def reset() -> None:
+        _home(scene)
+        robot.sync_commands()
 
-    return run, scene
+    reset()
+    if kind == "seed":
+
+        def run(n: int) -> None:
+            for _ in range(n):
+                robot.update()
+                robot.jnt_trq_cmd = robot.gravity_torques()
+                robot.step()
+
+    elif kind == "gravcomp":
+
+        def run(n: int) -> None:
+            for _ in range(n):
+                robot.update()
+                robot.step()
+
+    else:
+
+        def run(n: int) -> None:
+            for _ in range(n):
+                robot.update()
+                robot.jnt_pos_cmd = HOME_Q
+                robot.step()
+
+    return Loop(run, reset, scene)
 
 
-def mjkdl_loop() -> tuple[Callable[[int], None], mjk.Scene, mjk.Robot]:
-    scene = mjk.Scene.build(tabletop_spec())
-    robot = scene.create_robot("base_link", "bracelet_link", tool=TOOL)
-    robot.set_joint_pos(HOME)
-    robot.ctrl_mode = mjk.CtrlMode.TORQUE
-    robot.sync_commands()
-
-    def run(n: int) -> None:
-        for _ in range(n):
-            robot.update()
-            robot.jnt_trq_cmd = robot.gravity_torques()
-            robot.step()
-
-    return run, scene, robot
+def _retained(run: Callable[[int], None]) -> int:
+    """Bytes still allocated after 2000 more steps of `run` (nothing should accumulate)."""
+    tracemalloc.start()
+    run(100)
+    before = tracemalloc.take_snapshot()
+    run(2000)
+    after = tracemalloc.take_snapshot()
+    tracemalloc.stop()
+    return sum(s.size_diff for s in after.compare_to(before, "filename"))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", choices=["raw", "lean", "mjkdl"], help="run one loop only")
+    parser.add_argument("--only", help="run one loop only (a name printed below, or 'raw')")
     parser.add_argument("--steps", type=int, default=1000, help="steps for --only")
     args = parser.parse_args()
 
-    raw, raw_scene = raw_loop()
-    lean, lean_scene = lean_loop()
-    ours, scene, robot = mjkdl_loop()
-    loops = {"raw": raw, "lean": lean, "mjkdl": ours}
-    for run in loops.values():
-        run(WARMUP)
+    raw, raw_bare = raw_loop(), raw_loop(gripper=False)
+    # name -> (loop, its raw baseline, phase); a "first" phase restarts after a reset.
+    cases: dict[str, tuple[Loop, Loop, str]] = {
+        "seed settled": (mjkdl_loop("seed"), raw, "settled"),
+        "seed first second": (mjkdl_loop("seed"), raw, "first"),
+        "bare seed settled": (mjkdl_loop("seed", gripper=False), raw_bare, "settled"),
+        "position settled": (mjkdl_loop("position"), raw, "settled"),
+        "gravcomp settled": (mjkdl_loop("gravcomp"), raw, "settled"),
+        "gravcomp first second": (mjkdl_loop("gravcomp"), raw, "first"),
+    }
+    for loop in [raw, raw_bare] + [c[0] for c in cases.values()]:
+        loop.run(WARMUP)
     if args.only:
-        loops[args.only](args.steps)
+        (raw if args.only == "raw" else cases[args.only][0]).run(args.steps)
         return
 
-    times: dict[str, list[float]] = {name: [] for name in loops}
+    def timed(loop: Loop, phase: str) -> float:
+        n = FIRST if phase == "first" else STEPS
+        if phase == "first":
+            loop.reset()
+        t0 = time.perf_counter()
+        loop.run(n)
+        return (time.perf_counter() - t0) / n
+
+    ratios: dict[str, list[float]] = {name: [] for name in cases}
+    base: dict[tuple[str, str], list[float]] = {}
     for _ in range(BLOCKS):
-        for name, run in loops.items():
-            t0 = time.perf_counter()
-            run(STEPS)
-            times[name].append((time.perf_counter() - t0) / STEPS)
-    base = np.array(times["raw"])
+        raws = {
+            (key, phase): timed(loop, phase)
+            for key, loop in (("gripper", raw), ("bare", raw_bare))
+            for phase in ("settled", "first")
+            if not (key == "bare" and phase == "first")
+        }
+        for k, t in raws.items():
+            base.setdefault(k, []).append(t)
+        for name, (loop, baseline, phase) in cases.items():
+            key = "bare" if baseline is raw_bare else "gripper"
+            ratios[name].append(timed(loop, phase) / raws[key, phase])
 
-    tracemalloc.start()
-    ours(100)
-    before = tracemalloc.take_snapshot()
-    ours(2000)
-    after = tracemalloc.take_snapshot()
-    tracemalloc.stop()
-    retained = sum(s.size_diff for s in after.compare_to(before, "filename"))
-    robot.update()
-    drift = np.abs(robot.jnt_pos_msr - HOME).max()
-
-    print(f"MuJoCo {mjk.mujoco_version()}, {BLOCKS} blocks x {STEPS} steps, interleaved")
-    for name in loops:
-        t = np.array(times[name])
-        ratio = t / base
+    print(f"MuJoCo {mjk.mujoco_version()}, {BLOCKS} interleaved blocks")
+    for (key, phase), t in base.items():
+        print(f"raw MuJoCo, {key:7} {phase:8}: median {np.median(t) * 1e6:6.2f} us/step")
+    for name, r in ratios.items():
         print(
-            f"{name:6} median {np.median(t) * 1e6:7.2f} us/step   ratio to raw: median "
-            f"{np.median(ratio):.3f} (p10 {np.percentile(ratio, 10):.3f}, "
-            f"p90 {np.percentile(ratio, 90):.3f})"
+            f"{name:22} ratio to raw: median {np.median(r):.3f} "
+            f"(p10 {np.percentile(r, 10):.3f}, p90 {np.percentile(r, 90):.3f})"
         )
-    print(f"memory retained over 2000 mjkdl steps: {retained} bytes")
-    print(f"largest joint drift of the held arm after the run: {drift:.2e} rad")
-    for s in (raw_scene, lean_scene, scene):
-        s.close()
+    for name in ("seed settled", "gravcomp settled"):
+        print(f"memory retained over 2000 steps, {name}: {_retained(cases[name][0].run)} bytes")
+    held = cases["gravcomp settled"][0].scene.data.qpos[ARM]
+    print(f"largest joint drift of the gravity-compensated arm: {np.abs(held - HOME_Q).max():.2e} rad")
+    for loop in [raw, raw_bare] + [c[0] for c in cases.values()]:
+        loop.scene.close()
 
 
 if __name__ == "__main__":

@@ -1,11 +1,17 @@
-"""Extract a Pinocchio model of a serial chain from a *compiled* MuJoCo model.
+"""Extract a Pinocchio model of what moves an arm from a *compiled* MuJoCo model.
 
-The chain runs from a base body to a tip body. Each MuJoCo hinge or slide joint becomes a
-Pinocchio revolute/prismatic joint about z, with the axis alignment, the joint anchor and the
-joint reference (`qpos0`) folded into the joint placement, so a Pinocchio q equals MuJoCo's
-qpos. Bodies hanging off the chain (the tool below the tip, side branches) join the inertia
-of the link they hang from: rigid ones once, jointed ones (gripper fingers) at their current
-configuration on every `refresh_inertias`.
+The model holds the joints from the world down to the base body (a turning torso, a free or
+mocap base), the chain from the base to the tip (the arm), and everything below the base that
+hangs off the chain (the tool with its fingers, side branches) with its joints. Bodies beside
+the base's ancestors (another arm on the same torso) are left out: they do not enter the arm's
+rows and columns of any quantity, only the base joints' own rows.
+
+Each MuJoCo hinge or slide joint becomes a Pinocchio revolute/prismatic joint about z, with the
+axis alignment, the joint anchor and the joint reference (`qpos0`) folded into the joint
+placement, so a Pinocchio q equals MuJoCo's qpos. Ball and free joints become spherical and
+free-flyer joints (their quaternions reordered, a free joint's linear velocity rotated into the
+body frame); a mocap ancestor is a free-flyer whose q comes from `mocap_pos`/`mocap_quat`, at
+rest as MuJoCo treats it. Jointless bodies join the inertia of the joint carrying them.
 """
 
 from __future__ import annotations
@@ -20,54 +26,79 @@ from .errors import SpecError, unknown_name
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 _SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
-# Jointed subtrees (fingers) are re-lumped once their joints moved this far (rad or m) since
-# the last time: far below any effect on gravity or inertia that a test could resolve.
-RELUMP_TOL = 1e-9
-# Pinocchio's dynamic parameters are [m, mc, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]; MuJoCo's
-# cinert/crb rows are [Ixx, Iyy, Izz, Ixy, Ixz, Iyz, mc, m], both about the same origin.
-_CRB_TO_PIN = np.array([9, 6, 7, 8, 0, 3, 1, 4, 5, 2])
+_BALL = int(mujoco.mjtJoint.mjJNT_BALL)
+_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+# Pinocchio stores quaternions [x, y, z, w], MuJoCo [w, x, y, z].
+_TO_PIN_QUAT = [1, 2, 3, 0]
 
 
-@dataclass
-class _JointedSubtree:
-    """A subtree with joints of its own (gripper fingers) hanging off one chain body."""
+@dataclass(frozen=True)
+class _Member:
+    """One MuJoCo body's share of a Pinocchio joint's inertia."""
 
-    root: int  # MuJoCo body id of the subtree's root
-    body: int  # MuJoCo chain body it hangs from
-    joint: int  # Pinocchio joint that carries that body
-    joint_in_body: pin.SE3  # placement of the Pinocchio joint frame in `body`
+    joint: int  # Pinocchio joint carrying the body
+    body: int  # MuJoCo body id
+    placement: pin.SE3  # body frame in the joint frame
 
 
 class Chain:
-    """A Pinocchio model of the chain `base_body` → `tip_body` of a compiled `MjModel`."""
+    """A Pinocchio model of the arm `base_body` → `tip_body` of a compiled `MjModel`.
+
+    `model` is the whole model (base joints, arm, passive tool and branch joints); the arm's
+    entries are `arm_q`/`arm_v` of its q and v (slices when contiguous, the usual case).
+    """
 
     def __init__(
         self,
-        mj_model: mujoco.MjModel,
-        mj_data: mujoco.MjData,
+        m: mujoco.MjModel,
         base_body: str,
         tip_body: str,
         tcp_site: str = "",
         tcp_offset: pin.SE3 | None = None,
     ) -> None:
-        self.base = _body_id(mj_model, base_body)
-        self.tip = _body_id(mj_model, tip_body)
-        path = _path(mj_model, self.base, self.tip, base_body, tip_body)
+        self.base = _body_id(m, base_body)
+        self.tip = _body_id(m, tip_body)
+        path = _path(m, self.base, self.tip, base_body, tip_body)
         self.model = pin.Model()
         self.model.name = f"{base_body}->{tip_body}"
-        self.model.gravity = pin.Motion(np.asarray(mj_model.opt.gravity, float), np.zeros(3))
-        self.joint_ids: list[int] = []
-        self._subtrees: list[_JointedSubtree] = []
-        self._build(mj_model, mj_data, path)
+        self.joint_ids: list[int] = []  # MuJoCo ids of the arm's joints, base to tip
+        self.arm_joints: list[int] = []  # their Pinocchio joint ids
+        self._members: list[_Member] = []
+        self._dofs: list[tuple[int, int]] = []  # (Pinocchio joint, MuJoCo dof address)
+        self._frames: dict[int, int] = {}  # MuJoCo body id -> Pinocchio body frame id
+        self._carrier: dict[int, tuple[int, pin.SE3]] = {0: (0, pin.SE3.Identity())}
+        q_src: list[int] = []  # qpos address of each Pinocchio q entry (-1: mocap)
+        v_src: list[int] = []
+        self.free: list[tuple[int, int]] = []  # (Pinocchio idx_q, idx_v) of free joints
+        self.mocap: list[tuple[int, int, int]] = []  # (idx_q, idx_v, mocap id)
+        ancestors = _ancestors(m, self.base)
+        self._check_equality_mounts(m, ancestors)
+        arm = set(path)
+        for b in ancestors[:-1] + _subtree(m, self.base):
+            self._add_body(m, b, arm, q_src, v_src)
         if not self.joint_ids:
             raise SpecError(f"the chain {base_body!r} -> {tip_body!r} has no joints")
-        self.qpos_adr = np.array([mj_model.jnt_qposadr[j] for j in self.joint_ids])
-        self.dof_adr = np.array([mj_model.jnt_dofadr[j] for j in self.joint_ids])
-        self.joint_names = [mj_model.joint(j).name for j in self.joint_ids]
-        self.tip_frame = self._body_frames[self.tip]
+        self.qpos_adr = np.array([m.jnt_qposadr[j] for j in self.joint_ids])
+        self.dof_adr = np.array([m.jnt_dofadr[j] for j in self.joint_ids])
+        self.joint_names = [m.joint(j).name for j in self.joint_ids]
+        self.arm_q = _span([self.model.idx_qs[j] for j in self.arm_joints])
+        self.arm_v = _span([self.model.idx_vs[j] for j in self.arm_joints])
+        self.q_index = np.array(q_src, dtype=int)
+        self.v_index = np.array(v_src, dtype=int)
+        # A plain copy does when Pinocchio's q and v are contiguous runs of qpos and qvel.
+        self.quats = [  # where each quaternion starts in q (after a free joint's position)
+            self.model.idx_qs[j] + self.model.nqs[j] - 4
+            for j in range(1, self.model.njoints)
+            if self.model.nqs[j] != self.model.nvs[j]
+        ]
+        q_span, v_span = _span(q_src), _span(v_src)
+        plain = isinstance(q_span, slice) and isinstance(v_span, slice) and not self.free
+        self.q_span = q_span if plain else None
+        self.v_span = v_span if plain else None
+        self.tip_frame = self._frames[self.tip]
         self.tcp_frame = self.tip_frame
         if tcp_site:
-            self.tcp_frame = self._add_site_frame(mj_model, tcp_site)
+            self.tcp_frame = self._add_site_frame(m, tcp_site)
         if tcp_offset is not None:
             host = self.model.frames[self.tcp_frame]
             self.tcp_frame = self.model.addFrame(
@@ -75,70 +106,105 @@ class Chain:
                     f"{host.name}_tcp", host.parentJoint, host.placement * tcp_offset, pin.OP_FRAME
                 )
             )
-        self._static_inertias = [pin.Inertia(y) for y in self.model.inertias]
-        joints = sorted({sub.joint for sub in self._subtrees})
-        self._subtrees_by_joint = [
-            (j, [sub for sub in self._subtrees if sub.joint == j]) for j in joints
-        ]
-        self._origin = pin.SE3.Identity()
-        self._subtree_qpos = _qpos_span(mj_model, [sub.root for sub in self._subtrees])
-        # A view kept from construction: MjData's array properties build a new wrapper on
-        # every access, which the per-step check below would pay each time.
-        self._data = mj_data
-        span = self._subtree_qpos
-        self._subtree_q = mj_data.qpos[span] if isinstance(span, slice) else None
-        nsub = len(mj_data.qpos[span])
-        self._lumped_q = np.full(nsub, np.nan)  # NaN: nothing lumped yet
-        self._dq = np.zeros(nsub)
-        # A base carried by joints of its own (a mobile base, another robot) moves: keep the
-        # root placements relative to it and re-place them on every refresh.
-        self.base_moves = bool(mj_model.body_weldid[self.base] != 0)
-        base_inv = _body_pose(mj_data, self.base).inverse()
-        self._root_joints = [
-            (j, base_inv * self.model.jointPlacements[j])
-            for j in range(1, self.model.njoints)
-            if self.model.parents[j] == 0
-        ]
-        self._root_frames = [
-            (f, base_inv * frame.placement)
-            for f, frame in enumerate(self.model.frames)
-            if frame.parentJoint == 0 and f > 0
-        ]
-        self.refresh(mj_model, mj_data)
+        self.gravcomp_model: pin.Model | None = None
+        self.load_parameters(m)
 
     # ------------------------------------------------------------------ building
 
-    def _build(self, m: mujoco.MjModel, d: mujoco.MjData, path: list[int]) -> None:
-        on_path = set(path) | {self.base}
-        # Placement of the current MuJoCo body frame in the current Pinocchio joint frame;
-        # the universe frame is MuJoCo's world, so the base pose comes first.
-        parent = 0
-        frame = self.model.addFrame(
-            pin.Frame(_frame_name(m, self.base), 0, 0, _body_pose(d, self.base), pin.BODY)
-        )
-        self._body_frames = {self.base: frame}  # MuJoCo body id -> Pinocchio frame id
-        acc = _body_pose(d, self.base)
-        for b in path:
+    def _check_equality_mounts(self, m: mujoco.MjModel, ancestors: list[int]) -> None:
+        """Refuse a base that floats in the tree but is held by an equality constraint."""
+        floating = [b for b in ancestors if m.body_jntnum[b] or m.body_mocapid[b] >= 0]
+        if not floating:
+            return
+        held = set(ancestors[ancestors.index(floating[0]) :])
+        for e in range(m.neq):
+            if int(m.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_WELD), int(mujoco.mjtEq.mjEQ_CONNECT)):
+                continue
+            if int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
+                continue
+            bodies = {int(m.eq_obj1id[e]), int(m.eq_obj2id[e])}
+            if bodies & held and m.eq_active0[e]:
+                name = m.equality(e).name or f"#{e}"
+                raise SpecError(
+                    f"base body {m.body(self.base).name!r} is held by equality constraint "
+                    f"{name!r}, which the Pinocchio model cannot represent (it follows the "
+                    "kinematic tree only); mount the robot in the tree instead (RobotSpec."
+                    "attach_to) or choose a base_body below the constraint"
+                )
+
+    def _add_body(
+        self, m: mujoco.MjModel, b: int, arm: set[int], q_src: list[int], v_src: list[int]
+    ) -> None:
+        parent = int(m.body_parentid[b])
+        joint, acc = self._carrier[parent]
+        mocap = int(m.body_mocapid[b])
+        if mocap >= 0:
+            # MuJoCo places a mocap body at mocap_pos/mocap_quat in the world.
+            joint = self._add_pin_joint(pin.JointModelFreeFlyer(), 0, pin.SE3.Identity(), _frame_name(m, b))
+            iq, iv = self.model.idx_qs[joint], self.model.idx_vs[joint]
+            self.mocap.append((iq, iv, mocap))
+            q_src.extend([-1] * 7)
+            v_src.extend([-1] * 6)
+            acc = pin.SE3.Identity()
+        else:
             acc = acc * pin.SE3(_quat_matrix(m.body_quat[b]), m.body_pos[b].copy())
-            for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
-                parent, acc = self._add_joint(m, j, parent, acc)
-            self.model.appendBodyToJoint(parent, _body_inertia(m, b), acc)
-            frame = self.model.addBodyFrame(_frame_name(m, b), parent, acc, frame)
-            self._body_frames[b] = frame
-            self._lump_branches(m, b, parent, acc, on_path)
+        for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
+            joint, acc = self._add_joint(m, j, joint, acc, b in arm, q_src, v_src)
+            if b in arm:
+                self.arm_joints.append(joint)
+                self.joint_ids.append(j)
+        self._members.append(_Member(joint, b, acc))
+        parent_frame = self._frames.get(parent, 0)
+        self._frames[b] = self.model.addBodyFrame(_frame_name(m, b), joint, acc, parent_frame)
+        self._carrier[b] = (joint, acc)
 
     def _add_joint(
-        self, m: mujoco.MjModel, j: int, parent: int, acc: pin.SE3
+        self,
+        m: mujoco.MjModel,
+        j: int,
+        parent: int,
+        acc: pin.SE3,
+        on_arm: bool,
+        q_src: list[int],
+        v_src: list[int],
     ) -> tuple[int, pin.SE3]:
+        """Add MuJoCo joint `j` below Pinocchio joint `parent`; return it and the body in it."""
         jtype = int(m.jnt_type[j])
+        body = int(m.jnt_bodyid[j])
         name = m.joint(j).name or f"joint{j}"
-        if jtype not in (_HINGE, _SLIDE):
+        qa, va = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+        if on_arm and jtype not in (_HINGE, _SLIDE):
             kind = mujoco.mjtJoint(jtype).name
             raise SpecError(
-                f"joint {name!r} is a {kind} joint: a chain takes only hinge and slide joints"
+                f"joint {name!r} is a {kind} joint: the chain from base to tip takes only "
+                "hinge and slide joints"
+            )
+        if jtype == _FREE:
+            if int(m.body_parentid[body]) != 0 or parent != 0:
+                raise SpecError(f"free joint {name!r} is not on a top-level body")
+            # MuJoCo's free joint sets the body pose in the world from qpos directly.
+            jid = self._add_pin_joint(pin.JointModelFreeFlyer(), 0, pin.SE3.Identity(), name)
+            self.free.append((self.model.idx_qs[jid], self.model.idx_vs[jid]))
+            q_src.extend([qa, qa + 1, qa + 2] + [qa + 3 + k for k in _TO_PIN_QUAT])
+            v_src.extend(range(va, va + 6))
+            self._dofs.append((jid, va))
+            return jid, pin.SE3.Identity()
+        if jtype == _BALL:
+            # MuJoCo turns the body about the anchor by the quaternion qpos (not relative to
+            # qpos0), expressed in the body frame.
+            to_joint = pin.SE3(np.eye(3), m.jnt_pos[j].copy())
+            jid = self._add_pin_joint(pin.JointModelSpherical(), parent, acc * to_joint, name)
+            q_src.extend(qa + k for k in _TO_PIN_QUAT)
+            v_src.extend(range(va, va + 3))
+            self._dofs.append((jid, va))
+            return jid, to_joint.inverse()
+        if jtype not in (_HINGE, _SLIDE):
+            raise SpecError(
+                f"joint {name!r} (body {m.body(body).name!r}) has type {jtype}, which the "
+                "Pinocchio model cannot represent"
             )
         align = _align_z(m.jnt_axis[j])
-        q0 = float(m.qpos0[m.jnt_qposadr[j]])
+        q0 = float(m.qpos0[qa])
         if jtype == _HINGE:
             # MuJoCo rotates about the axis through the anchor by (qpos - qpos0).
             to_joint = pin.SE3(align, m.jnt_pos[j].copy())
@@ -148,30 +214,34 @@ class Chain:
             to_joint = pin.SE3(align, np.zeros(3))
             ref = pin.SE3(np.eye(3), np.array([0.0, 0.0, -q0]))
             model = pin.JointModelPZ()
-        lo, hi = (m.jnt_range[j] if m.jnt_limited[j] else (-np.inf, np.inf))
-        big = np.array([np.inf])
-        jid = self.model.addJoint(
-            parent, model, acc * to_joint * ref, name, big, big, np.array([lo]), np.array([hi])
-        )
-        self.model.armature[self.model.idx_vs[jid]] = m.dof_armature[m.jnt_dofadr[j]]
-        self.joint_ids.append(j)
+        jid = self._add_pin_joint(model, parent, acc * to_joint * ref, name)
+        if m.jnt_limited[j]:
+            iq = self.model.idx_qs[jid]
+            self.model.lowerPositionLimit[iq] = m.jnt_range[j, 0]
+            self.model.upperPositionLimit[iq] = m.jnt_range[j, 1]
+        q_src.append(qa)
+        v_src.append(va)
+        self._dofs.append((jid, va))
         return jid, to_joint.inverse()
 
-    def _lump_branches(
-        self, m: mujoco.MjModel, b: int, joint: int, body_in_joint: pin.SE3, on_path: set[int]
-    ) -> None:
-        """Add the inertia of every child subtree of chain body `b` that is off the path."""
-        for child in np.flatnonzero(m.body_parentid == b):
-            if child in on_path or child == b:
-                continue
-            members = _subtree(m, int(child))
-            if any(m.body_jntnum[k] for k in members):
-                sub = _JointedSubtree(int(child), b, joint, body_in_joint.inverse())
-                self._subtrees.append(sub)
-            else:
-                for k in members:
-                    rel = _relative_pose(m, b, k)
-                    self.model.appendBodyToJoint(joint, _body_inertia(m, k), body_in_joint * rel)
+    def _on_path(self, m: mujoco.MjModel, body: int) -> bool:
+        """Whether `body` is on the chain below the base (its joints are the arm's)."""
+        b = self.tip
+        while b != self.base:
+            if b == body:
+                return True
+            b = int(m.body_parentid[b])
+        return False
+
+    def _add_pin_joint(self, jmodel: object, parent: int, placement: pin.SE3, name: str) -> int:
+        jid = self.model.addJoint(parent, jmodel, placement, name)
+        lo, hi = self.model.lowerPositionLimit, self.model.upperPositionLimit
+        iq, nq = self.model.idx_qs[jid], self.model.nqs[jid]
+        lo[iq : iq + nq] = -np.inf
+        hi[iq : iq + nq] = np.inf
+        self.model.lowerPositionLimit, self.model.upperPositionLimit = lo, hi
+        return jid
+
 
     def _add_site_frame(self, m: mujoco.MjModel, site: str) -> int:
         s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)
@@ -179,75 +249,119 @@ class Chain:
             known = [m.site(k).name for k in range(m.nsite)]
             raise unknown_name("site", site, known, where="the model (tool.tcp_site)")
         body = int(m.site_bodyid[s])
-        between = [body]  # bodies from the site's up to the first chain body
-        while between[-1] not in self._body_frames:
-            if between[-1] == 0:
+        if body not in self._frames or not self._rigid_to_arm(m, body):
+            if body in self._frames and body not in _ancestors(m, self.base):
                 raise SpecError(
-                    f"TCP site {site!r} (body {m.body(body).name!r}) is not on the chain or "
-                    f"below its tip {m.body(self.tip).name!r}"
+                    f"TCP site {site!r} is on body {m.body(body).name!r}, which moves relative "
+                    "to the chain through joints outside it (fingers, links beyond the tip): "
+                    "choose a site rigidly fixed to the chain or its tool"
                 )
-            between.append(int(m.body_parentid[between[-1]]))
-        anchor = between.pop()
-        if any(m.body_jntnum[b] for b in between):
             raise SpecError(
-                f"TCP site {site!r} is on body {m.body(body).name!r}, which moves relative "
-                "to the chain through joints outside it (fingers, links beyond the tip): "
-                "choose a site rigidly fixed to the chain or its tool"
+                f"TCP site {site!r} (body {m.body(body).name!r}) is not on the chain or "
+                f"below its tip {m.body(self.tip).name!r}"
             )
-        host = self.model.frames[self._body_frames[anchor]]
+        host = self.model.frames[self._frames[body]]
         site_in_body = pin.SE3(_quat_matrix(m.site_quat[s]), m.site_pos[s].copy())
-        placement = host.placement * _relative_pose(m, anchor, body) * site_in_body
-        return self.model.addFrame(pin.Frame(site, host.parentJoint, placement, pin.OP_FRAME))
+        return self.model.addFrame(
+            pin.Frame(site, host.parentJoint, host.placement * site_in_body, pin.OP_FRAME)
+        )
 
-    # ------------------------------------------------------------------ runtime
+    def _rigid_to_arm(self, m: mujoco.MjModel, body: int) -> bool:
+        """Whether `body` is below the base and carried by no joints but the arm's."""
+        b = body
+        while b != self.base:
+            if b == 0:
+                return False
+            if m.body_jntnum[b] and not self._on_path(m, b):
+                return False
+            b = int(m.body_parentid[b])
+        return True
 
-    def invalidate(self) -> None:
-        """Forget the lumped subtree inertia: MuJoCo's data changed behind our back."""
-        if self._subtrees:
-            self._lumped_q.fill(np.nan)
+    # ------------------------------------------------------------------ state
 
-    def refresh(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        """Follow MuJoCo's last computed state: jointed subtrees' inertia and a moving base.
+    def read_state(self, d: mujoco.MjData, q: np.ndarray, v: np.ndarray) -> None:
+        """Pinocchio's q and v from MuJoCo's state (the general path: quaternions, mocap)."""
+        np.take(d.qpos, self.q_index, out=q)
+        np.take(d.qvel, self.v_index, out=v)
+        for iq, iv, mocap in self.mocap:
+            q[iq : iq + 3] = d.mocap_pos[mocap]
+            q[iq + 3 : iq + 7] = d.mocap_quat[mocap][_TO_PIN_QUAT]
+            v[iv : iv + 6] = 0.0
+        for iq in self.quats:  # MuJoCo normalises a copy of each quaternion it reads
+            quat = q[iq : iq + 4]
+            quat /= np.linalg.norm(quat)
+        for iq, iv in self.free:
+            # MuJoCo's free-joint velocity is linear in the world, angular in the body frame;
+            # Pinocchio's is all in the body frame.
+            rot = pin.Quaternion(q[iq + 3 : iq + 7]).matrix()
+            v[iv : iv + 3] = rot.T @ v[iv : iv + 3]
 
-        A subtree's inertia is MuJoCo's composite rigid-body inertia `crb` of its root (about
-        the kinematic tree's `subtree_com`, world axes), which `mj_forward`/`mj_step` already
-        computed, so no kinematics is repeated here.
+    # ------------------------------------------------------------------ parameters
+
+    def _load_effort_limits(self, m: mujoco.MjModel) -> None:
+        """Joint effort limits from the actuators' forcerange (times gear) and actfrcrange."""
+        model = self.model
+        limit = np.full(model.nv, np.inf)
+        for jid, dof in self._dofs:
+            if model.nvs[jid] != 1:
+                continue
+            j = int(m.dof_jntid[dof])
+            iv = model.idx_vs[jid]
+            if m.jnt_actfrclimited[j]:
+                limit[iv] = np.abs(m.jnt_actfrcrange[j]).max()
+            for a in np.flatnonzero(
+                (m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT)) & (m.actuator_trnid[:, 0] == j)
+            ):
+                if m.actuator_forcelimited[a]:
+                    force = np.abs(m.actuator_forcerange[a]).max() * abs(m.actuator_gear[a, 0])
+                    limit[iv] = min(limit[iv], force)
+        model.effortLimit = limit  # the same memory as upperEffortLimit
+        model.lowerEffortLimit = -limit
+
+    def load_parameters(self, m: mujoco.MjModel) -> None:
+        """(Re)load inertias, gravcomp, armature and gravity from `m` (run-time edits too).
+
+        Bodies with MuJoCo `gravcomp` get that share of their weight cancelled by MuJoCo
+        (`qfrc_gravcomp`); `gravcomp_model` holds just that share, to be subtracted from
+        gravity so it is not compensated twice (None when no body has gravcomp).
         """
-        if self.base_moves:
-            base = _body_pose(d, self.base)
-            for j, rel in self._root_joints:
-                self.model.jointPlacements[j] = base * rel
-            for f, rel in self._root_frames:
-                frame = self.model.frames[f]
-                frame.placement = base * rel
-                self.model.frames[f] = frame
-        if not self._subtrees:
-            return
-        # The lumped inertia, in the frame of the joint carrying it, depends only on the
-        # subtree's own joints: re-lump when they moved by more than RELUMP_TOL since.
-        q = self._subtree_q
-        if q is None or d is not self._data:
-            q = d.qpos[self._subtree_qpos]
-        dq = self._dq
-        np.subtract(q, self._lumped_q, out=dq)
-        if dq.dot(dq) <= RELUMP_TOL * RELUMP_TOL:
-            return
-        if d.crb[self._subtrees[0].root, 9] <= 0.0:
-            return  # not computed yet (reset data, no mj_forward since): nothing to lump from
-        np.copyto(self._lumped_q, q)
-        inertias = self.model.inertias
-        origin = self._origin
-        for joint, subtrees in self._subtrees_by_joint:
-            total = self._static_inertias[joint]
-            for sub in subtrees:
-                about_origin = pin.Inertia.FromDynamicParameters(d.crb[sub.root][_CRB_TO_PIN])
-                origin.translation = d.subtree_com[m.body_rootid[sub.root]]
-                joint_in_world = _body_pose(d, sub.body) * sub.joint_in_body
-                total = total + joint_in_world.actInv(origin).act(about_origin)
-            inertias[joint] = total
+        model = self.model
+        model.gravity = pin.Motion(np.asarray(m.opt.gravity, float).copy(), np.zeros(3))
+        inertias = [pin.Inertia.Zero() for _ in range(model.njoints)]
+        shares = [pin.Inertia.Zero() for _ in range(model.njoints)]
+        for member in self._members:
+            body_inertia = member.placement.act(_body_inertia(m, member.body))
+            inertias[member.joint] = inertias[member.joint] + body_inertia
+            gc = float(m.body_gravcomp[member.body])
+            if gc:
+                shares[member.joint] = shares[member.joint] + _scaled(body_inertia, gc)
+        for jid in range(model.njoints):
+            model.inertias[jid] = inertias[jid]
+        for jid, dof in self._dofs:
+            iv, nv = model.idx_vs[jid], model.nvs[jid]
+            model.armature[iv : iv + nv] = m.dof_armature[dof : dof + nv]
+        self._load_effort_limits(m)
+        if any(y.mass != 0.0 for y in shares):
+            gc_model = model.copy()
+            for jid in range(model.njoints):
+                gc_model.inertias[jid] = shares[jid]
+            self.gravcomp_model = gc_model
+        else:
+            self.gravcomp_model = None
 
 
 # ---------------------------------------------------------------------------- helpers
+
+
+def _scaled(y: pin.Inertia, k: float) -> pin.Inertia:
+    return pin.Inertia(y.mass * k, y.lever.copy(), y.inertia * k)
+
+
+def _span(idx: list[int]) -> slice | np.ndarray:
+    """`idx` as a slice when it is a contiguous ascending run, else as an index array."""
+    if idx and list(idx) == list(range(idx[0], idx[0] + len(idx))):
+        return slice(int(idx[0]), int(idx[0]) + len(idx))
+    return np.array(idx, dtype=int)
 
 
 def _frame_name(m: mujoco.MjModel, b: int) -> str:
@@ -263,6 +377,15 @@ def _body_id(m: mujoco.MjModel, name: str) -> int:
     return i
 
 
+def _ancestors(m: mujoco.MjModel, body: int) -> list[int]:
+    """Bodies from the top-level one down to `body` (inclusive), without the world."""
+    out = []
+    while body != 0:
+        out.append(body)
+        body = int(m.body_parentid[body])
+    return out[::-1]
+
+
 def _path(m: mujoco.MjModel, base: int, tip: int, base_name: str, tip_name: str) -> list[int]:
     """Bodies from just below `base` down to `tip`, or a clear error if not an ancestor."""
     path = []
@@ -272,35 +395,32 @@ def _path(m: mujoco.MjModel, base: int, tip: int, base_name: str, tip_name: str)
             raise SpecError(
                 f"base body {base_name!r} is not an ancestor of tip body {tip_name!r}: "
                 "a chain runs from a base down to a tip in one kinematic tree"
+                + _equality_hint(m, base, tip)
             )
         path.append(b)
         b = int(m.body_parentid[b])
     return path[::-1]
 
 
-def _qpos_span(m: mujoco.MjModel, roots: list[int]) -> slice | np.ndarray:
-    """qpos addresses of every joint in the subtrees under `roots` (a slice when contiguous)."""
-    adr = sorted(
-        a
-        for root in roots
-        for b in _subtree(m, root)
-        for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
-        for a in range(m.jnt_qposadr[j], m.jnt_qposadr[j] + joint_sizes(int(m.jnt_type[j]))[0])
-    )
-    if adr and adr == list(range(adr[0], adr[-1] + 1)):
-        return slice(adr[0], adr[-1] + 1)
-    return np.array(adr, dtype=int)
-
-
-def joint_sizes(jtype: int) -> tuple[int, int]:
-    """(nq, nv) of a MuJoCo joint type."""
-    return {
-        int(mujoco.mjtJoint.mjJNT_FREE): (7, 6),
-        int(mujoco.mjtJoint.mjJNT_BALL): (4, 3),
-    }.get(jtype, (1, 1))
+def _equality_hint(m: mujoco.MjModel, base: int, tip: int) -> str:
+    """Name the equality constraint that ties the tip's tree to the base, if one does."""
+    tip_tree = set(_subtree(m, int(m.body_rootid[tip])))
+    base_side = set(_ancestors(m, base)) | set(_subtree(m, base))
+    for e in range(m.neq):
+        if int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
+            continue
+        pair = {int(m.eq_obj1id[e]), int(m.eq_obj2id[e])}
+        if pair & tip_tree and pair & base_side:
+            name = m.equality(e).name or f"#{e}"
+            return (
+                f" (they are joined only by equality constraint {name!r}, which the Pinocchio "
+                "model cannot represent)"
+            )
+    return ""
 
 
 def _subtree(m: mujoco.MjModel, root: int) -> list[int]:
+    """`root` and its descendants, in MuJoCo's body order (parents before children)."""
     members = [root]
     inside = {root}
     for k in range(root + 1, m.nbody):
@@ -314,19 +434,6 @@ def _quat_matrix(quat: np.ndarray) -> np.ndarray:
     mat = np.empty(9)
     mujoco.mju_quat2Mat(mat, np.asarray(quat, float))
     return mat.reshape(3, 3)
-
-
-def _body_pose(d: mujoco.MjData, b: int) -> pin.SE3:
-    return pin.SE3(d.xmat[b].reshape(3, 3), d.xpos[b])
-
-
-def _relative_pose(m: mujoco.MjModel, ancestor: int, body: int) -> pin.SE3:
-    """Pose of `body` in `ancestor` through jointless bodies (their model offsets)."""
-    pose = pin.SE3.Identity()
-    while body != ancestor:
-        pose = pin.SE3(_quat_matrix(m.body_quat[body]), m.body_pos[body].copy()) * pose
-        body = int(m.body_parentid[body])
-    return pose
 
 
 def _body_inertia(m: mujoco.MjModel, b: int) -> pin.Inertia:

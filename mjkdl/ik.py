@@ -56,9 +56,11 @@ def _limit_vector(name: str, value: np.ndarray, nq: int) -> np.ndarray:
 
 
 class IKSolver:
-    """Damped, box-constrained Gauss–Newton IK for one frame of a fixed-base serial chain.
+    """Damped, box-constrained Gauss–Newton IK for one frame of a Pinocchio model.
 
-    An instance owns its work buffers: share it between threads only with a lock.
+    The solved joints are the model's (all 1-DoF) or the contiguous run `joints` of 1-DoF
+    joints (an arm inside a larger model); the others stay at the configuration `solve` is
+    given. An instance owns its work buffers: share it between threads only with a lock.
     """
 
     #: λ = DAMP_ERROR·|e|² + DAMP_FLOOR (Sugihara 2011), tuned on the Kinova Gen3.
@@ -79,17 +81,31 @@ class IKSolver:
         max_iters: int = 50,
         max_restarts: int = 20,
         seed: int = 0,
+        joints: list[int] | None = None,
     ) -> None:
         """Prepare buffers for frame `frame_id` of `model` with joint limits `lower`/`upper`.
 
         Unlimited joints take -inf/+inf.  `max_iters` bounds each attempt; `max_restarts` is
         the number of extra seeds (drawn from `seed`) tried after the caller's seed fails.
+        `joints`: the Pinocchio joint ids to solve for (default: all), consecutive 1-DoF ones.
         """
         if not isinstance(model, pin.Model):
             raise SpecError(f"model must be a pinocchio.Model, got {type(model).__name__}")
-        nq = model.nq
-        if nq == 0 or nq != model.nv or any(j.nq != 1 or j.nv != 1 for j in model.joints[1:]):
-            raise SpecError("model must be a chain of 1-DoF joints (nq == nv, one per joint)")
+        ids = list(range(1, model.njoints)) if joints is None else [int(j) for j in joints]
+        if (
+            not ids
+            or any(not 0 < j < model.njoints for j in ids)
+            or any(model.nqs[j] != 1 or model.nvs[j] != 1 for j in ids)
+        ):
+            raise SpecError("joints must be 1-DoF joints of the model (nq == nv == 1 each)")
+        iq, iv = model.idx_qs[ids[0]], model.idx_vs[ids[0]]
+        nq = len(ids)
+        if [model.idx_qs[j] for j in ids] != list(range(iq, iq + nq)) or [
+            model.idx_vs[j] for j in ids
+        ] != list(range(iv, iv + nq)):
+            raise SpecError("joints must be consecutive in the model's q and v")
+        self._q_slice, self._v_slice = slice(iq, iq + nq), slice(iv, iv + nq)
+        self._partial = nq != model.nq
         if not 0 <= frame_id < model.nframes:
             raise SpecError(f"frame_id {frame_id} out of range [0, {model.nframes})")
         lo = _limit_vector("lower", lower, nq)
@@ -113,16 +129,17 @@ class IKSolver:
         # a view on pinocchio's buffer, so it is fetched once.
         support = model.supports[model.frames[self.frame_id].parentJoint][1:]
         mask = np.zeros((1, nq))
-        mask[0, [model.joints[j].idx_v for j in support]] = 1.0
+        mask[0, [model.joints[j].idx_v - iv for j in support if j in ids]] = 1.0
         # The damped Hessian J'J + λI is computed as A'A with A = [J; √λ·I].
         aug = np.zeros((6 + nq, nq))
         # mju_boxQP needs lower < upper strictly: a locked joint is opened by one ulp.
         self._locked = bool((lo == hi).any())
+        self._qfull = pin.neutral(model)
         self._loop = (
             model,
             data,
             self.frame_id,
-            data.J,
+            data.J[:, self._v_slice],
             None if mask.all() else mask,
             aug,
             aug[:6],
@@ -135,18 +152,29 @@ class IKSolver:
         seed_hi = np.where(np.isfinite(hi), hi, np.pi)
         self._seeds = np.random.default_rng(seed).uniform(seed_lo, seed_hi, (max_restarts, nq))
 
-    def solve(self, target: pin.SE3, q0: np.ndarray) -> IKResult:
+    def solve(
+        self, target: pin.SE3, q0: np.ndarray, q_rest: np.ndarray | None = None
+    ) -> IKResult:
         """Joint positions within the limits that put the frame at `target`, seeded at `q0`.
 
-        A `q0` outside the limits is first clipped into them.
+        A `q0` outside the limits is first clipped into them. `q_rest`: the whole model's
+        configuration the joints not solved for keep (needed when `joints` was given).
         """
         if not isinstance(target, pin.SE3):
             raise SpecError(f"target must be a pinocchio.SE3, got {type(target).__name__}")
+        if not (np.isfinite(target.translation).all() and np.isfinite(target.rotation).all()):
+            raise SpecError(f"target must be finite, got {target}")
+        if self._partial:
+            if q_rest is None or np.shape(q_rest) != (self.model.nq,):
+                raise SpecError(
+                    f"q_rest must be the whole model's configuration ({self.model.nq} values)"
+                )
+            self._qfull[...] = q_rest
         try:
             q = np.array(q0, dtype=float)
         except (TypeError, ValueError) as err:
             raise SpecError(f"q0 must be a vector of numbers: {err}") from None
-        nq = self.model.nq
+        nq = len(self.lower)
         if q.shape != (nq,):
             raise SpecError(f"q0 must be a vector of length {nq}, got shape {q.shape}")
         if not math.isfinite(q.dot(q)) and not np.isfinite(q).all():
@@ -193,8 +221,10 @@ class IKSolver:
         cjj, ufp, log6 = pin.computeJointJacobians, pin.updateFramePlacement, pin.log6
         boxqp, mul, sub, sqrt = mujoco.mju_boxQP, np.multiply, np.subtract, math.sqrt
         best, since = math.inf, 0
+        qfull, qs = self._qfull, self._q_slice
         for it in range(self.max_iters + 1):
-            cjj(model, data, q)
+            qfull[qs] = q
+            cjj(model, data, qfull)
             oMf = ufp(model, data, fid)
             e = log6(oMf * target_inv).vector
             err = e.dot(e)
@@ -228,7 +258,8 @@ class IKSolver:
     def _errors(self, q: np.ndarray, target: pin.SE3) -> tuple[float, float]:
         """Position (m) and rotation (rad) error of the frame at `q` from `target`."""
         data = self._loop[1]
-        pin.framesForwardKinematics(self.model, data, q)
+        self._qfull[self._q_slice] = q
+        pin.framesForwardKinematics(self.model, data, self._qfull)
         oMf = data.oMf[self.frame_id]
         pos = float(np.linalg.norm(oMf.translation - target.translation))
         rot = float(np.linalg.norm(pin.log3(oMf.rotation.T @ target.rotation)))

@@ -5,24 +5,27 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 
+from . import scene as _scene
 from .chain import Chain
 from .compile import euler_quat, vector
 from .errors import SpecError, unknown_name
 from .ik import IKResult, IKSolver
-from .spec import CtrlMode, ToolFrameSpec
-
-if TYPE_CHECKING:
-    from .scene import Scene
+from .scene import AuthoredActuators, Scene
+from .spec import CtrlMode, ForceTorqueSensorSpec, ToolFrameSpec
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # Default servo bandwidth for joints whose actuators are plain motors (URDF robots).
 _SERVO_HZ = 10.0
+# MuJoCo zeroes (with a warning) any control above this magnitude (mjMAXVAL).
+_MAX_CTRL = 1e10
+_MAX_CTRL2 = _MAX_CTRL * _MAX_CTRL
+_F64 = np.dtype(np.float64)
+_gravity = pin.computeGeneralizedGravity
 
 
 @dataclass
@@ -42,18 +45,28 @@ class Robot:
     that `update()` refreshes in place; copy them to keep a snapshot. Commands are assigned as a
     whole (`robot.jnt_trq_cmd = tau`) and checked for length and finiteness.
 
+    `model` is one Pinocchio model of everything that moves the arm: the joints from the world
+    to the base (a turning torso, a free or mocap base), the arm, and the tool and branches
+    below the base with their own joints (fingers), all read from MuJoCo's qpos/qvel on every
+    `update()`. The arm's entries of its q and v are `arm_q`/`arm_v`. Every quantity the handle
+    returns is the arm's rows/columns of the whole model's, at the measured state of all joints
+    (explicit `q`/`v` arguments replace the arm's entries only). Gravity leaves out the share
+    MuJoCo's `gravcomp` already cancels, so it is not compensated twice.
+
     Control modes reconfigure the chain's own MuJoCo actuators (gain/bias parameters):
     TORQUE turns them into motors (force limited by the actuator's `forcerange`), POSITION
     into position servos and VELOCITY into velocity servos. Servo gains are the actuator's own
     when it is a MuJoCo position servo; for motor actuators (URDF robots) a critically damped
     servo of about 10 Hz is synthesised from the mass matrix. POSITION and VELOCITY add
     Pinocchio's gravity torques as feed-forward (`gravity_feedforward`), so a held pose does
-    not sag under gravity. The servos ignore the actuators' authored `ctrlrange` (commands are
-    in joint units in every mode); `forcerange` still limits the force.
+    not sag under gravity; in TORQUE mode `gravity_compensation = True` adds them to the torque
+    command. The servos ignore the actuators' authored `ctrlrange` (commands are in joint units
+    in every mode); `forcerange` still limits the force.
 
     A handle starts driving its actuators once it is used for control — `update()`, a command
     assignment or a `ctrl_mode` change; until then it only reads, so several handles may look
-    at the same joints, but only one may drive them.
+    at the same joints, but only one may drive them. `close()` (or `Env.remove_robot`) releases
+    a handle and gives its actuators back as authored.
     """
 
     def __init__(
@@ -70,6 +83,8 @@ class Robot:
         if tool is not None and not isinstance(tool, ToolFrameSpec):
             raise SpecError(f"tool must be a ToolFrameSpec, got {type(tool).__name__}")
         self._scene = scene
+        self._open = True
+        self._closed_why = ""
         self._prefix = prefix
         self._base_name = prefix + base_body
         self._tip_name = prefix + tip_body
@@ -78,6 +93,7 @@ class Robot:
         self._mode = CtrlMode.POSITION
         self._applied_mode: CtrlMode | None = None
         self._active = False
+        self._gravcomp = False
         self.gravity_feedforward = True
         self._bind(scene.model, scene.data)
         self._hold_commands()
@@ -88,45 +104,75 @@ class Robot:
     def _bind(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """(Re)build everything that depends on the compiled model and its data."""
         tcp = self._prefixed(self._tool.tcp_site)
-        self._chain = Chain(model, data, self._base_name, self._tip_name, tcp, self._tcp_offset)
-        self._check_tool_body(model)
+        chain = Chain(model, self._base_name, self._tip_name, tcp, self._tcp_offset)
+        self._check_tool_body(model, chain)
         self._ft = {s.name: self._ft_ids(model, s) for s in self._tool.ft_sensors}
+        self._chain = chain
         self._model, self._data = model, data
-        self._pin = self._chain.model
-        self._pdata = self._pin.createData()
-        self._gravity_z = float(model.opt.gravity[2])
-        n = len(self._chain.joint_ids)
+        pm = chain.model
+        self._pin = pm
+        self._gc_model = chain.gravcomp_model
+        self._pdata = pm.createData()
+        # Gravity for the control path lives in a Data of its own, so user queries (another
+        # gravity_z, FK at another q) never overwrite what the next step() applies.
+        self._gdata = pm.createData()
+        self._gfull = self._gdata.g  # a view of Pinocchio's buffer, fetched once
+        n = len(chain.joint_ids)
         self._n = n
-        self._qadr = self._chain.qpos_adr
-        self._dadr = self._chain.dof_adr
-        self._actuation = self._find_actuation(model, data)
+        self._shape = (n,)
+        self._qadr = chain.qpos_adr
+        self._dadr = chain.dof_adr
+        self._arm_q, self._arm_v = chain.arm_q, chain.arm_v
+        self._arm_only = self._arm_v == slice(0, pm.nv)  # no other joints in the model
+        self._q = np.zeros(pm.nq)  # the whole model's measured q and v
+        self._v = np.zeros(pm.nv)
+        self._qx = np.zeros(pm.nq)  # scratch for calls at an explicit arm q
+        self._vx = np.zeros(pm.nv)
+        self._ax = np.zeros(pm.nv)
+        # Measured ports are views of the model's q and v when the arm is contiguous in them
+        # (the usual case), else gathered on every update.
+        self._gather_ports = not (isinstance(self._arm_q, slice) and isinstance(self._arm_v, slice))
+        if self._gather_ports:
+            self._pos_msr, self._vel_msr = np.zeros(n), np.zeros(n)
+            self._g_arm = np.zeros(n)
+        else:
+            self._pos_msr, self._vel_msr = self._q[self._arm_q], self._v[self._arm_v]
+            self._g_arm = self._gfull[self._arm_v]
+        self._qsrc = None if chain.q_span is None else data.qpos[chain.q_span]
+        self._vsrc = None if chain.v_span is None else data.qvel[chain.v_span]
+        self._trq_src = _view(data.qfrc_actuator, self._dadr)
+        for name in ("_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd"):
+            old = getattr(self, name, None)
+            setattr(self, name, old if old is not None and old.shape == (n,) else np.zeros(n))
+        self._ff = np.zeros(n)
+        self._ctrl_buf = np.zeros(n)
+        ports = ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd")
+        self._ro = {k: _readonly(getattr(self, k)) for k in ports}
+        self._solver: IKSolver | None = None
+        self._gravity_z = float(model.opt.gravity[2])
+        self._unactuated: list[str] = []
+        self._read_state()  # the mass matrix below is taken at the measured state
+        self._actuation = self._find_actuation(model)
+        # update() copies q, v and the measured torque as plain views when it can.
+        self._plain_read = (
+            self._qsrc is not None
+            and self._trq_src is not None
+            and not self._gather_ports
+            and not self._unactuated
+        )
+        self._gather()
         ids = np.array([a.actuator for a in self._actuation], dtype=int)
         self._actuator_ids = ids
         self._ctrl_view = _view(data.ctrl, ids)
-        ports = ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd")
-        for name in ports:
-            old = getattr(self, name, None)
-            setattr(self, name, old if old is not None and old.shape == (n,) else np.zeros(n))
-        # Measured ports are copied from views of MuJoCo's arrays when the chain's joints are
-        # contiguous in qpos/qvel (the usual case), else gathered by index.
-        views = (
-            _view(data.qpos, self._qadr),
-            _view(data.qvel, self._dadr),
-            _view(data.qfrc_actuator, self._dadr),
-        )
-        self._views = None if any(v is None for v in views) else views
-        self._ff = np.zeros(n)
-        self._ctrl_buf = np.zeros(n)
-        self._ro = {k: _readonly(getattr(self, k)) for k in ports}
-        self._solver: IKSolver | None = None
-        self._read_state()
+        self._ctrl = self._ctrl_buf if self._ctrl_view is None else self._ctrl_view
+        self._motors = False  # TORQUE mode through contiguous actuators: the fast path
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
 
     def _prefixed(self, name: str) -> str:
         return self._prefix + name if name else ""
 
-    def _check_tool_body(self, model: mujoco.MjModel) -> None:
+    def _check_tool_body(self, model: mujoco.MjModel, chain: Chain) -> None:
         if not self._tool.tool_body:
             return
         name = self._prefixed(self._tool.tool_body)
@@ -135,14 +181,14 @@ class Robot:
             known = [model.body(k).name for k in range(model.nbody)]
             raise unknown_name("body", name, known, where="the model (tool.tool_body)")
         b = body
-        while b not in (self._chain.tip, 0):
+        while b not in (chain.tip, 0):
             b = int(model.body_parentid[b])
-        if b != self._chain.tip or body == self._chain.tip:
+        if b != chain.tip or body == chain.tip:
             raise SpecError(
                 f"tool.tool_body {name!r} is not mounted below the tip {self._tip_name!r}"
             )
 
-    def _ft_ids(self, model: mujoco.MjModel, sensor) -> tuple[slice, slice]:
+    def _ft_ids(self, model: mujoco.MjModel, sensor: ForceTorqueSensorSpec) -> tuple[slice, slice]:
         out = []
         for field, kind, want in (
             ("force_sensor", "force", mujoco.mjtSensor.mjSENS_FORCE),
@@ -161,7 +207,7 @@ class Robot:
             out.append(slice(adr, adr + 3))
         return out[0], out[1]
 
-    def _find_actuation(self, model: mujoco.MjModel, data: mujoco.MjData) -> list[_Actuation]:
+    def _find_actuation(self, model: mujoco.MjModel) -> list[_Actuation]:
         """One joint-transmission actuator per chain joint, with the servo gains to use."""
         by_joint: dict[int, list[int]] = {}
         for a in range(model.nu):
@@ -172,7 +218,7 @@ class Robot:
         self._partly_actuated = 0 < len(missing) < len(self._chain.joint_ids)
         if missing:
             return []
-        mass = self._mass_diagonal(model, data)
+        mass = np.diag(self.mass_matrix())
         out = []
         for i, j in enumerate(self._chain.joint_ids):
             acts = by_joint[j]
@@ -201,12 +247,6 @@ class Robot:
             out.append(_Actuation(a, gear, kp, kv))
         return out
 
-    def _mass_diagonal(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-        q = data.qpos[self._chain.qpos_adr]
-        self._chain.refresh(model, data)
-        pdata = self._chain.model.createData()
-        return np.diag(pin.crba(self._chain.model, pdata, q)).copy()
-
     # ------------------------------------------------------------------ description
 
     @property
@@ -230,7 +270,9 @@ class Robot:
     def joint_limits(self) -> np.ndarray:
         """n×2 [lower, upper] positions; unlimited joints have ±inf."""
         self._check_open()
-        return np.column_stack([self._pin.lowerPositionLimit, self._pin.upperPositionLimit])
+        return np.column_stack(
+            [self._pin.lowerPositionLimit[self._arm_q], self._pin.upperPositionLimit[self._arm_q]]
+        )
 
     @property
     def has_tcp_frame(self) -> bool:
@@ -240,13 +282,37 @@ class Robot:
 
     @property
     def model(self) -> pin.Model:
-        """The Pinocchio model of the chain (tool inertia lumped into the last link)."""
+        """The whole Pinocchio model: base joints, arm (`arm_q`/`arm_v`), tool and branches."""
         self._check_open()
         return self._pin
 
     def kdl_chain(self) -> pin.Model:
-        """The chain model; named after the C++ original's KDL accessor for porting."""
+        """The Pinocchio model; named after the C++ original's KDL accessor for porting."""
         return self.model
+
+    @property
+    def arm_q(self) -> slice | np.ndarray:
+        """Where the arm's joints sit in `model`'s q (a slice when contiguous)."""
+        self._check_open()
+        return self._arm_q
+
+    @property
+    def arm_v(self) -> slice | np.ndarray:
+        """Where the arm's joints sit in `model`'s v (a slice when contiguous)."""
+        self._check_open()
+        return self._arm_v
+
+    @property
+    def q(self) -> np.ndarray:
+        """The whole model's configuration as of the last `update()` (read-only)."""
+        self._check_open()
+        return _readonly(self._q)
+
+    @property
+    def v(self) -> np.ndarray:
+        """The whole model's velocity as of the last `update()` (read-only)."""
+        self._check_open()
+        return _readonly(self._v)
 
     @property
     def tcp_frame_id(self) -> int:
@@ -259,19 +325,22 @@ class Robot:
     @property
     def jnt_pos_msr(self) -> np.ndarray:
         """Measured joint positions (MuJoCo qpos), as of the last `update()`."""
-        self._check_open()
+        if not self._open:
+            self._check_open()
         return self._ro["_pos_msr"]
 
     @property
     def jnt_vel_msr(self) -> np.ndarray:
         """Measured joint velocities, as of the last `update()`."""
-        self._check_open()
+        if not self._open:
+            self._check_open()
         return self._ro["_vel_msr"]
 
     @property
     def jnt_trq_msr(self) -> np.ndarray:
         """Torque the actuation applies at each joint (`qfrc_actuator`), after force limits."""
-        self._check_open()
+        if not self._open:
+            self._check_open()
         return self._ro["_trq_msr"]
 
     @property
@@ -304,9 +373,12 @@ class Robot:
     def jnt_trq_cmd(self, value: np.ndarray) -> None:
         self._assign(self._trq_cmd, value, "jnt_trq_cmd")
 
-    def _vector(self, value: object, name: str) -> np.ndarray:
-        """`value` checked to be n finite numbers, as a float64 array (no copy if it is one)."""
-        if self._scene._model is None:
+    def _vector(self, value: object, name: str, bound: float = math.inf) -> np.ndarray:
+        """`value` checked to be n finite numbers, as a float64 array (no copy if it is one).
+
+        `bound`: the largest magnitude accepted (commands: what MuJoCo takes as a control).
+        """
+        if not self._open:
             self._check_open()
         if type(value) is not np.ndarray or value.dtype != np.float64:
             try:
@@ -317,17 +389,35 @@ class Robot:
             raise SpecError(
                 f"{name} needs {self._n} values (one per joint), got shape {value.shape}"
             )
-        # v.v is finite exactly when every entry is (barring overflow past 1e154, which the
-        # exact check below then clears): one BLAS call instead of a ufunc and a reduction.
-        if not math.isfinite(value.dot(value)) and not np.isfinite(value).all():
-            raise SpecError(f"{name} must be finite, got {value!r}")
+        # v.v <= bound² holds when every entry is within bound (NaN compares false); only when
+        # it does not is the exact, slower check needed: one BLAS call on the fast path.
+        if not value.dot(value) <= bound * bound:
+            if not np.isfinite(value).all():
+                raise SpecError(f"{name} must be finite, got {value!r}")
+            if np.abs(value).max() > bound:
+                raise SpecError(
+                    f"{name} must be within ±{bound:g} (MuJoCo zeroes larger controls), "
+                    f"got {value!r}"
+                )
         return value
 
     def _assign(self, port: np.ndarray, value: object, name: str) -> None:
-        np.copyto(port, self._vector(value, name))
+        # The checks of _vector for a float64 array on an active handle, inlined: a control
+        # loop assigns a command every step.
+        if (
+            type(value) is np.ndarray
+            and value.dtype is _F64
+            and value.shape == self._shape
+            and value.dot(value) <= _MAX_CTRL2
+            and self._active
+            and self._open
+        ):
+            port[...] = value
+        else:
+            port[...] = self._vector(value, name, _MAX_CTRL)
+            if not self._active:
+                self._activate()
         self._pending = True
-        if not self._active:
-            self._activate()
 
     def sync_commands(self) -> None:
         """Set the command ports to the measured state and apply them in the current mode.
@@ -337,6 +427,7 @@ class Robot:
         """
         self._check_open()
         self._hold_commands()
+        self._prepare()
         self._apply()
 
     def _hold_commands(self) -> None:
@@ -347,21 +438,34 @@ class Robot:
         self._pending = True
 
     def _after_reset(self) -> None:
-        """MuJoCo's data was reset and forwarded: drop what was derived from the old state."""
-        self._chain.invalidate()
+        """MuJoCo's data was reset: re-read the state and the model's dynamic parameters."""
+        self.reload_inertias()
+
+    def reload_inertias(self) -> None:
+        """Re-read body masses and inertias, `gravcomp`, armature and gravity from the MjModel.
+
+        The Pinocchio model copies them when the handle is built; call this after editing them
+        at run time (e.g. `model.body_mass`). `Env.reset` does it for every robot.
+        """
+        self._check_open()
+        self._chain.load_parameters(self._model)
+        self._gc_model = self._chain.gravcomp_model
+        self._gravity_z = float(self._model.opt.gravity[2])
         self._read_state()
 
     def _activate(self) -> None:
         """Start driving the actuators, unless another handle already drives these joints."""
         mine = set(self._chain.joint_ids)
         for other in self._scene._robots:
+            if other is self or not isinstance(other, Robot):
+                continue
             both = mine & set(other._chain.joint_ids)
-            if other is not self and other._active and both:
+            if other._active and both:
                 shared = sorted(self._model.joint(j).name for j in both)
                 raise SpecError(
                     f"joints {', '.join(shared)} are already driven by the Robot "
                     f"{other._base_name!r} -> {other._tip_name!r}; one Robot per joint may "
-                    "control (any number may read)"
+                    "control (any number may read; close() the other to take over)"
                 )
         self._active = True
 
@@ -378,55 +482,134 @@ class Robot:
         self._check_open()
         if not isinstance(mode, CtrlMode):
             raise SpecError(f"ctrl_mode must be a CtrlMode, got {mode!r}")
+        if self._gravcomp and mode is not CtrlMode.TORQUE:
+            raise SpecError(
+                f"ctrl_mode {mode.name}: gravity_compensation is on, which works in TORQUE mode "
+                "only; set robot.gravity_compensation = False first"
+            )
         if not self._active:
             self._activate()
         self._mode = mode
         self._pending = True
 
+    @property
+    def gravity_compensation(self) -> bool:
+        """TORQUE mode: whether every `update()` applies `jnt_trq_cmd` plus gravity torques.
+
+        The gravity-compensated loop is then `robot.update(); robot.step()`; `jnt_trq_cmd`
+        holds only what comes on top of gravity.
+        """
+        self._check_open()
+        return self._gravcomp
+
+    @gravity_compensation.setter
+    def gravity_compensation(self, on: bool) -> None:
+        self._check_open()
+        if not isinstance(on, (bool, np.bool_)):
+            raise SpecError(f"gravity_compensation must be True or False, got {on!r}")
+        if on and self._mode is not CtrlMode.TORQUE:
+            raise SpecError(
+                f"gravity_compensation works in TORQUE mode only; ctrl_mode is {self._mode.name} "
+                "(POSITION and VELOCITY add gravity through gravity_feedforward)"
+            )
+        if not self._active:
+            self._activate()
+        self._gravcomp = bool(on)
+        self._pending = True
+
     def update(self) -> None:
         """Read the measured state, then apply the command ports for the current mode."""
-        if self._scene._model is None:
+        if not self._open:
             self._check_open()
-        self._read_state()
+        # _read_state, inlined: this runs once per control step.
+        if self._plain_read:
+            self._q[...] = self._qsrc
+            self._v[...] = self._vsrc
+            self._trq_msr[...] = self._trq_src
+        else:
+            self._read_state()
         if not self._active:
             self._activate()
         if self._unactuated and (error := self._control_error()):
             raise SpecError(error)
-        if self._pending or self._mode is not CtrlMode.TORQUE:
-            self._apply()
+        if self._mode is self._applied_mode:
+            if self._gravcomp:
+                _gravity(self._pin, self._gdata, self._q)
+                if self._gc_model is not None or self._gather_ports:
+                    self._finish_gravity()
+                self._pending = False
+                if self._motors:
+                    np.add(self._trq_cmd, self._g_arm, out=self._ctrl)
+                    return
+            elif self._motors:
+                if self._pending:
+                    self._pending = False
+                    self._ctrl[...] = self._trq_cmd
+                return
+            else:
+                self._prepare()
+        self._apply()
 
     def step(self) -> None:
         """Advance the scene one timestep; pending commands (of every robot) apply first."""
+        if not self._open:
+            self._check_open()
         self._scene.step()
+
+    def _finish_gravity(self) -> None:
+        """`_gdata.g` less what MuJoCo's gravcomp cancels; the arm's entries gathered."""
+        if self._gc_model is not None:
+            self._gfull -= _gravity(self._gc_model, self._pdata, self._q)
+        if self._gather_ports:
+            np.take(self._gfull, self._arm_v, out=self._g_arm)
+
+    def _prepare(self) -> None:
+        """What the mode adds to the commands at the measured state: gravity, once per update."""
+        if self._applied_mode is not self._mode:
+            return  # _apply configures the mode first, then comes back here
+        if self._gravcomp or (self._mode is not CtrlMode.TORQUE and self.gravity_feedforward):
+            _gravity(self._pin, self._gdata, self._q)
+            self._finish_gravity()
+            if not self._gravcomp and self._actuation:
+                np.multiply(self._g_arm, self._ff_scale, out=self._ff)
 
     def _apply(self) -> None:
         """Write the command ports into MuJoCo's controls in the current mode.
 
+        The actuators' gains are set so the control is in joint units: the torque itself
+        (TORQUE), the position or velocity setpoint (servos), plus the scaled feed-forward.
         A handle that was never used for control leaves the actuators as authored.
         """
-        if not self._active:
-            return
         if self._mode is not self._applied_mode:
+            if not self._active:
+                return
             self._configure(self._mode)
-        mode = self._mode
+            self._prepare()
         self._pending = False
-        if not self._actuation:
-            if self._control_error() is None:
-                self._data.qfrc_applied[self._dadr] = self._trq_cmd
+        ctrl = self._ctrl
+        if self._motors:  # TORQUE mode through actuators whose controls are contiguous
+            if self._gravcomp:
+                np.add(self._trq_cmd, self._g_arm, out=ctrl)
+            else:
+                ctrl[...] = self._trq_cmd
             return
-        view = self._ctrl_view
-        ctrl = self._ctrl_buf if view is None else view
+        mode = self._mode
         if mode is CtrlMode.TORQUE:
-            np.multiply(self._trq_cmd, self._cmd_scale, out=ctrl)
+            if self._gravcomp:
+                np.add(self._trq_cmd, self._g_arm, out=ctrl)
+            else:
+                ctrl[...] = self._trq_cmd
+            if not self._actuation:
+                if self._control_error() is None:
+                    self._data.qfrc_applied[self._dadr] = ctrl
+                return
         else:
             cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd
-            np.multiply(cmd, self._cmd_scale, out=ctrl)
             if self.gravity_feedforward:
-                self._refresh()
-                ff = pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
-                np.multiply(ff, self._ff_scale, out=self._ff)
-                np.add(ctrl, self._ff, out=ctrl)
-        if view is None:
+                np.add(cmd, self._ff, out=ctrl)
+            else:
+                ctrl[...] = cmd
+        if self._ctrl_view is None:
             self._data.ctrl[self._actuator_ids] = ctrl
 
     def _control_error(self) -> str | None:
@@ -446,25 +629,31 @@ class Robot:
         return None
 
     def _read_state(self) -> None:
-        if self._views is not None:
-            copyto = np.copyto
-            pos, vel, trq = self._views
-            copyto(self._pos_msr, pos)
-            copyto(self._vel_msr, vel)
-            copyto(self._trq_msr, trq)
+        if self._qsrc is not None:
+            self._q[...] = self._qsrc
+            self._v[...] = self._vsrc
         else:
-            d = self._data
-            np.take(d.qpos, self._qadr, out=self._pos_msr)
-            np.take(d.qvel, self._dadr, out=self._vel_msr)
+            self._chain.read_state(self._data, self._q, self._v)
+        self._gather()
+
+    def _gather(self) -> None:
+        """The measured ports that are not plain views of MuJoCo's or Pinocchio's arrays."""
+        d = self._data
+        if self._gather_ports:
+            np.take(self._q, self._arm_q, out=self._pos_msr)
+            np.take(self._v, self._arm_v, out=self._vel_msr)
+        if self._trq_src is not None:
+            self._trq_msr[...] = self._trq_src
+        else:
             np.take(d.qfrc_actuator, self._dadr, out=self._trq_msr)
         if self._unactuated:
-            self._trq_msr += self._data.qfrc_applied[self._dadr]
-        self._dirty = True
+            self._trq_msr += d.qfrc_applied[self._dadr]
 
     def _configure(self, mode: CtrlMode) -> None:
         """Turn the chain's actuators into motors or servos for `mode`."""
         self._applied_mode = mode
         self._pending = True
+        self._motors = False
         if not self._actuation:
             return
         m = self._model
@@ -478,70 +667,92 @@ class Robot:
             m.actuator_ctrllimited[aid] = 0
             m.actuator_gainprm[aid, :] = 0.0
             m.actuator_biasprm[aid, :] = 0.0
+            # Force f acts as gear*f at the joint, servos act on the length gear*q: a gain of
+            # 1/gear (motors) or k*gear (servos) makes the control a joint torque or setpoint.
             if mode is CtrlMode.TORQUE:
-                m.actuator_gainprm[aid, 0] = 1.0
+                m.actuator_gainprm[aid, 0] = 1.0 / gear[i]
             elif mode is CtrlMode.POSITION:
-                m.actuator_gainprm[aid, 0] = kp[i]
+                m.actuator_gainprm[aid, 0] = kp[i] * gear[i]
                 m.actuator_biasprm[aid, 1:3] = (-kp[i], -kv[i])
             else:
-                m.actuator_gainprm[aid, 0] = kv[i]
+                m.actuator_gainprm[aid, 0] = kv[i] * gear[i]
                 m.actuator_biasprm[aid, 2] = -kv[i]
-        # Actuator force f acts as gear*f at the joint; servos act on length gear*q.
-        if mode is CtrlMode.TORQUE:
-            self._cmd_scale = 1.0 / gear
-        elif mode is CtrlMode.POSITION:
-            self._cmd_scale, self._ff_scale = gear, 1.0 / (gear * kp)
-        else:
-            self._cmd_scale, self._ff_scale = gear, 1.0 / (gear * kv)
+        # The servo's joint torque is gear²·k·(setpoint - q): feed-forward enters scaled.
+        if mode is not CtrlMode.TORQUE:
+            self._ff_scale = 1.0 / (gear * gear * (kp if mode is CtrlMode.POSITION else kv))
+        self._motors = mode is CtrlMode.TORQUE and self._ctrl_view is not None
 
     # ------------------------------------------------------------------ state
 
     def set_joint_pos(self, q: np.ndarray, call_forward: bool = True) -> None:
-        """Write joint positions into MuJoCo's qpos (velocities are left as they are)."""
+        """Write joint positions into MuJoCo's qpos (velocities are left as they are).
+
+        Positions outside a joint's range are refused: MuJoCo would push the joint back.
+        """
         q = self._vector(q, "set_joint_pos(q)")
+        lo, hi = self._pin.lowerPositionLimit[self._arm_q], self._pin.upperPositionLimit[self._arm_q]
+        outside = np.flatnonzero((q < lo) | (q > hi))
+        if len(outside):
+            i = int(outside[0])
+            raise SpecError(
+                f"set_joint_pos(q): joint {self._chain.joint_names[i]!r} at {q[i]:g} is outside "
+                f"its range [{lo[i]:g}, {hi[i]:g}]"
+            )
         self._data.qpos[self._qadr] = q
-        np.copyto(self._pos_msr, q)
-        self._dirty = True
+        if self._gather_ports:
+            self._pos_msr[...] = q
+        self._q[self._arm_q] = q
         if call_forward:
             mujoco.mj_forward(self._model, self._data)
 
     # ------------------------------------------------------------------ kinematics / dynamics
 
-    def _q(self, q: object, name: str = "q") -> np.ndarray:
-        return self._pos_msr if q is None else self._vector(q, name)
+    def _full_q(self, q: object) -> np.ndarray:
+        """The whole model's q: measured, with the arm's entries replaced by `q` if given."""
+        if q is None:
+            return self._q
+        arm = self._vector(q, "q")
+        qx = self._qx
+        qx[...] = self._q
+        qx[self._arm_q] = arm
+        return qx
 
-    def _refresh(self) -> None:
-        """Bring lumped tool inertias up to the configuration MuJoCo last computed."""
-        if self._dirty:
-            self._chain.refresh(self._model, self._data)
-            self._dirty = False
+    def _full_v(self, v: object, name: str = "v") -> np.ndarray:
+        if v is None:
+            return self._v
+        arm = self._vector(v, name)
+        vx = self._vx
+        vx[...] = self._v
+        vx[self._arm_v] = arm
+        return vx
 
     def fk_frame(self, q: np.ndarray | None = None) -> pin.SE3:
         """World pose of the TCP (the tip body when there is no TCP site)."""
         self._check_open()
-        self._refresh()
-        pin.forwardKinematics(self._pin, self._pdata, self._q(q))
+        pin.forwardKinematics(self._pin, self._pdata, self._full_q(q))
         return pin.SE3(pin.updateFramePlacement(self._pin, self._pdata, self._chain.tcp_frame))
 
     def jacobian(self, q: np.ndarray | None = None) -> np.ndarray:
         """6×n Jacobian at the TCP, world-aligned axes: linear rows first, then angular."""
         self._check_open()
-        self._refresh()
-        return pin.computeFrameJacobian(
-            self._pin, self._pdata, self._q(q), self._chain.tcp_frame, _LWA
+        jac = pin.computeFrameJacobian(
+            self._pin, self._pdata, self._full_q(q), self._chain.tcp_frame, _LWA
         )
+        return np.ascontiguousarray(jac[:, self._arm_v])
 
     def gravity_torques(self, gravity_z: float | None = None) -> np.ndarray:
-        """Joint torques that hold the chain (with its tool) against gravity at the measured q.
+        """Joint torques that hold the arm (with its tool) against gravity at the measured q.
 
-        `gravity_z` overrides the z component of the scene's gravity for this call.
+        Bodies with MuJoCo `gravcomp` count only with the share MuJoCo leaves to the
+        actuators. `gravity_z` overrides the z component of the scene's gravity for this call.
         """
-        if self._scene._model is None:
+        if not self._open:
             self._check_open()
-        if self._dirty:
-            self._refresh()
         if gravity_z is None or gravity_z == self._gravity_z:
-            return pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
+            g = _gravity(self._pin, self._pdata, self._q)
+            if self._gc_model is not None:
+                g -= _gravity(self._gc_model, self._pdata, self._q)
+            return g if self._arm_only else g[self._arm_v]
         try:
             gz = float(gravity_z)
         except (TypeError, ValueError):
@@ -550,44 +761,77 @@ class Robot:
             raise SpecError(
                 f"gravity_torques: gravity_z must be a finite number, got {gravity_z!r}"
             )
-        g = self._pin.gravity
-        saved = g.linear.copy()
+        models = [self._pin] + ([self._gc_model] if self._gc_model is not None else [])
+        saved = self._pin.gravity.linear.copy()
         try:
-            self._pin.gravity = pin.Motion(np.array([saved[0], saved[1], gz]), np.zeros(3))
-            return pin.computeGeneralizedGravity(self._pin, self._pdata, self._pos_msr)
+            for model in models:
+                model.gravity = pin.Motion(np.array([saved[0], saved[1], gz]), np.zeros(3))
+            return self.gravity_torques()
         finally:
-            self._pin.gravity = pin.Motion(saved, np.zeros(3))
+            for model in models:
+                model.gravity = pin.Motion(saved, np.zeros(3))
 
     def mass_matrix(self, q: np.ndarray | None = None) -> np.ndarray:
         """n×n joint-space inertia matrix, joint armature included (MuJoCo's `mj_fullM`)."""
         self._check_open()
-        self._refresh()
-        upper = pin.crba(self._pin, self._pdata, self._q(q))
-        return np.triu(upper) + np.triu(upper, 1).T
+        upper = pin.crba(self._pin, self._pdata, self._full_q(q))
+        arm = self._arm_v if isinstance(self._arm_v, slice) else np.ix_(self._arm_v, self._arm_v)
+        block = upper[arm] if isinstance(arm, tuple) else upper[arm, arm]
+        return np.triu(block) + np.triu(block, 1).T
 
     def nonlinear_effects(
         self, q: np.ndarray | None = None, v: np.ndarray | None = None
     ) -> np.ndarray:
-        """Coriolis, centrifugal and gravity torques (MuJoCo's `qfrc_bias` for the chain)."""
+        """Coriolis, centrifugal and gravity torques (MuJoCo's `qfrc_bias` for the arm).
+
+        All joints' velocities count: the fingers' and a moving base's too.
+        """
         self._check_open()
-        self._refresh()
-        vel = self._vel_msr if v is None else self._q(v, "v")
-        return pin.nonLinearEffects(self._pin, self._pdata, self._q(q), vel)
+        return self._rnea(self._full_q(q), self._full_v(v), None)
 
     def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-        """Joint torques that produce acceleration `a` at (`q`, `v`) (RNEA, armature included)."""
+        """Joint torques that produce arm acceleration `a` at (`q`, `v`) (RNEA, armature in).
+
+        The other joints keep their measured position and velocity and do not accelerate.
+        """
         self._check_open()
-        self._refresh()
-        return pin.rnea(self._pin, self._pdata, self._q(q), self._q(v, "v"), self._q(a, "a"))
+        return self._rnea(self._full_q(q), self._full_v(v), self._vector(a, "a"))
+
+    def _rnea(self, q: np.ndarray, v: np.ndarray, arm_acc: np.ndarray | None) -> np.ndarray:
+        """The arm's rows of RNEA with the arm accelerating by `arm_acc`, the rest at rest.
+
+        "At rest" is MuJoCo's qacc = 0. For a free joint that is a world-frame linear
+        acceleration of zero, while Pinocchio's acceleration is the derivative of the
+        body-frame velocity: the two differ by ω × v.
+        """
+        ax = self._ax
+        ax.fill(0.0)
+        if arm_acc is not None:
+            ax[self._arm_v] = arm_acc
+        for _, iv in self._chain.free:
+            ax[iv : iv + 3] = -np.cross(v[iv + 3 : iv + 6], v[iv : iv + 3])
+        tau = pin.rnea(self._pin, self._pdata, q, v, ax)
+        if self._gc_model is not None:
+            tau -= _gravity(self._gc_model, self._pdata, q)
+        return tau[self._arm_v]
 
     def ik(self, target: pin.SE3, q0: np.ndarray | None = None) -> IKResult:
-        """Joint positions that put the TCP at `target`, within the joint limits."""
+        """Joint positions that put the TCP at `target`, within the joint limits.
+
+        The base and the tool's joints stay at their measured configuration.
+        """
         self._check_open()
-        self._refresh()
         if self._solver is None:
             lim = self.joint_limits
-            self._solver = IKSolver(self._pin, self._chain.tcp_frame, lim[:, 0], lim[:, 1])
-        return self._solver.solve(target, self._q(q0, "q0").copy())
+            self._solver = IKSolver(
+                self._pin,
+                self._chain.tcp_frame,
+                lim[:, 0],
+                lim[:, 1],
+                joints=self._chain.arm_joints,
+            )
+        seed = self._pos_msr if q0 is None else self._vector(q0, "q0")
+        return self._solver.solve(target, seed.copy(), self._q)
 
     def ft_sensor(self, name: str) -> pin.Force:
         """Force/torque reading of `tool.ft_sensors[name]`, in the sensor's site frame."""
@@ -600,28 +844,28 @@ class Robot:
 
     # ------------------------------------------------------------------ lifecycle
 
+    def close(self) -> None:
+        """Release the handle: its actuators go back to as authored, later calls raise."""
+        if not self._open:
+            return
+        self._scene._unregister(self)
+        self._release("this Robot is closed")
+
+    def _release(self, why: str = "this Robot's scene is closed") -> None:
+        """Stop driving the actuators (when the model is still there) and refuse later calls."""
+        if self._active and self._actuation and self._scene._model is not None:
+            self._scene._authored_actuators.restore(self._model, self._actuator_ids)
+        self._active = False
+        self._applied_mode = None
+        self._motors = False
+        self._open = False
+        self._closed_why = why
+
     def _check_open(self) -> None:
         if self._scene._model is None:
             raise RuntimeError("this Robot's scene is closed")
-
-
-@dataclass(frozen=True)
-class AuthoredActuators:
-    """The actuator parameters as compiled, before any Robot turned them into its mode."""
-
-    gaintype: np.ndarray
-    biastype: np.ndarray
-    gainprm: np.ndarray
-    biasprm: np.ndarray
-
-    @classmethod
-    def of(cls, model: mujoco.MjModel) -> AuthoredActuators:
-        return cls(
-            model.actuator_gaintype.copy(),
-            model.actuator_biastype.copy(),
-            model.actuator_gainprm.copy(),
-            model.actuator_biasprm.copy(),
-        )
+        if not self._open:
+            raise RuntimeError(self._closed_why)
 
 
 def _servo_gains(authored: AuthoredActuators, a: int) -> tuple[float, float]:
@@ -658,3 +902,6 @@ def _readonly(arr: np.ndarray) -> np.ndarray:
     view = arr.view()
     view.flags.writeable = False
     return view
+
+
+_scene.register_robot_factory(Robot)

@@ -6,21 +6,79 @@ import copy
 import inspect
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 
-from .chain import joint_sizes
 from .closable import Closable
 from .compile import compile_scene, vector
 from .errors import MjkdlError, SpecError, unknown_name
-from .robot import AuthoredActuators, Robot
 from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
 
 if TYPE_CHECKING:
     from typing_extensions import Self
+
+    from .robot import Robot
+
+
+class RobotHandle(Protocol):
+    """What a Scene needs of the robot handles registered with it (`mjkdl.robot.Robot`)."""
+
+    _pending: bool  # commands assigned since they were last written to MuJoCo
+
+    def _apply(self) -> None: ...  # write the commands into MuJoCo's controls
+    def _bind(self, model: mujoco.MjModel, data: mujoco.MjData) -> None: ...  # after a rebuild
+    def _release(self, why: str = ...) -> None: ...  # the scene closes or drops the handle
+    def sync_commands(self) -> None: ...
+    def _after_reset(self) -> None: ...
+
+
+# The Robot class registers itself here, so this module never imports the robot layer above it.
+_robot_factory: Callable[..., RobotHandle] | None = None
+
+
+def register_robot_factory(factory: Callable[..., RobotHandle]) -> None:
+    """Set what `Scene.create_robot` builds (`mjkdl.robot` does, on import)."""
+    global _robot_factory
+    _robot_factory = factory
+
+
+@dataclass(frozen=True)
+class AuthoredActuators:
+    """The actuator parameters as compiled, before any Robot turned them into its mode."""
+
+    gaintype: np.ndarray
+    biastype: np.ndarray
+    gainprm: np.ndarray
+    biasprm: np.ndarray
+    ctrllimited: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> AuthoredActuators:
+        return cls(
+            model.actuator_gaintype.copy(),
+            model.actuator_biastype.copy(),
+            model.actuator_gainprm.copy(),
+            model.actuator_biasprm.copy(),
+            model.actuator_ctrllimited.copy(),
+        )
+
+    def restore(self, model: mujoco.MjModel, ids: np.ndarray) -> None:
+        """Give actuators `ids` of `model` their compiled parameters back."""
+        model.actuator_gaintype[ids] = self.gaintype[ids]
+        model.actuator_biastype[ids] = self.biastype[ids]
+        model.actuator_gainprm[ids] = self.gainprm[ids]
+        model.actuator_biasprm[ids] = self.biasprm[ids]
+        model.actuator_ctrllimited[ids] = self.ctrllimited[ids]
+
+
+def joint_sizes(jtype: int) -> tuple[int, int]:
+    """(nq, nv) of a MuJoCo joint type."""
+    return {int(mujoco.mjtJoint.mjJNT_FREE): (7, 6), int(mujoco.mjtJoint.mjJNT_BALL): (4, 3)}.get(
+        int(jtype), (1, 1)
+    )
 
 
 def mujoco_version() -> str:
@@ -35,7 +93,7 @@ class Scene(Closable):
         self._spec = spec
         self._model: mujoco.MjModel | None = model
         self._data: mujoco.MjData | None = mujoco.MjData(model)
-        self._robots: list[Robot] = []
+        self._robots: list[RobotHandle] = []
         self._authored_actuators = AuthoredActuators.of(model)
         mujoco.mj_forward(model, self._data)
 
@@ -76,6 +134,8 @@ class Scene(Closable):
 
     def close(self) -> None:
         """Release MuJoCo's model and data; later calls on this scene raise RuntimeError."""
+        for robot in self._robots:
+            robot._release()
         self._model = None
         self._data = None
         self._robots = []
@@ -226,9 +286,21 @@ class Scene(Closable):
     ) -> Robot:
         """A `Robot` handle on the chain from `base_body` to `tip_body` (names without prefix)."""
         self._check_open()
-        robot = Robot(self, base_body, tip_body, prefix=prefix, tool=tool)
+        if _robot_factory is None:
+            raise RuntimeError("import mjkdl (or mjkdl.robot) to create robots")
+        robot = _robot_factory(self, base_body, tip_body, prefix=prefix, tool=tool)
         self._robots.append(robot)
-        return robot
+        return robot  # type: ignore[return-value]
+
+    def remove_robot(self, robot: Robot) -> None:
+        """Release `robot` (as `robot.close()`): another handle may then drive its joints."""
+        self._check_open()
+        if not any(r is robot for r in self._robots):
+            raise SpecError("remove_robot: this Robot is not registered with this scene")
+        robot.close()
+
+    def _unregister(self, robot: RobotHandle) -> None:
+        self._robots = [r for r in self._robots if r is not robot]
 
     # ------------------------------------------------------------------ rebuild
 

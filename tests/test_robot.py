@@ -63,7 +63,11 @@ def test_chain_description(gen3) -> None:
     assert np.isinf(limits[0]).all()
     assert robot.has_tcp_frame
     assert robot.kdl_chain() is robot.model
-    assert robot.model.nq == 7
+    # The model holds the arm first, then the 2F-85's eight passive finger joints.
+    assert robot.model.nq == robot.model.nv == 15
+    assert robot.arm_q == robot.arm_v == slice(0, 7)
+    assert [robot.model.names[j] for j in range(1, 8)] == robot.joint_names
+    assert robot.model.names[8].startswith("g_")
 
 
 def test_no_tool_means_fk_at_tip(tutorial_scene) -> None:

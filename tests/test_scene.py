@@ -195,6 +195,7 @@ CLOSED_CALLS = {
     "site_id": lambda s: s.site_id("pinch_site"),
     "actuator_id": lambda s: s.actuator_id("joint_1"),
     "create_robot": lambda s: s.create_robot("base_link", "bracelet_link"),
+    "remove_robot": lambda s: s.remove_robot(None),
     "add_object": lambda s: s.add_object(
         mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.02], mass=0.1)
     ),

@@ -509,8 +509,10 @@ def _action_bounds(
         if arm.actuation is Actuation.JOINT_POSITION:
             low, high = robot.joint_limits[:, 0].copy(), robot.joint_limits[:, 1].copy()
         elif arm.actuation is Actuation.JOINT_VELOCITY:
+            # Pinocchio marks "no limit" with the largest double; the Box is float32.
             limit = np.asarray(robot.model.velocityLimit, dtype=float)[: robot.n_joints]
-            high = np.where(np.isfinite(limit) & (limit > 0), limit, arm.max_angular_velocity)
+            usable = (limit > 0) & (limit < np.finfo(np.float32).max)
+            high = np.where(usable, limit, arm.max_angular_velocity)
             low = -high
         else:
             high = _effort_limits(model, joints)
