@@ -51,12 +51,18 @@ class CartesianVelocityController:
     world). The frame is read afresh on every call, so it may move (a site on a turning
     torso). `solve` uses the robot's state as of its last `update()`.
 
-    Joint position limits are never crossed: the velocity bounds shrink as a limit nears, so
-    that one period `dt` at the bound closes `limit_gain` of the remaining gap. Velocity
-    limits come from the model (`robot.model.velocityLimit`) where finite and positive, else
-    `max_joint_velocity`. `avoid=[(body_a, body_b), ...]` keeps every collision geom of body_a's
-    subtree at least `min_distance` from those of body_b's subtree: once a pair is closer than
-    `influence_distance`, its approach speed is capped at `collision_gain * (d - min_distance)`.
+    Limits, all hard constraints of the QP:
+
+    * joint positions are never crossed: the velocity bounds shrink as a limit nears, so one
+      period at the bound closes `limit_gain` of the remaining gap (the period taken as at
+      least `limit_horizon`, so servos that lag their command do not overshoot);
+    * joint velocities: the model's (`robot.model.velocityLimit`) where finite and positive,
+      else `max_joint_velocity`;
+    * joint accelerations: the velocity changes by at most `max_joint_acceleration * dt`
+      between solutions (None: unlimited), so a servo is never handed a step;
+    * `avoid=[(body_a, body_b), ...]`: every collision geom of body_a's subtree stays at least
+      `min_distance` from those of body_b's; once a pair is closer than `influence_distance`
+      its approach speed is capped at `collision_gain * (d - min_distance)`.
 
     When the constraints cannot all hold (an infeasible QP), `solve` returns zero velocity,
     sets `last_status` and warns once; it never raises for that.
@@ -72,7 +78,9 @@ class CartesianVelocityController:
         influence_distance: float | None = None,
         collision_gain: float = 2.0,
         max_joint_velocity: float | Sequence[float] = 1.0,
+        max_joint_acceleration: float | None = 10.0,
         limit_gain: float = 0.5,
+        limit_horizon: float = 0.05,
         posture: Sequence[float] | None = None,
         posture_gain: float = 1.0,
         damping: float = 1e-5,
@@ -101,12 +109,18 @@ class CartesianVelocityController:
         self._limit_gain = _number(limit_gain, "limit_gain", positive=True)
         if self._limit_gain > 1.0:
             raise SpecError(f"limit_gain must be in (0, 1], got {limit_gain!r}")
+        self._limit_horizon = _number(limit_horizon, "limit_horizon")
         self._posture_gain = _number(posture_gain, "posture_gain")
         self._damping = _number(damping, "damping")
         self._singular_damping = _number(singular_damping, "singular_damping")
         self._singular_threshold = _number(singular_threshold, "singular_threshold", positive=True)
         self._dt = None if dt is None else _number(dt, "dt", positive=True)
         self._vmax = self._velocity_limits(max_joint_velocity)
+        self._amax = (
+            math.inf
+            if max_joint_acceleration is None
+            else _number(max_joint_acceleration, "max_joint_acceleration", positive=True)
+        )
         self._posture = (
             robot.jnt_pos_msr.copy() if posture is None else _vector(posture, n, "posture")
         )
@@ -126,6 +140,10 @@ class CartesianVelocityController:
         self._bu = np.full(n + rows, _INF)
         self._bl = np.full(n + rows, -_INF)
         self._zero = np.zeros(n)
+        self._last = np.zeros(n)  # the previous solution, where the acceleration bounds start
+        self._last_time = math.inf  # scene time of the previous solve; inf: none yet
+        self._nearest = np.zeros(n)
+        self._clash = np.zeros(n, dtype=bool)
         self._solver = daqp.Model()
         self._ready = False
         self.last_status = SolveStatus.OPTIMAL
@@ -155,12 +173,14 @@ class CartesianVelocityController:
         self._frame = _frame_rotation(model, self._data, self._frame_name)
         dofs = [int(model.joint(name).dofadr[0]) for name in self._robot.joint_names]
         self._dofs = np.array(dofs)
-        self._geom_pairs = [
-            (ga, gb)
-            for a, b in self._pairs
-            for ga in _collision_geoms(model, a, b)
-            for gb in _collision_geoms(model, b, a)
-        ]
+        self._geom_pairs = []
+        for a, b in self._pairs:
+            geoms_a, geoms_b = _collision_geoms(model, a, b), _collision_geoms(model, b, a)
+            if set(geoms_a) & set(geoms_b):
+                raise SpecError(
+                    f"avoid: {a!r} and {b!r} share geoms (one is in the other's subtree)"
+                )
+            self._geom_pairs += [(ga, gb) for ga in geoms_a for gb in geoms_b]
         self._rows = len(self._geom_pairs)
         self._jac_a = np.zeros((3, model.nv))
         self._jac_b = np.zeros((3, model.nv))
@@ -217,6 +237,7 @@ class CartesianVelocityController:
         self._world_twist(v)
         self._cost(J, q)
         self._bounds(q, step)
+        self._accelerations(step)
         if self._rows:
             self._collision_rows()
         x, exitflag = self._qp()
@@ -224,6 +245,7 @@ class CartesianVelocityController:
             status = SolveStatus.INFEASIBLE if exitflag == -1 else SolveStatus.FAILED
             return self._give_up(status, f"DAQP exit flag {exitflag}")
         self.last_status = SolveStatus.OPTIMAL
+        np.copyto(self._last, x)
         return x
 
     def command(self, twist: Sequence[float], dt: float | None = None) -> np.ndarray:
@@ -315,7 +337,7 @@ class CartesianVelocityController:
     def _bounds(self, q: np.ndarray, dt: float) -> None:
         """Joint velocity bounds: the velocity limits, tightened near position limits."""
         n = self._n
-        gain = self._limit_gain / dt
+        gain = self._limit_gain / max(dt, self._limit_horizon)
         ub, lb = self._bu[:n], self._bl[:n]
         np.subtract(self._upper, q, out=ub)
         ub *= gain
@@ -324,6 +346,30 @@ class CartesianVelocityController:
         vmax = self._vmax
         np.clip(ub, -vmax, vmax, out=ub)
         np.clip(lb, -vmax, vmax, out=lb)
+
+    def _accelerations(self, dt: float) -> None:
+        """Narrow the bounds to what `max_joint_acceleration` allows from the last solution.
+
+        Where that window misses the position/velocity bounds (a limit needs a harder stop),
+        those bounds win: the velocity is pinned to their end nearest to the last one.
+        """
+        time = self._robot.scene.time()
+        if time < self._last_time or self._last_time == math.inf:
+            np.copyto(self._last, self._robot.jnt_vel_msr)  # first call, or after a reset
+        self._last_time = time
+        if self._amax == math.inf:
+            return
+        n = self._n
+        ub, lb, last = self._bu[:n], self._bl[:n], self._last
+        nearest, clash = self._nearest, self._clash
+        np.clip(last, lb, ub, out=nearest)
+        step = self._amax * dt
+        np.minimum(ub, last + step, out=ub)
+        np.maximum(lb, last - step, out=lb)
+        np.greater(lb, ub, out=clash)
+        if clash.any():
+            np.copyto(ub, nearest, where=clash)
+            np.copyto(lb, nearest, where=clash)
 
     def _collision_rows(self) -> None:
         """One velocity-damper row per geom pair closer than the influence distance."""
@@ -365,6 +411,7 @@ class CartesianVelocityController:
     def _give_up(self, status: SolveStatus, why: str) -> np.ndarray:
         self.last_status = status
         self._ready = False  # start the next solve from scratch, not from this one's state
+        self._last.fill(0.0)
         if not self._warned:
             self._warned = True
             warnings.warn(
