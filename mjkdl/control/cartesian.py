@@ -186,6 +186,12 @@ class CartesianVelocityController:
         self._jac_b = np.zeros((3, model.nv))
         self._fromto = np.zeros(6)
 
+    def _current(self) -> None:
+        """Rebind when the scene was rebuilt (`add_object`/`remove_object`)."""
+        if self._robot.scene.model is not self._model:
+            self._bind()
+            self._ready = False
+
     # ------------------------------------------------------------------ public
 
     @property
@@ -197,6 +203,13 @@ class CartesianVelocityController:
     def control_frame(self) -> str:
         """Site or body whose axes the twist is expressed along ("" = world)."""
         return self._frame_name
+
+    def frame_rotation(self) -> np.ndarray:
+        """World rotation of the control frame now (3×3 copy; identity for the world)."""
+        self._current()
+        if self._frame is None:
+            return np.eye(3)
+        return self._frame.reshape(3, 3).copy()
 
     @property
     def velocity_limits(self) -> np.ndarray:
@@ -221,9 +234,7 @@ class CartesianVelocityController:
         v = self._twist(twist)
         step = self._period(dt)
         robot = self._robot
-        if robot.scene.model is not self._model:
-            self._bind()
-            self._ready = False
+        self._current()
         # In POSITION mode the command is the controller's state: it is what the integration
         # advances and what must stay inside the limits; the servo follows it with some lag.
         if robot.ctrl_mode is CtrlMode.POSITION:
