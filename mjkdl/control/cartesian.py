@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import daqp
 import mujoco
 import numpy as np
+from scipy.linalg.lapack import dsyev as _dsyev
 
 from ..errors import SpecError, unknown_name
 from ..spec import CtrlMode
@@ -126,23 +127,30 @@ class CartesianVelocityController:
         )
         limits = robot.joint_limits
         self._lower, self._upper = limits[:, 0].copy(), limits[:, 1].copy()
+        self._limits = np.vstack([self._upper, self._lower])
+        self._neg_vmax = -self._vmax
         self._pairs = _pair_names(avoid)
         self._model: mujoco.MjModel | None = None
         self._bind()
         # Work arrays, reused every call.
+        self._n_null = max(0, n - 6)
         self._v = np.zeros(6)
         self._d = np.zeros(n)
         self._qp_post = np.zeros(n)
         self._H = np.zeros((n, n))
+        self._scaled = np.zeros((n, n))
         self._f = np.zeros(n)
         rows = self._rows
         self._A = np.zeros((rows, n))
-        self._bu = np.full(n + rows, _INF)
-        self._bl = np.full(n + rows, -_INF)
+        self._b = np.empty((2, n + rows))  # DAQP's upper and lower bounds, boxes first
+        self._b[0], self._b[1] = _INF, -_INF
+        self._bu, self._bl = self._b[0], self._b[1]
         self._zero = np.zeros(n)
         self._last = np.zeros(n)  # the previous solution, where the acceleration bounds start
         self._last_time = math.inf  # scene time of the previous solve; inf: none yet
-        self._nearest = np.zeros(n)
+        self._signs = np.array([[1.0], [-1.0]])
+        self._reach = np.zeros((2, 1))
+        self._window = np.zeros((2, n))
         self._clash = np.zeros(n, dtype=bool)
         self._solver = daqp.Model()
         self._ready = False
@@ -243,7 +251,7 @@ class CartesianVelocityController:
         else:
             q = robot.jnt_pos_msr
             J = robot.jacobian()
-        if not np.isfinite(J).all():
+        if not math.isfinite(q.dot(q)):
             return self._give_up(SolveStatus.FAILED, "the robot's state is not finite")
         self._world_twist(v)
         self._cost(J, q)
@@ -252,7 +260,7 @@ class CartesianVelocityController:
         if self._rows:
             self._collision_rows()
         x, exitflag = self._qp()
-        if exitflag < 0 or not np.isfinite(x).all():
+        if exitflag < 0 or not math.isfinite(x.dot(x)):
             status = SolveStatus.INFEASIBLE if exitflag == -1 else SolveStatus.FAILED
             return self._give_up(status, f"DAQP exit flag {exitflag}")
         self.last_status = SolveStatus.OPTIMAL
@@ -316,47 +324,46 @@ class CartesianVelocityController:
 
     def _cost(self, J: np.ndarray, q: np.ndarray) -> None:
         """H and f of the tracking, damping and null-space posture terms."""
-        n = self._n
-        _, s, vt = np.linalg.svd(J)
+        JtJ = self._H
+        np.matmul(J.T, J, out=JtJ)
+        # Eigenvalues of JᵀJ in ascending order are the squared singular values of J, after
+        # one zero per null-space dimension; the eigenvectors split the two spaces.
+        eig, vec, info = _dsyev(JtJ)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"dsyev failed ({info})")
+        n_null = self._n_null
         # Levenberg-Marquardt style: more damping the closer J is to losing rank.
         lam = self._damping
-        rank = min(6, n)
-        sigma = s[rank - 1] if len(s) >= rank else 0.0
+        sigma = math.sqrt(max(float(eig[n_null]), 0.0))
         if sigma < self._singular_threshold:
             ratio = sigma / self._singular_threshold
             lam += self._singular_damping * (1.0 - ratio * ratio)
         d = self._d
-        d.fill(lam)
-        d[: len(s)] += s * s
-        null = vt[rank:]
-        post = self._qp_post
-        if len(null):
-            # Posture in the null space of J: the projector N = V_n V_nᵀ is orthogonal to the
-            # rows of J, so the posture term cannot change the TCP's twist.
-            d[rank:] += 1.0
-            np.subtract(self._posture, q, out=post)
-            post *= self._posture_gain
-            coef = null @ post
-        H = self._H
-        np.matmul(vt.T * d, vt, out=H)
+        np.add(eig, lam, out=d)
         f = self._f
         np.matmul(self._v, J, out=f)
-        if len(null):
-            f += coef @ null
+        if n_null:
+            # Posture in the null space of J: the projector N = V_n V_nᵀ is orthogonal to the
+            # rows of J, so the posture term cannot change the TCP's twist.
+            d[:n_null] += 1.0
+            null = vec[:, :n_null]
+            post = self._qp_post
+            np.subtract(self._posture, q, out=post)
+            post *= self._posture_gain
+            f += null @ (post @ null)
         np.negative(f, out=f)
+        scaled = self._scaled
+        np.multiply(vec, d, out=scaled)  # V diag(d)
+        np.matmul(scaled, vec.T, out=self._H)
 
     def _bounds(self, q: np.ndarray, dt: float) -> None:
         """Joint velocity bounds: the velocity limits, tightened near position limits."""
         n = self._n
-        gain = self._limit_gain / max(dt, self._limit_horizon)
-        ub, lb = self._bu[:n], self._bl[:n]
-        np.subtract(self._upper, q, out=ub)
-        ub *= gain
-        np.subtract(self._lower, q, out=lb)
-        lb *= gain
-        vmax = self._vmax
-        np.clip(ub, -vmax, vmax, out=ub)
-        np.clip(lb, -vmax, vmax, out=lb)
+        box = self._b[:, :n]  # rows: upper, lower
+        np.subtract(self._limits, q, out=box)
+        box *= self._limit_gain / max(dt, self._limit_horizon)
+        np.minimum(box, self._vmax, out=box)
+        np.maximum(box, self._neg_vmax, out=box)
 
     def _accelerations(self, dt: float) -> None:
         """Narrow the bounds to what `max_joint_acceleration` allows from the last solution.
@@ -372,15 +379,17 @@ class CartesianVelocityController:
             return
         n = self._n
         ub, lb, last = self._bu[:n], self._bl[:n], self._last
-        nearest, clash = self._nearest, self._clash
-        np.clip(last, lb, ub, out=nearest)
-        step = self._amax * dt
-        np.minimum(ub, last + step, out=ub)
-        np.maximum(lb, last - step, out=lb)
-        np.greater(lb, ub, out=clash)
+        window = self._window  # rows: last + a dt, last - a dt
+        np.multiply(self._signs, self._amax * dt, out=self._reach)
+        np.add(last, self._reach, out=window)
+        np.minimum(ub, window[0], out=ub)
+        np.maximum(lb, window[1], out=lb)
+        clash = self._clash
+        np.greater(lb, ub, out=clash)  # the window missed [lb, ub] on one side
         if clash.any():
-            np.copyto(ub, nearest, where=clash)
-            np.copyto(lb, nearest, where=clash)
+            pinned = np.where(lb > last, lb, ub)  # the bound that was missed
+            np.copyto(ub, pinned, where=clash)
+            np.copyto(lb, pinned, where=clash)
 
     def _collision_rows(self) -> None:
         """One velocity-damper row per geom pair closer than the influence distance."""
