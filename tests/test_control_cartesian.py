@@ -401,3 +401,33 @@ def test_rebuilt_scene_rebinds_the_controller(panda_env) -> None:
     robot.update()
     qd = ctrl.solve([0.05, 0, 0, 0, 0, 0])
     assert np.abs(robot.jacobian() @ qd - [0.05, 0, 0, 0, 0, 0]).max() < 1e-9
+
+
+def test_collision_rows_are_the_distance_rate_mujoco_measures() -> None:
+    """Each active row times qd equals -d(distance)/dt, by finite differences of MuJoCo's own
+    mj_geomDistance after moving the joints along qd.
+
+    The hand is tilted off the block's axes: with the pads parallel to the block's top the
+    distance is the minimum over several corners, not differentiable.
+    """
+    with mjk.Env.build(panda_spec(objects=[block(height=0.4)])) as env:
+        robot = panda_arm(env)
+        robot.set_joint_pos(robot.jnt_pos_msr + np.array([0.05, 0.1, -0.08, 0.0, 0.15, 0.1, 0.2]))
+        ctrl = mjk.CartesianVelocityController(robot, avoid=[("hand", "block")])
+        ctrl.solve(np.zeros(6))
+        n = robot.n_joints
+        active = np.flatnonzero(ctrl._bu[n:] < 1e29)
+        assert len(active) >= 5
+        model, data = env.model, env.data
+        pairs = [ctrl._pair_list[i] for i in active]
+        q0 = robot.jnt_pos_msr.copy()
+        rng = np.random.default_rng(5)
+        eps = 1e-6
+        for _ in range(3):
+            qd = rng.normal(size=n)
+            before = [mujoco.mj_geomDistance(model, data, a, b, 1.0, None) for a, b in pairs]
+            robot.set_joint_pos(q0 + eps * qd)
+            after = [mujoco.mj_geomDistance(model, data, a, b, 1.0, None) for a, b in pairs]
+            robot.set_joint_pos(q0)
+            rate = (np.array(after) - np.array(before)) / eps
+            np.testing.assert_allclose(-ctrl._A[active] @ qd, rate, atol=1e-4 * np.abs(qd).max())
