@@ -27,6 +27,7 @@ import argparse
 import math
 import time
 from collections.abc import Callable
+from importlib.metadata import version
 
 import daqp
 import mujoco
@@ -256,8 +257,9 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=3000, help="control steps timed per case")
     args = parser.parse_args()
     print(
-        f"MuJoCo {mjk.mujoco_version()}, Pinocchio {pin.__version__}, DAQP via daqp "
-        f"{getattr(daqp, '__version__', '?')}, qpsolvers {qpsolvers.__version__}"
+        f"MuJoCo {mjk.mujoco_version()}, Pinocchio {pin.__version__}, daqp {version('daqp')}, "
+        f"qpsolvers {qpsolvers.__version__}, proxsuite {proxsuite.__version__}, "
+        f"pin-pink {version('pin-pink')}"
     )
     print("\nsolve() vs one raw mj_step of the same model (medians along a figure eight)")
     print(f"  {'case':44s} {'solve':>9s} {'mj_step':>9s} {'ratio':>7s}")
