@@ -51,22 +51,22 @@ def panda_spec(objects: list[mjk.SceneObject] | None = None) -> mjk.SceneSpec:
     )
 
 
-def panda(env: mjk.Env, mode: mjk.CtrlMode) -> mjk.Robot:
-    robot = env.create_robot("link0", "hand", tool=PANDA_TCP)
-    env.on_reset = lambda ctx: robot.set_joint_pos(PANDA_HOME, call_forward=False)
+def arm(env: mjk.Env, mode: mjk.CtrlMode, chain: tuple, tool: mjk.ToolFrameSpec, home) -> mjk.Robot:
+    """The robot on `chain` (base, tip) in `mode`, reset to `home`."""
+    robot = env.create_robot(*chain, tool=tool)
+    env.on_reset = lambda ctx: robot.set_joint_pos(home, call_forward=False)
     robot.ctrl_mode = mode
     env.reset()
     robot.update()
     return robot
+
+
+def panda(env: mjk.Env, mode: mjk.CtrlMode) -> mjk.Robot:
+    return arm(env, mode, ("link0", "hand"), PANDA_TCP, PANDA_HOME)
 
 
 def gen3(env: mjk.Env, mode: mjk.CtrlMode) -> mjk.Robot:
-    robot = env.create_robot("base_link", "bracelet_link", tool=TOOL)
-    env.on_reset = lambda ctx: robot.set_joint_pos(HOME, call_forward=False)
-    robot.ctrl_mode = mode
-    env.reset()
-    robot.update()
-    return robot
+    return arm(env, mode, ("base_link", "bracelet_link"), TOOL, HOME)
 
 
 def eight(t: float) -> np.ndarray:

@@ -312,19 +312,22 @@ class CartesianVelocityController:
 
     # ------------------------------------------------------------------ the QP
 
-    def _twist(self, twist: Sequence[float]) -> np.ndarray:
-        if type(twist) is not np.ndarray or twist.dtype != np.float64:
+    def _twist(self, twist: object) -> np.ndarray:
+        """`twist` checked to be 6 finite numbers, as float64 (no copy when it already is)."""
+        if isinstance(twist, np.ndarray) and twist.dtype == np.float64:
+            arr = twist
+        else:
             try:
-                twist = np.asarray(twist, dtype=float)
+                arr = np.asarray(twist, dtype=float)
             except (TypeError, ValueError):
                 raise SpecError(f"twist must hold 6 numbers, got {twist!r}") from None
-        if twist.shape != (6,):
-            raise SpecError(
-                f"twist needs 6 values [vx, vy, vz, wx, wy, wz], got shape {twist.shape}"
-            )
-        if not math.isfinite(twist.dot(twist)) and not np.isfinite(twist).all():
+        if arr.shape != (6,):
+            raise SpecError(f"twist needs 6 values [vx, vy, vz, wx, wy, wz], got shape {arr.shape}")
+        # One dot product is finite exactly when every entry is (barring overflow, which the
+        # exact check then clears).
+        if not math.isfinite(arr.dot(arr)) and not np.isfinite(arr).all():
             raise SpecError(f"twist must be finite, got {twist!r}")
-        return twist
+        return arr
 
     def _period(self, dt: float | None) -> float:
         if dt is None:
