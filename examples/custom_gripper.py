@@ -66,13 +66,14 @@ def main() -> int:
         # How far behind the command the fingers are: the delay that best matches 1 - a.
         target = 1.0 - np.array(actions)
         dt = env.timestep()
-        lags = range(0, round(1.0 / dt), 5)
-        errors = [np.abs(opening[k:] - target[: len(target) - k]).mean() for k in lags]
-        best = int(np.argmin(errors))
-        print(
-            f"opening lags the action by {lags[best] * dt:.2f} s "
-            f"(mean error then {errors[best]:.3f})"
-        )
+        lags = range(0, min(round(1.0 / dt), len(target) // 2), 5)
+        if lags:
+            errors = [np.abs(opening[k:] - target[: len(target) - k]).mean() for k in lags]
+            best = int(np.argmin(errors))
+            print(
+                f"opening lags the action by {lags[best] * dt:.2f} s "
+                f"(mean error then {errors[best]:.3f})"
+            )
     return 0
 
 
