@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import daqp
 import mujoco
 import numpy as np
+from scipy.linalg.lapack import dsyev as _dsyev
 
 from ..errors import SpecError, unknown_name
 from ..spec import CtrlMode
@@ -51,12 +52,18 @@ class CartesianVelocityController:
     world). The frame is read afresh on every call, so it may move (a site on a turning
     torso). `solve` uses the robot's state as of its last `update()`.
 
-    Joint position limits are never crossed: the velocity bounds shrink as a limit nears, so
-    that one period `dt` at the bound closes `limit_gain` of the remaining gap. Velocity
-    limits come from the model (`robot.model.velocityLimit`) where finite and positive, else
-    `max_joint_velocity`. `avoid=[(body_a, body_b), ...]` keeps every collision geom of body_a's
-    subtree at least `min_distance` from those of body_b's subtree: once a pair is closer than
-    `influence_distance`, its approach speed is capped at `collision_gain * (d - min_distance)`.
+    Limits, all hard constraints of the QP:
+
+    * joint positions are never crossed: the velocity bounds shrink as a limit nears, so one
+      period at the bound closes `limit_gain` of the remaining gap (the period taken as at
+      least `limit_horizon`, so servos that lag their command do not overshoot);
+    * joint velocities: the model's (`robot.model.velocityLimit`) where finite and positive,
+      else `max_joint_velocity`;
+    * joint accelerations: the velocity changes by at most `max_joint_acceleration * dt`
+      between solutions (None: unlimited), so a servo is never handed a step;
+    * `avoid=[(body_a, body_b), ...]`: every collision geom of body_a's subtree stays at least
+      `min_distance` from those of body_b's; once a pair is closer than `influence_distance`
+      its approach speed is capped at `collision_gain * (d - min_distance)`.
 
     When the constraints cannot all hold (an infeasible QP), `solve` returns zero velocity,
     sets `last_status` and warns once; it never raises for that.
@@ -72,7 +79,9 @@ class CartesianVelocityController:
         influence_distance: float | None = None,
         collision_gain: float = 2.0,
         max_joint_velocity: float | Sequence[float] = 1.0,
+        max_joint_acceleration: float | None = 10.0,
         limit_gain: float = 0.5,
+        limit_horizon: float = 0.05,
         posture: Sequence[float] | None = None,
         posture_gain: float = 1.0,
         damping: float = 1e-5,
@@ -101,31 +110,48 @@ class CartesianVelocityController:
         self._limit_gain = _number(limit_gain, "limit_gain", positive=True)
         if self._limit_gain > 1.0:
             raise SpecError(f"limit_gain must be in (0, 1], got {limit_gain!r}")
+        self._limit_horizon = _number(limit_horizon, "limit_horizon")
         self._posture_gain = _number(posture_gain, "posture_gain")
         self._damping = _number(damping, "damping")
         self._singular_damping = _number(singular_damping, "singular_damping")
         self._singular_threshold = _number(singular_threshold, "singular_threshold", positive=True)
         self._dt = None if dt is None else _number(dt, "dt", positive=True)
         self._vmax = self._velocity_limits(max_joint_velocity)
+        self._amax = (
+            math.inf
+            if max_joint_acceleration is None
+            else _number(max_joint_acceleration, "max_joint_acceleration", positive=True)
+        )
         self._posture = (
             robot.jnt_pos_msr.copy() if posture is None else _vector(posture, n, "posture")
         )
         limits = robot.joint_limits
         self._lower, self._upper = limits[:, 0].copy(), limits[:, 1].copy()
+        self._limits = np.vstack([self._upper, self._lower])
+        self._neg_vmax = -self._vmax
         self._pairs = _pair_names(avoid)
         self._model: mujoco.MjModel | None = None
         self._bind()
         # Work arrays, reused every call.
+        self._n_null = max(0, n - 6)
         self._v = np.zeros(6)
         self._d = np.zeros(n)
         self._qp_post = np.zeros(n)
         self._H = np.zeros((n, n))
+        self._scaled = np.zeros((n, n))
         self._f = np.zeros(n)
         rows = self._rows
         self._A = np.zeros((rows, n))
-        self._bu = np.full(n + rows, _INF)
-        self._bl = np.full(n + rows, -_INF)
+        self._b = np.empty((2, n + rows))  # DAQP's upper and lower bounds, boxes first
+        self._b[0], self._b[1] = _INF, -_INF
+        self._bu, self._bl = self._b[0], self._b[1]
         self._zero = np.zeros(n)
+        self._last = np.zeros(n)  # the previous solution, where the acceleration bounds start
+        self._last_time = math.inf  # scene time of the previous solve; inf: none yet
+        self._signs = np.array([[1.0], [-1.0]])
+        self._reach = np.zeros((2, 1))
+        self._window = np.zeros((2, n))
+        self._clash = np.zeros(n, dtype=bool)
         self._solver = daqp.Model()
         self._ready = False
         self.last_status = SolveStatus.OPTIMAL
@@ -155,16 +181,43 @@ class CartesianVelocityController:
         self._frame = _frame_rotation(model, self._data, self._frame_name)
         dofs = [int(model.joint(name).dofadr[0]) for name in self._robot.joint_names]
         self._dofs = np.array(dofs)
-        self._geom_pairs = [
-            (ga, gb)
-            for a, b in self._pairs
-            for ga in _collision_geoms(model, a, b)
-            for gb in _collision_geoms(model, b, a)
-        ]
-        self._rows = len(self._geom_pairs)
-        self._jac_a = np.zeros((3, model.nv))
-        self._jac_b = np.zeros((3, model.nv))
-        self._fromto = np.zeros(6)
+        pairs: list[tuple[int, int]] = []
+        for a, b in self._pairs:
+            geoms_a, geoms_b = _collision_geoms(model, a, b), _collision_geoms(model, b, a)
+            if set(geoms_a) & set(geoms_b):
+                raise SpecError(
+                    f"avoid: {a!r} and {b!r} share geoms (one is in the other's subtree)"
+                )
+            pairs += [(ga, gb) for ga in geoms_a for gb in geoms_b]
+        self._rows = len(pairs)
+        self._pair_list = pairs
+        ga, gb = np.array(pairs, dtype=int).reshape(-1, 2).T
+        self._geom_a, self._geom_b = ga, gb
+        # Bounding spheres skip the exact distance for pairs that are clearly far apart
+        # (a plane has no bounding sphere: never skipped).
+        plane = int(mujoco.mjtGeom.mjGEOM_PLANE)
+        rbound = np.where(model.geom_type == plane, np.inf, model.geom_rbound)
+        self._sphere_reach = rbound[ga] + rbound[gb] + self._influence
+        # One Jacobian per moving body (at its origin); bodies welded to the world have none
+        # and use the last, all-zero slot.
+        bodies_a, bodies_b = model.geom_bodyid[ga], model.geom_bodyid[gb]
+        moving = sorted({int(x) for x in (*bodies_a, *bodies_b) if model.body_weldid[x] != 0})
+        slot = {body: i for i, body in enumerate(moving)}
+        self._moving = moving
+        self._slot_a = np.array([slot.get(int(x), len(moving)) for x in bodies_a], dtype=int)
+        self._slot_b = np.array([slot.get(int(x), len(moving)) for x in bodies_b], dtype=int)
+        self._body_a, self._body_b = bodies_a, bodies_b
+        self._jacp = np.zeros((len(moving) + 1, 3, model.nv))
+        self._jacr = np.zeros((len(moving) + 1, 3, model.nv))
+        self._fromto = np.zeros((self._rows, 6))
+        self._fromto_rows = list(self._fromto)  # contiguous row views for mj_geomDistance
+        self._dist = np.zeros(self._rows)
+
+    def _current(self) -> None:
+        """Rebind when the scene was rebuilt (`add_object`/`remove_object`)."""
+        if self._robot.scene.model is not self._model:
+            self._bind()
+            self._ready = False
 
     # ------------------------------------------------------------------ public
 
@@ -177,6 +230,13 @@ class CartesianVelocityController:
     def control_frame(self) -> str:
         """Site or body whose axes the twist is expressed along ("" = world)."""
         return self._frame_name
+
+    def frame_rotation(self) -> np.ndarray:
+        """World rotation of the control frame now (3×3 copy; identity for the world)."""
+        self._current()
+        if self._frame is None:
+            return np.eye(3)
+        return self._frame.reshape(3, 3).copy()
 
     @property
     def velocity_limits(self) -> np.ndarray:
@@ -201,9 +261,7 @@ class CartesianVelocityController:
         v = self._twist(twist)
         step = self._period(dt)
         robot = self._robot
-        if robot.scene.model is not self._model:
-            self._bind()
-            self._ready = False
+        self._current()
         # In POSITION mode the command is the controller's state: it is what the integration
         # advances and what must stay inside the limits; the servo follows it with some lag.
         if robot.ctrl_mode is CtrlMode.POSITION:
@@ -212,18 +270,20 @@ class CartesianVelocityController:
         else:
             q = robot.jnt_pos_msr
             J = robot.jacobian()
-        if not np.isfinite(J).all():
+        if not math.isfinite(q.dot(q)):
             return self._give_up(SolveStatus.FAILED, "the robot's state is not finite")
         self._world_twist(v)
         self._cost(J, q)
         self._bounds(q, step)
+        self._accelerations(step)
         if self._rows:
             self._collision_rows()
         x, exitflag = self._qp()
-        if exitflag < 0 or not np.isfinite(x).all():
+        if exitflag < 0 or not math.isfinite(x.dot(x)):
             status = SolveStatus.INFEASIBLE if exitflag == -1 else SolveStatus.FAILED
             return self._give_up(status, f"DAQP exit flag {exitflag}")
         self.last_status = SolveStatus.OPTIMAL
+        np.copyto(self._last, x)
         return x
 
     def command(self, twist: Sequence[float], dt: float | None = None) -> np.ndarray:
@@ -252,19 +312,22 @@ class CartesianVelocityController:
 
     # ------------------------------------------------------------------ the QP
 
-    def _twist(self, twist: Sequence[float]) -> np.ndarray:
-        if type(twist) is not np.ndarray or twist.dtype != np.float64:
+    def _twist(self, twist: object) -> np.ndarray:
+        """`twist` checked to be 6 finite numbers, as float64 (no copy when it already is)."""
+        if isinstance(twist, np.ndarray) and twist.dtype == np.float64:
+            arr = twist
+        else:
             try:
-                twist = np.asarray(twist, dtype=float)
+                arr = np.asarray(twist, dtype=float)
             except (TypeError, ValueError):
                 raise SpecError(f"twist must hold 6 numbers, got {twist!r}") from None
-        if twist.shape != (6,):
-            raise SpecError(
-                f"twist needs 6 values [vx, vy, vz, wx, wy, wz], got shape {twist.shape}"
-            )
-        if not math.isfinite(twist.dot(twist)) and not np.isfinite(twist).all():
+        if arr.shape != (6,):
+            raise SpecError(f"twist needs 6 values [vx, vy, vz, wx, wy, wz], got shape {arr.shape}")
+        # One dot product is finite exactly when every entry is (barring overflow, which the
+        # exact check then clears).
+        if not math.isfinite(arr.dot(arr)) and not np.isfinite(arr).all():
             raise SpecError(f"twist must be finite, got {twist!r}")
-        return twist
+        return arr
 
     def _period(self, dt: float | None) -> float:
         if dt is None:
@@ -283,74 +346,123 @@ class CartesianVelocityController:
 
     def _cost(self, J: np.ndarray, q: np.ndarray) -> None:
         """H and f of the tracking, damping and null-space posture terms."""
-        n = self._n
-        _, s, vt = np.linalg.svd(J)
+        JtJ = self._H
+        np.matmul(J.T, J, out=JtJ)
+        # Eigenvalues of JᵀJ in ascending order are the squared singular values of J, after
+        # one zero per null-space dimension; the eigenvectors split the two spaces.
+        eig, vec, info = _dsyev(JtJ)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"dsyev failed ({info})")
+        n_null = self._n_null
         # Levenberg-Marquardt style: more damping the closer J is to losing rank.
         lam = self._damping
-        rank = min(6, n)
-        sigma = s[rank - 1] if len(s) >= rank else 0.0
+        sigma = math.sqrt(max(float(eig[n_null]), 0.0))
         if sigma < self._singular_threshold:
             ratio = sigma / self._singular_threshold
             lam += self._singular_damping * (1.0 - ratio * ratio)
         d = self._d
-        d.fill(lam)
-        d[: len(s)] += s * s
-        null = vt[rank:]
-        post = self._qp_post
-        if len(null):
-            # Posture in the null space of J: the projector N = V_n V_nᵀ is orthogonal to the
-            # rows of J, so the posture term cannot change the TCP's twist.
-            d[rank:] += 1.0
-            np.subtract(self._posture, q, out=post)
-            post *= self._posture_gain
-            coef = null @ post
-        H = self._H
-        np.matmul(vt.T * d, vt, out=H)
+        np.add(eig, lam, out=d)
         f = self._f
         np.matmul(self._v, J, out=f)
-        if len(null):
-            f += coef @ null
+        if n_null:
+            # Posture in the null space of J: the projector N = V_n V_nᵀ is orthogonal to the
+            # rows of J, so the posture term cannot change the TCP's twist.
+            d[:n_null] += 1.0
+            null = vec[:, :n_null]
+            post = self._qp_post
+            np.subtract(self._posture, q, out=post)
+            post *= self._posture_gain
+            f += null @ (post @ null)
         np.negative(f, out=f)
+        scaled = self._scaled
+        np.multiply(vec, d, out=scaled)  # V diag(d)
+        np.matmul(scaled, vec.T, out=self._H)
 
     def _bounds(self, q: np.ndarray, dt: float) -> None:
         """Joint velocity bounds: the velocity limits, tightened near position limits."""
         n = self._n
-        gain = self._limit_gain / dt
-        ub, lb = self._bu[:n], self._bl[:n]
-        np.subtract(self._upper, q, out=ub)
-        ub *= gain
-        np.subtract(self._lower, q, out=lb)
-        lb *= gain
-        vmax = self._vmax
-        np.clip(ub, -vmax, vmax, out=ub)
-        np.clip(lb, -vmax, vmax, out=lb)
+        box = self._b[:, :n]  # rows: upper, lower
+        np.subtract(self._limits, q, out=box)
+        box *= self._limit_gain / max(dt, self._limit_horizon)
+        np.minimum(box, self._vmax, out=box)
+        np.maximum(box, self._neg_vmax, out=box)
+
+    def _accelerations(self, dt: float) -> None:
+        """Narrow the bounds to what `max_joint_acceleration` allows from the last solution.
+
+        Where that window misses the position/velocity bounds (a limit needs a harder stop),
+        those bounds win: the velocity is pinned to their end nearest to the last one.
+        """
+        time = self._robot.scene.time()
+        if time < self._last_time or self._last_time == math.inf:
+            np.copyto(self._last, self._robot.jnt_vel_msr)  # first call, or after a reset
+        self._last_time = time
+        if self._amax == math.inf:
+            return
+        n = self._n
+        ub, lb, last = self._bu[:n], self._bl[:n], self._last
+        window = self._window  # rows: last + a dt, last - a dt
+        np.multiply(self._signs, self._amax * dt, out=self._reach)
+        np.add(last, self._reach, out=window)
+        np.minimum(ub, window[0], out=ub)
+        np.maximum(lb, window[1], out=lb)
+        clash = self._clash
+        np.greater(lb, ub, out=clash)  # the window missed [lb, ub] on one side
+        if clash.any():
+            pinned = np.where(lb > last, lb, ub)  # the bound that was missed
+            np.copyto(ub, pinned, where=clash)
+            np.copyto(lb, pinned, where=clash)
 
     def _collision_rows(self) -> None:
-        """One velocity-damper row per geom pair closer than the influence distance."""
-        model, data = self._model, self._data
-        n = self._n
-        A, bu, ja, jb, ft = self._A, self._bu, self._jac_a, self._jac_b, self._fromto
-        dofs = self._dofs
-        for i, (ga, gb) in enumerate(self._geom_pairs):
-            dist = mujoco.mj_geomDistance(model, data, ga, gb, self._influence, ft)
-            if dist >= self._influence:
-                A[i] = 0.0
-                bu[n + i] = _INF
-                continue
-            normal = ft[3:] - ft[:3]  # from the point on geom a to the point on geom b
-            length = math.sqrt(normal.dot(normal))
-            if length < 1e-9:
-                # Touching: no direction from the points; use the centres' direction.
-                normal = data.geom_xpos[gb] - data.geom_xpos[ga]
-                length = math.sqrt(normal.dot(normal)) or 1.0
-            normal /= length
-            if dist < 0:
-                normal = -normal  # penetrating: the witness points cross over
-            mujoco.mj_jac(model, data, ja, None, ft[:3], model.geom_bodyid[ga])
-            mujoco.mj_jac(model, data, jb, None, ft[3:], model.geom_bodyid[gb])
-            # d' = nᵀ (v_b - v_a) >= -k (d - d_min)  <=>  nᵀ (J_a - J_b) qd <= k (d - d_min)
-            np.matmul(normal, ja[:, dofs] - jb[:, dofs], out=A[i])
-            bu[n + i] = self._collision_gain * (dist - self._min_distance)
+        """One velocity-damper row per geom pair closer than the influence distance.
+
+        d' = nᵀ (v_b - v_a) >= -k (d - d_min), i.e. nᵀ (J_a - J_b) qd <= k (d - d_min), with n
+        the unit vector from the nearest point on geom a to the one on geom b and J_a, J_b the
+        Jacobians of those points (only the robot's joints are decision variables).
+        """
+        model, data, n = self._model, self._data, self._n
+        A, bu, dist, ft = self._A, self._bu, self._dist, self._fromto
+        A.fill(0.0)
+        bu[n:] = _INF
+        gap = data.geom_xpos[self._geom_a] - data.geom_xpos[self._geom_b]
+        near = np.flatnonzero(np.sqrt(np.einsum("ij,ij->i", gap, gap)) < self._sphere_reach)
+        if not len(near):
+            return
+        dist.fill(np.inf)
+        pairs, rows, influence = self._pair_list, self._fromto_rows, self._influence
+        for i in near.tolist():
+            ga, gb = pairs[i]
+            dist[i] = mujoco.mj_geomDistance(model, data, ga, gb, influence, rows[i])
+        act = np.flatnonzero(dist < influence)
+        if not len(act):
+            return
+        jacp, jacr = self._jacp, self._jacr
+        for k, body in enumerate(self._moving):
+            mujoco.mj_jac(model, data, jacp[k], jacr[k], data.xpos[body], body)
+        jp, jr = jacp[:, :, self._dofs], jacr[:, :, self._dofs]
+        d, pa, pb = dist[act], ft[act, :3], ft[act, 3:]
+        normal = pb - pa
+        length = np.sqrt(np.einsum("ij,ij->i", normal, normal))
+        touching = length < 1e-9
+        if touching.any():  # no direction from the points: use the centres'
+            normal[touching] = -gap[act][touching]
+            length[touching] = np.linalg.norm(normal[touching], axis=1)
+            length[length == 0.0] = 1.0
+        normal /= length[:, None]
+        inside = (d < 0) & ~touching
+        if inside.any():
+            normal[inside] *= -1.0  # penetrating: the nearest points cross over
+        row = np.zeros((len(act), n))
+        for sign, slot, body, point in (
+            (1.0, self._slot_a[act], self._body_a[act], pa),
+            (-1.0, self._slot_b[act], self._body_b[act], pb),
+        ):
+            # A point p of a body moves with v + ω × (p - x): nᵀ J_p = nᵀ J_v + ((p - x) × n)ᵀ J_ω.
+            lever = _cross(point - data.xpos[body], normal)
+            row += sign * np.matmul(normal[:, None, :], jp[slot])[:, 0]
+            row += sign * np.matmul(lever[:, None, :], jr[slot])[:, 0]
+        A[act] = row
+        bu[n + act] = self._collision_gain * (d - self._min_distance)
 
     def _qp(self) -> tuple[np.ndarray, int]:
         if not self._ready:
@@ -365,6 +477,7 @@ class CartesianVelocityController:
     def _give_up(self, status: SolveStatus, why: str) -> np.ndarray:
         self.last_status = status
         self._ready = False  # start the next solve from scratch, not from this one's state
+        self._last.fill(0.0)
         if not self._warned:
             self._warned = True
             warnings.warn(
@@ -377,6 +490,13 @@ class CartesianVelocityController:
 
 
 # ---------------------------------------------------------------------- helpers
+
+_NEXT, _AFTER = [1, 2, 0], [2, 0, 1]
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of two (k, 3) arrays (np.cross costs ~10 us on small input)."""
+    return a[:, _NEXT] * b[:, _AFTER] - a[:, _AFTER] * b[:, _NEXT]
 
 
 def _number(value: object, name: str, positive: bool = False) -> float:
