@@ -199,3 +199,20 @@ def test_physics_randomizer_unknown_body() -> None:
     with pytest.raises(KeyError, match=r"'prp1' in PhysicsRandomizer\.bodies\[1\]"):
         env.reset(seed=0)
     env.close()
+
+
+def test_randomized_arm_masses_reach_the_pinocchio_model() -> None:
+    env = env_with(PhysicsRandomizer(["link6", "link7", "hand"], mass_scale=(1.5, 2.0)),
+                   objects=[])
+    robot = env.robots["panda"]
+    data = env.scene.data
+    nominal = robot.gravity_torques().copy()  # before any reset: the authored masses
+    for seed in range(3):
+        env.reset(seed=seed)
+        mujoco.mj_forward(env.scene.model, data)
+        robot.update()
+        # At rest MuJoCo's bias force is gravity alone: Pinocchio must agree with the new masses.
+        np.testing.assert_allclose(robot.gravity_torques(), data.qfrc_bias[:7], rtol=1e-8,
+                                   atol=1e-9)
+        assert np.abs(robot.gravity_torques() - nominal).max() > 0.05
+    env.close()

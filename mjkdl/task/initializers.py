@@ -174,7 +174,8 @@ class PhysicsRandomizer:
     uniform factors, and gives them random colours when `colors`, editing the compiled
     model in place — no rebuild. Factors apply to the values the model had when this
     initializer first ran, so they do not compound over episodes; derived constants are
-    recomputed (`mj_setConst`)."""
+    recomputed (`mj_setConst`) and every arm's Pinocchio model reloads its inertias, so an
+    arm's own links may be randomized too."""
 
     bodies: Sequence[str]
     mass_scale: tuple[float, float] = (1.0, 1.0)
@@ -217,3 +218,5 @@ class PhysicsRandomizer:
         qpos, qvel = data.qpos.copy(), data.qvel.copy()
         mujoco.mj_setConst(model, data)
         data.qpos[:], data.qvel[:] = qpos, qvel
+        for robot in env.robots.values():  # their Pinocchio models follow the new masses
+            robot.reload_inertias()
