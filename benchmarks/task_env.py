@@ -26,14 +26,12 @@ from collections.abc import Callable
 import gymnasium as gym
 import mujoco
 import numpy as np
+import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
 
 import mjkdl as mjk
 from mjkdl.task import CameraSensor, TaskEnv  # importing mjkdl.task registers the tasks
 from mjkdl.task.registry import PANDA_HOME, panda_reach_spec
 
-os.environ.setdefault(
-    "MENAGERIE_ROOT", os.path.join(os.path.dirname(__file__), "..", "..", "shared", "menagerie")
-)
 STEPS = 20  # control steps per block (2 s of simulation)
 CAMERA_STEPS = 5
 DM_ROBOTICS_PANDA = 209.0  # control steps/s, from the issue
