@@ -255,7 +255,8 @@ def test_observations_are_the_agents_own(env: TaskEnv) -> None:
     assert np.abs(nxt["panda_joint_pos"] - keep).max() < 0.01
 
 
-def test_divergence_ends_the_episode_without_nan() -> None:
+def test_divergence_ends_the_episode_without_nan(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT here
     def blow_up(env: TaskEnv, rng: np.random.Generator) -> None:
         env.scene.data.qvel[:] = 1e12
 
@@ -377,3 +378,14 @@ def test_rgb_array_render_shows_the_named_camera() -> None:
     ref.close()
     env.close()
     assert math.isfinite(float(img.mean()))
+
+
+def test_one_step_episodes_repeat(env: TaskEnv) -> None:
+    # The controller's state must not leak from an episode that ended at its first step.
+    act = np.array([0.4, -0.3, 0.2, 0.5, -0.5, 0.8, 1.0])
+    runs = []
+    for _ in range(3):
+        env.reset(seed=9)
+        runs.append(env.step(act)[0]["panda_joint_pos"])
+    np.testing.assert_array_equal(runs[0], runs[1])
+    np.testing.assert_array_equal(runs[0], runs[2])

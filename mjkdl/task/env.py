@@ -5,7 +5,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable, Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import mujoco
@@ -61,11 +61,22 @@ class _Effector:
         self.stop = start + n + (gripper is not None)
         self.home = None if arm.home is None else np.asarray(arm.home, dtype=float)
 
+    def new_episode(self) -> None:
+        """Arm at home, gripper open, and a fresh controller: the QP's acceleration bounds
+        start from the state, not from the last episode's motion (its own reset detection
+        goes by a clock that an episode of one step does not advance)."""
+        if self.home is not None:
+            self.robot.set_joint_pos(self.home, call_forward=False)
+        if self.gripper is not None:
+            self.gripper.command(0.0)
+        if self.controller is not None:
+            self.controller = _controller(self.robot, self.arm)
+
     def apply(self, action: np.ndarray, period: float) -> None:
         robot, arm = self.robot, self.arm.actuation
         robot.update()
-        a = action[self.slice]
-        if arm is Actuation.CARTESIAN_VELOCITY:
+        a: Any = action[self.slice]
+        if self.controller is not None:
             self.controller.command(a, period)
         elif arm is Actuation.JOINT_POSITION:
             robot.jnt_pos_cmd = a
@@ -77,7 +88,7 @@ class _Effector:
             self.gripper.command(action[self.grip_index])
 
 
-class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
+class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     """A task as a Gymnasium environment (see `TaskSpec`).
 
     The action concatenates, per arm in order, a twist `[vx, vy, vz, wx, wy, wz]` of the TCP
@@ -94,7 +105,9 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     raises until `reset`.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}  # noqa: RUF012
+    observation_space: spaces.Dict
+    action_space: spaces.Box
 
     def __init__(
         self,
@@ -209,7 +222,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             self._readers.append(ArmReader(model, data, arm, eff.robot, eff.gripper, where))
         for i, sensor in enumerate(spec.sensors):
             self._readers.append(self._reader(sensor, f"TaskSpec.sensors[{i}]"))
-        boxes: dict[str, spaces.Box] = {}
+        boxes: dict[str, spaces.Space] = {}
         owner: dict[str, int] = {}
         for k, reader in enumerate(self._readers):
             for key, box in reader.spaces.items():
@@ -255,19 +268,17 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             except (UnknownNameError, SpecError) as err:
                 raise type(err)(f"{where}.gripper: {err}") from None
             self.grippers[arm.name] = gripper
-        controller = None
-        if arm.actuation is Actuation.CARTESIAN_VELOCITY:
-            try:
-                controller = CartesianVelocityController(robot, control_frame=arm.control_frame)
-            except (UnknownNameError, SpecError) as err:
-                raise type(err)(f"{where}.control_frame: {err}") from None
         if arm.home is not None:
             try:
                 robot.set_joint_pos(np.asarray(arm.home, dtype=float), call_forward=False)
             except (SpecError, ValueError, TypeError) as err:
                 raise SpecError(f"{where}.home: {err}") from None
-            if controller is not None:
-                controller.posture = arm.home
+        controller = None
+        if arm.actuation is Actuation.CARTESIAN_VELOCITY:
+            try:
+                controller = _controller(robot, arm)
+            except (UnknownNameError, SpecError) as err:
+                raise type(err)(f"{where}.control_frame: {err}") from None
         self.robots[arm.name] = robot
         eff = _Effector(arm, robot, gripper, controller, start)
         self._effectors.append(eff)
@@ -314,10 +325,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         scene = self.scene
         scene.reset()
         for eff in self._effectors:
-            if eff.home is not None:
-                eff.robot.set_joint_pos(eff.home, call_forward=False)
-            if eff.gripper is not None:
-                eff.gripper.command(0.0)
+            eff.new_episode()
         for init in self.task_spec.initializers:
             init(self, self.np_random)
         mujoco.mj_forward(scene.model, scene.data)
@@ -475,6 +483,11 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._closed = True
 
 
+def _controller(robot: Robot, arm: ArmSpec) -> CartesianVelocityController:
+    """The arm's Cartesian controller, its null-space posture at `home` when there is one."""
+    return CartesianVelocityController(robot, control_frame=arm.control_frame, posture=arm.home)
+
+
 def _refresh_kinematics(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """Poses, tendon/actuator lengths and velocities of the state `mj_step` left.
 
@@ -491,8 +504,9 @@ def _refresh_kinematics(model: mujoco.MjModel, data: mujoco.MjData) -> None:
 
 
 def _positive(value: object) -> bool:
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    return ok and math.isfinite(float(value)) and float(value) > 0
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    return math.isfinite(float(value)) and float(value) > 0
 
 
 def _action_bounds(

@@ -74,7 +74,7 @@ class PropPlacer:
                 if self.random_yaw:
                     yaw = rng.uniform(-math.pi, math.pi)
                     quat = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
-                scene.set_body_pose(name, pos, quat)
+                scene.set_body_pose(name, pos.tolist(), quat)
                 mujoco.mj_kinematics(model, data)
                 mujoco.mj_collision(model, data)
                 if not _touches(data, body, owner, pending):

@@ -73,7 +73,6 @@ def ray_collect(
     seeds = [int(s) for s in seeds]
     kwargs = dict(env_kwargs or {})
 
-    @ray.remote
     class Worker:
         def __init__(self) -> None:
             import mjkdl.task  # noqa: F401  (registers the tasks in the actor's process)
@@ -84,7 +83,8 @@ def ray_collect(
             return [run_episode(self.env, s, policy, max_steps) for s in share]
 
     count = min(actors, max(1, len(seeds)))
-    workers = [Worker.remote() for _ in range(count)]
+    actor: Any = ray.remote(Worker)
+    workers = [actor.remote() for _ in range(count)]
     shares = [seeds[k::count] for k in range(count)]
     results = ray.get([w.run.remote(share) for w, share in zip(workers, shares, strict=True)])
     for w in workers:

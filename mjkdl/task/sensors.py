@@ -219,8 +219,8 @@ class ArmReader(Reader):
         else:
             mujoco.mju_mulMatTVec3(vel[:3], self._cf_mat, self._lin)
             mujoco.mju_mulMatTVec3(vel[3:], self._cf_mat, w)
-        if self._grip is not None:
-            self._grip[0] = min(1.0, max(0.0, self._gripper.opening()))
+        if self._grip is not None and self._gripper is not None:
+            self._grip[0] = self._gripper.opening()  # already clipped to [0, 1]
         for force, torque, f_view, t_view in self._wrench:
             force[:] = f_view
             torque[:] = t_view

@@ -9,7 +9,7 @@ keys (F8-F12) are listed in `SimulateViewer`.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -17,13 +17,10 @@ import numpy as np
 from ..errors import SpecError, unknown_name
 from .env import TaskEnv
 
-if TYPE_CHECKING:
-    from ..viewer import SimulateViewer
-
 Policy = Callable[[Mapping[str, np.ndarray]], Any]
 
 
-def _task_viewer(env: TaskEnv, title: str) -> SimulateViewer:
+def _task_viewer(env: TaskEnv, title: str) -> Any:
     """A SimulateViewer whose Backspace asks the episode loop for `env.reset()` (initializers
     included) instead of resetting the scene under it."""
     from ..viewer import SimulateViewer  # needs a display: imported only when viewing
@@ -68,7 +65,7 @@ def view(
             raise unknown_name("observation", str(name), task.observation_space.spaces, "plots")
     box = task.action_space
     idle = ((box.low + box.high) / 2).astype(box.dtype)
-    act = policy if policy is not None else (lambda obs: idle)
+    act: Policy = policy if policy is not None else (lambda obs: idle)
 
     state: dict[str, Any] = {"reward": np.zeros(1), "action": idle.astype(float)}
     obs, _ = env.reset(seed=seed)
