@@ -257,6 +257,7 @@ def test_observations_are_the_agents_own(env: TaskEnv) -> None:
 
 def test_divergence_ends_the_episode_without_nan(tmp_path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT here
+
     def blow_up(env: TaskEnv, rng: np.random.Generator) -> None:
         env.scene.data.qvel[:] = 1e12
 
@@ -326,7 +327,11 @@ def test_step_before_reset_and_after_close(env: TaskEnv) -> None:
             r"sensors\[1\]\.width",
         ),
         (lambda s: s.sensors.append(object()), ValueError, r"sensors\[1\] must be"),
-        (lambda s: s.sensors.append(BodyPoseSensor("ball")), ValueError, "'ball_pose'.*twice"),
+        (
+            lambda s: s.sensors.append(BodyPoseSensor("ball")),
+            ValueError,
+            r"'ball_pose'.*sensors\[0\] and TaskSpec\.sensors\[1\]",
+        ),
         (lambda s: setattr(s, "control_timestep", 0.003), ValueError, "whole number"),
         (lambda s: setattr(s, "time_limit", -1.0), ValueError, "time_limit"),
         (lambda s: setattr(s.arms[0], "home", [0.0] * 3), ValueError, r"arms\[0\]\.home"),
@@ -389,3 +394,20 @@ def test_one_step_episodes_repeat(env: TaskEnv) -> None:
         runs.append(env.step(act)[0]["panda_joint_pos"])
     np.testing.assert_array_equal(runs[0], runs[1])
     np.testing.assert_array_equal(runs[0], runs[2])
+
+
+class _Clock:
+    """A user sensor whose observation name clashes with the env's own `time`."""
+
+    def space(self, env):
+        from gymnasium import spaces
+
+        return {"time": spaces.Box(0, 1, (1,))}
+
+    def read(self, env):
+        return {"time": [0.0]}
+
+
+def test_a_sensor_cannot_take_the_envs_time() -> None:
+    with pytest.raises(ValueError, match=r"'time' is produced by both the env.*sensors\[1\]"):
+        make(sensors=[BodyPoseSensor("ball"), _Clock()])

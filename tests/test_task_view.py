@@ -105,3 +105,23 @@ def test_view_bad_input() -> None:
         view(gym.make("CartPole-v1"))
     env.close()
     assert mjkdl.task.TaskEnv is type(env.unwrapped)
+
+
+def test_gymnasiums_checker_with_its_render_modes(display: str) -> None:  # noqa: F811
+    out = run_script("""
+        import json, warnings
+        import gymnasium as gym
+        from gymnasium.utils.env_checker import check_env
+        import mjkdl.task
+
+        notes = {}
+        for env_id in ("mjkdl/PandaReach-v0", "mjkdl/PandaPickCube-v0"):
+            env = gym.make(env_id)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                check_env(env.unwrapped)  # also builds the env in rgb_array and human mode
+            notes[env_id] = [str(w.message) for w in caught if "infinity" not in str(w.message)]
+            env.close()
+        print(json.dumps(notes))
+    """)
+    assert out == {"mjkdl/PandaReach-v0": [], "mjkdl/PandaPickCube-v0": []}

@@ -217,21 +217,23 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         self._action = np.zeros(len(labels))
 
         model, data = scene.model, scene.data
-        for eff, arm in zip(self._effectors, spec.arms, strict=True):
-            where = f"TaskSpec.arms[{spec.arms.index(arm)}]"
-            self._readers.append(ArmReader(model, data, arm, eff.robot, eff.gripper, where))
+        sources: list[str] = []
+        for i, (eff, arm) in enumerate(zip(self._effectors, spec.arms, strict=True)):
+            sources.append(f"TaskSpec.arms[{i}]")
+            self._readers.append(ArmReader(model, data, arm, eff.robot, eff.gripper, sources[-1]))
         for i, sensor in enumerate(spec.sensors):
-            self._readers.append(self._reader(sensor, f"TaskSpec.sensors[{i}]"))
+            sources.append(f"TaskSpec.sensors[{i}]")
+            self._readers.append(self._reader(sensor, sources[-1]))
         boxes: dict[str, spaces.Space] = {}
-        owner: dict[str, int] = {}
-        for k, reader in enumerate(self._readers):
+        owner: dict[str, str] = {"time": "the env (seconds since reset)"}
+        for where, reader in zip(sources, self._readers, strict=True):
             for key, box in reader.spaces.items():
-                if key in boxes:
+                if key in owner:
                     raise SpecError(
-                        f"observation {key!r} is produced twice (sources {owner[key]} "
-                        f"and {k}); give the sensors distinct names"
+                        f"observation {key!r} is produced by both {owner[key]} and {where}; "
+                        "give the sensors distinct names"
                     )
-                boxes[key], owner[key] = box, k
+                boxes[key], owner[key] = box, where
         boxes["time"] = spaces.Box(0.0, np.inf, (1,), np.float64)
         self.observation_space = spaces.Dict(boxes, sort_keys=False)
         self._time = np.zeros(1)
