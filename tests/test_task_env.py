@@ -411,3 +411,37 @@ class _Clock:
 def test_a_sensor_cannot_take_the_envs_time() -> None:
     with pytest.raises(ValueError, match=r"'time' is produced by both the env.*sensors\[1\]"):
         make(sensors=[BodyPoseSensor("ball"), _Clock()])
+
+
+def test_two_arms_take_their_slices_of_the_action() -> None:
+    path = menagerie("franka_emika_panda")
+    scene = panda_scene([])
+    scene.robots.append(mjk.RobotSpec(path=path, prefix="r/", pos=[0.0, 1.0, 0.0]))
+    right = panda_arm("right")
+    right.prefix = "r/"
+    env = TaskEnv(TaskSpec(scene=scene, arms=[panda_arm("left"), right]))
+    assert env.action_space.shape == (14,)
+    assert env.action_labels[7:] == [f"right.{k}" for k in ("vx", "vy", "vz", "wx", "wy", "wz")] + [
+        "right.gripper"
+    ]
+    assert env.grippers["right"].actuator == "r/actuator8"
+    obs, _ = env.reset(seed=0)
+    start = {k: obs[f"{k}_tcp_pos"] for k in ("left", "right")}
+    act = np.zeros(14)
+    act[9] = 0.1  # right arm up at 0.1 m/s, the left one still; both hands open
+    for _ in range(5):
+        obs, *_ = env.step(act)
+    assert obs["right_tcp_pos"][2] - start["right"][2] == pytest.approx(0.05, abs=0.01)
+    assert np.linalg.norm(obs["left_tcp_pos"] - start["left"]) < 0.003
+    assert obs["left_gripper"][0] > 0.9 and obs["right_gripper"][0] > 0.9
+    act[6] = 1.0  # the left hand closes, the right one stays open
+    for _ in range(5):
+        obs, *_ = env.step(act)
+    assert obs["left_gripper"][0] < 0.1 and obs["right_gripper"][0] > 0.9
+    env.close()
+
+
+def test_render_without_a_mode_warns(env: TaskEnv) -> None:
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert env.render() is None

@@ -454,6 +454,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                     self._viewer.use_camera(self.scene.model.camera(self._render_camera).name)
                 self._stepper = self._viewer.step
             return None
+        gym.logger.warn(
+            "TaskEnv.render() without a render_mode does nothing; build the env with "
+            'render_mode="rgb_array" or "human"'
+        )
         return None
 
     # ------------------------------------------------------------------ lifecycle

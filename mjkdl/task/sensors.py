@@ -78,17 +78,13 @@ def _lookup(model: mujoco.MjModel, obj: mujoco.mjtObj, kind: str, name: str, whe
     return i
 
 
-def frame_id(model: mujoco.MjModel, name: str, where: str) -> tuple[mujoco.mjtObj, int]:
+def _frame_id(model: mujoco.MjModel, name: str, where: str) -> tuple[mujoco.mjtObj, int]:
     """A site, else a body, called `name`: (`mjOBJ_SITE` or `mjOBJ_XBODY`, id)."""
     site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) if name else -1
     if site >= 0:
         return mujoco.mjtObj.mjOBJ_SITE, site
-    try:
-        return mujoco.mjtObj.mjOBJ_XBODY, _lookup(
-            model, mujoco.mjtObj.mjOBJ_BODY, "site or body", name, where
-        )
-    except KeyError as err:
-        raise type(err)(str(err)) from None
+    body = _lookup(model, mujoco.mjtObj.mjOBJ_BODY, "site or body", name, where)
+    return mujoco.mjtObj.mjOBJ_XBODY, body
 
 
 def _frame_views(data: mujoco.MjData, kind: mujoco.mjtObj, i: int) -> tuple[np.ndarray, np.ndarray]:
@@ -144,24 +140,13 @@ class ArmReader(Reader):
         self._qadr = model.jnt_qposadr[jids].astype(np.intp)
         self._dadr = model.jnt_dofadr[jids].astype(np.intp)
 
+        # The TCP's reference frame; `robot` resolved these names when it was created.
         if tool.tcp_site:
-            ref = _lookup(
-                model,
-                mujoco.mjtObj.mjOBJ_SITE,
-                "site",
-                arm.prefix + tool.tcp_site,
-                f"{where}.tool.tcp_site",
-            )
             self._ref_kind = mujoco.mjtObj.mjOBJ_SITE
+            ref = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, arm.prefix + tool.tcp_site)
         else:
-            ref = _lookup(
-                model,
-                mujoco.mjtObj.mjOBJ_BODY,
-                "body",
-                arm.prefix + arm.tip_body,
-                f"{where}.tip_body",
-            )
             self._ref_kind = mujoco.mjtObj.mjOBJ_XBODY
+            ref = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, arm.prefix + arm.tip_body)
         self._ref = ref
         self._ref_pos, self._ref_mat = _frame_views(data, self._ref_kind, ref)
         self._off_pos = vector(tool.tcp_pos, 3, f"{where}.tool.tcp_pos")
@@ -175,7 +160,7 @@ class ArmReader(Reader):
         self._cross = np.empty(3)
         self._lin = np.empty(3)
         if arm.control_frame:
-            kind, cf = frame_id(model, arm.control_frame, f"{where}.control_frame")
+            kind, cf = _frame_id(model, arm.control_frame, f"{where}.control_frame")
             self._cf_mat: np.ndarray | None = _frame_views(data, kind, cf)[1].reshape(9)
         else:
             self._cf_mat = None
