@@ -168,7 +168,15 @@ class CartesianVelocityController:
             default = _vector(fallback, n, "max_joint_velocity")
         if np.any(default <= 0):
             raise SpecError(f"max_joint_velocity must be positive, got {fallback!r}")
-        model = np.asarray(self._robot.model.velocityLimit, dtype=float)[:n]
+        # The arm's entries, found by joint name: the model may hold more joints (a moving
+        # base, the tool's fingers) than the arm.
+        pin_model = self._robot.model
+        limits = np.asarray(pin_model.velocityLimit, dtype=float)
+        model = np.full(n, np.nan)
+        for i, name in enumerate(self._robot.joint_names):
+            joint = pin_model.getJointId(name)
+            if joint < pin_model.njoints:
+                model[i] = limits[pin_model.joints[joint].idx_v]
         usable = np.isfinite(model) & (model > 0)
         return np.where(usable, model, default)
 
