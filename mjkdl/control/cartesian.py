@@ -34,6 +34,8 @@ if TYPE_CHECKING:
 
 # DAQP treats bounds at or beyond this magnitude as absent.
 _INF = 1e30
+# Model velocity limits at or above this (rad/s or m/s) stand for "none".
+_NO_LIMIT = 1e6
 
 
 class SolveStatus(enum.Enum):
@@ -57,8 +59,8 @@ class CartesianVelocityController:
     * joint positions are never crossed: the velocity bounds shrink as a limit nears, so one
       period at the bound closes `limit_gain` of the remaining gap (the period taken as at
       least `limit_horizon`, so servos that lag their command do not overshoot);
-    * joint velocities: the model's (`robot.model.velocityLimit`) where finite and positive,
-      else `max_joint_velocity`;
+    * joint velocities: the model's (`robot.model.velocityLimit`) where positive and below
+      1e6 (Pinocchio marks "none" with inf or the largest double), else `max_joint_velocity`;
     * joint accelerations: the velocity changes by at most `max_joint_acceleration * dt`
       between solutions (None: unlimited), so a servo is never handed a step;
     * `avoid=[(body_a, body_b), ...]`: every collision geom of body_a's subtree stays at least
@@ -177,7 +179,8 @@ class CartesianVelocityController:
             joint = pin_model.getJointId(name)
             if joint < pin_model.njoints:
                 model[i] = limits[pin_model.joints[joint].idx_v]
-        usable = np.isfinite(model) & (model > 0)
+        # Pinocchio marks "no limit" with inf or the largest double.
+        usable = (model > 0) & (model < _NO_LIMIT)
         return np.where(usable, model, default)
 
     def _bind(self) -> None:
