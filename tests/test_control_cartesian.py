@@ -431,3 +431,17 @@ def test_collision_rows_are_the_distance_rate_mujoco_measures() -> None:
             robot.set_joint_pos(q0)
             rate = (np.array(after) - np.array(before)) / eps
             np.testing.assert_allclose(-ctrl._A[active] @ qd, rate, atol=1e-4 * np.abs(qd).max())
+
+
+def test_closed_scene_makes_the_controller_raise() -> None:
+    env = mjk.Env.build(panda_spec())
+    robot = panda_arm(env)
+    ctrl = mjk.CartesianVelocityController(robot)
+    env.close()
+    for call in (
+        lambda: ctrl.solve(np.zeros(6)),
+        lambda: ctrl.command(np.zeros(6)),
+        ctrl.frame_rotation,
+    ):
+        with pytest.raises(RuntimeError, match="closed"):
+            call()
