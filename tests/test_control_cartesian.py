@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import panda_arm, panda_spec
+from conftest import HOME, gripper_tool, panda_arm, panda_spec
 
 import mjkdl as mjk
 
@@ -445,3 +445,21 @@ def test_closed_scene_makes_the_controller_raise() -> None:
     ):
         with pytest.raises(RuntimeError, match="closed"):
             call()
+
+
+@pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name)
+def test_gen3_with_its_2f85_tracks_on_its_authored_servos(tutorial_scene, mode) -> None:
+    """The tutorial's Gen3 (TCP at the 2F-85's pinch site), on Menagerie's own actuators."""
+    env = tutorial_scene(mjk.Env)
+    robot = env.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+    env.on_reset = lambda ctx: robot.set_joint_pos(HOME, call_forward=False)
+    robot.ctrl_mode = mode
+    env.reset()
+    robot.update()
+    ctrl = mjk.CartesianVelocityController(robot)
+    start = robot.fk_frame()
+    drive(robot, ctrl, [0.0, 0.05, -0.03, 0.0, 0.0, 0.0], 2.0)
+    drive(robot, ctrl, np.zeros(6), SERVO_LAG)
+    end = robot.fk_frame()
+    np.testing.assert_allclose(end.translation - start.translation, [0, 0.1, -0.06], atol=0.005)
+    assert rotation_deg(start, end) < 2.0
