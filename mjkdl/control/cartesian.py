@@ -67,6 +67,12 @@ class CartesianVelocityController:
       `min_distance` from those of body_b's; once a pair is closer than `influence_distance`
       its approach speed is capped at `collision_gain * (d - min_distance)`.
 
+    The other terms: `damping` (λ in |qd|², m²/s² per rad²/s²) plus up to `singular_damping`
+    once the smallest singular value of J falls below `singular_threshold`; a posture task in
+    the null space of J pulling toward `posture` (default: the pose now) at `posture_gain`
+    (1/s). `influence_distance` defaults to `min_distance + 0.1`; `dt`, the period the bounds
+    are computed for, defaults to the scene's timestep. docs/control.md has the formulation.
+
     When the constraints cannot all hold (an infeasible QP), `solve` returns zero velocity,
     sets `last_status` and warns once; it never raises for that.
     """
