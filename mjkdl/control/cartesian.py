@@ -67,7 +67,7 @@ class CartesianVelocityController:
       `min_distance` from those of body_b's; once a pair is closer than `influence_distance`
       its approach speed is capped at `collision_gain * (d - min_distance)`.
 
-    The other terms: `damping` (λ in |qd|², m²/s² per rad²/s²) plus up to `singular_damping`
+    The other terms: `damping` (λ, the weight of |qd|²) plus up to `singular_damping`
     once the smallest singular value of J falls below `singular_threshold`; a posture task in
     the null space of J pulling toward `posture` (default: the pose now) at `posture_gain`
     (1/s). `influence_distance` defaults to `min_distance + 0.1`; `dt`, the period the bounds
