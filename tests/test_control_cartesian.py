@@ -9,6 +9,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import HOME, gripper_tool, panda_arm, panda_spec
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mjkdl as mjk
 
@@ -463,3 +465,31 @@ def test_gen3_with_its_2f85_tracks_on_its_authored_servos(tutorial_scene, mode) 
     end = robot.fk_frame()
     np.testing.assert_allclose(end.translation - start.translation, [0, 0.1, -0.06], atol=0.005)
     assert rotation_deg(start, end) < 2.0
+
+
+@pytest.fixture(scope="module")
+def panda_for_properties():
+    with mjk.Env.build(panda_spec()) as env:
+        yield panda_arm(env)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(
+    q=st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7),
+    twist=st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6),
+    dt=st.sampled_from([0.002, 0.02, 0.1]),
+)
+def test_any_state_and_twist_give_a_bounded_finite_answer(panda_for_properties, q, twist, dt):
+    """Anywhere in the joint box, for any twist: finite, within the velocity limits, and one
+    period (at least the limit horizon) at that velocity stays inside the position limits."""
+    robot = panda_for_properties
+    lower, upper = robot.joint_limits.T
+    robot.set_joint_pos(lower + np.array(q) * (upper - lower))
+    robot.update()
+    ctrl = mjk.CartesianVelocityController(robot, max_joint_acceleration=None)
+    qd = ctrl.solve(twist, dt=dt)
+    assert ctrl.last_status is mjk.SolveStatus.OPTIMAL
+    assert np.isfinite(qd).all()
+    assert np.all(np.abs(qd) <= ctrl.velocity_limits + 1e-9)
+    ahead = robot.jnt_pos_msr + qd * max(dt, 0.05)
+    assert np.all(ahead <= upper + 1e-12) and np.all(ahead >= lower - 1e-12)
