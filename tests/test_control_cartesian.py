@@ -8,7 +8,16 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import HOME, gripper_tool, panda_arm, panda_spec
+from conftest import (
+    HOME,
+    PANDA_HOME,
+    PANDA_TCP,
+    base_spec,
+    gripper_tool,
+    menagerie,
+    panda_arm,
+    panda_spec,
+)
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -493,3 +502,37 @@ def test_any_state_and_twist_give_a_bounded_finite_answer(panda_for_properties, 
     assert np.all(np.abs(qd) <= ctrl.velocity_limits + 1e-9)
     ahead = robot.jnt_pos_msr + qd * max(dt, 0.05)
     assert np.all(ahead <= upper + 1e-12) and np.all(ahead >= lower - 1e-12)
+
+
+def test_two_arms_driven_into_each_other_keep_the_margin() -> None:
+    """Each arm's controller avoids the other's hand; both hands are pushed together."""
+    arms = [
+        mjk.RobotSpec(path=menagerie("franka_emika_panda"), prefix=prefix, pos=[0.0, y, 0.0])
+        for prefix, y in (("a_", 0.3), ("b_", -0.3))
+    ]
+    with mjk.Env.build(base_spec(robots=arms)) as env:
+        robots, ctrls = {}, {}
+        for prefix in ("a_", "b_"):
+            robot = env.create_robot(
+                "link0", "hand", prefix=prefix, tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP)
+            )
+            robot.ctrl_mode = mjk.CtrlMode.POSITION
+            robots[prefix] = robot
+        env.on_reset = lambda ctx: [r.set_joint_pos(PANDA_HOME, False) for r in robots.values()]
+        env.reset()
+        for prefix, other in (("a_", "b_"), ("b_", "a_")):
+            robots[prefix].update()
+            ctrls[prefix] = mjk.CartesianVelocityController(
+                robots[prefix], avoid=[(f"{prefix}hand", f"{other}hand")], min_distance=0.06
+            )
+        model = env.model
+        hands = [subtree_geoms(model, env.body_id(f"{p}hand")) for p in ("a_", "b_")]
+        closest = np.inf
+        for _ in range(round(4.0 / env.timestep())):
+            for prefix, vy in (("a_", -0.1), ("b_", 0.1)):
+                robots[prefix].update()
+                ctrls[prefix].command([0.0, vy, 0.0, 0.0, 0.0, 0.0])
+            env.step()
+            env.forward()
+            closest = min(closest, hand_block_distance(env, *hands))
+        assert 0.06 - 5e-4 <= closest < 0.065

@@ -433,9 +433,11 @@ class CartesianVelocityController:
     def _collision_rows(self) -> None:
         """One velocity-damper row per geom pair closer than the influence distance.
 
-        d' = nᵀ (v_b - v_a) >= -k (d - d_min), i.e. nᵀ (J_a - J_b) qd <= k (d - d_min), with n
-        the unit vector from the nearest point on geom a to the one on geom b and J_a, J_b the
-        Jacobians of those points (only the robot's joints are decision variables).
+        d' = nᵀ (v_b - v_a) >= -k (d - d_min), with n the unit vector from the nearest point
+        on geom a to the one on geom b. The points move by the robot's joints (J_a qd, J_b qd:
+        the decision variables) and by everything else that moves them — another robot, a
+        turning torso, the fingers — at its measured speed (u_a, u_b), so the row reads
+        nᵀ (J_a - J_b) qd <= k (d - d_min) + nᵀ (u_b - u_a).
         """
         model, data, n = self._model, self._data, self._n
         A, bu, dist, ft = self._A, self._bu, self._dist, self._fromto
@@ -457,6 +459,10 @@ class CartesianVelocityController:
         for k, body in enumerate(self._moving):
             mujoco.mj_jac(model, data, jacp[k], jacr[k], data.xpos[body], body)
         jp, jr = jacp[:, :, self._dofs], jacr[:, :, self._dofs]
+        # Body velocities from every joint but the robot's own: what the QP cannot change.
+        qvel, own = data.qvel, data.qvel[self._dofs]
+        lin = jacp @ qvel - jp @ own
+        ang = jacr @ qvel - jr @ own
         d, pa, pb = dist[act], ft[act, :3], ft[act, 3:]
         normal = pb - pa
         length = np.sqrt(np.einsum("ij,ij->i", normal, normal))
@@ -470,6 +476,7 @@ class CartesianVelocityController:
         if inside.any():
             normal[inside] *= -1.0  # penetrating: the nearest points cross over
         row = np.zeros((len(act), n))
+        bound = self._collision_gain * (d - self._min_distance)
         for sign, slot, body, point in (
             (1.0, self._slot_a[act], self._body_a[act], pa),
             (-1.0, self._slot_b[act], self._body_b[act], pb),
@@ -478,8 +485,11 @@ class CartesianVelocityController:
             lever = _cross(point - data.xpos[body], normal)
             row += sign * np.matmul(normal[:, None, :], jp[slot])[:, 0]
             row += sign * np.matmul(lever[:, None, :], jr[slot])[:, 0]
+            bound -= sign * (
+                np.einsum("ij,ij->i", normal, lin[slot]) + np.einsum("ij,ij->i", lever, ang[slot])
+            )
         A[act] = row
-        bu[n + act] = self._collision_gain * (d - self._min_distance)
+        bu[n + act] = bound
 
     def _qp(self) -> tuple[np.ndarray, int]:
         if not self._ready:
