@@ -4,12 +4,14 @@ Every call solves, for the joint velocities qd of the arm,
 
     minimise   |J qd - v|² + λ(σ) |qd|² + w |N (qd - k (q_ref - q))|²
     subject to lb(q, dt) <= qd <= ub(q, dt)                 (position and velocity limits)
-               n_iᵀ (J_a,i - J_b,i) qd <= k_c (d_i - d_min)  (each close geom pair)
+               n_iᵀ (J_a,i - J_b,i) qd <= k_c (d_i - d_min) + n_iᵀ (u_b,i - u_a,i)
+                                                             (each close geom pair)
 
 with J the robot's world-aligned TCP Jacobian, v the twist rotated from the control frame into
 the world, λ a damping that grows as the smallest singular value of J falls (Levenberg-Marquardt
 style), N the projector onto the null space of J (the posture task cannot disturb the twist)
-and the last rows velocity dampers between geoms that should stay apart. DAQP solves it
+and the last rows velocity dampers between geoms that should stay apart (u: the points'
+measured velocity from joints that are not the robot's). DAQP solves it
 (see docs/control.md for the measurements behind that choice).
 """
 
