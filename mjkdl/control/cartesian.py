@@ -3,7 +3,7 @@
 Every call solves, for the joint velocities qd of the arm,
 
     minimise   |J qd - v|² + λ(σ) |qd|² + w |N (qd - k (q_ref - q))|²
-    subject to lb(q, dt) <= qd <= ub(q, dt)                 (position and velocity limits)
+    subject to lb <= qd <= ub       (position, velocity and acceleration limits, for period dt)
                n_iᵀ (J_a,i - J_b,i) qd <= k_c (d_i - d_min) + n_iᵀ (u_b,i - u_a,i)
                                                              (each close geom pair)
 
