@@ -536,3 +536,26 @@ def test_two_arms_driven_into_each_other_keep_the_margin() -> None:
             env.forward()
             closest = min(closest, hand_block_distance(env, *hands))
         assert 0.06 - 5e-4 <= closest < 0.065
+
+
+def test_acceleration_window_restarts_after_a_reset(panda_env) -> None:
+    robot = panda_arm(panda_env)
+    ctrl = mjk.CartesianVelocityController(robot)  # 10 rad/s² by default
+    step = 10.0 * panda_env.timestep()
+    twist = [0.3, 0.0, 0.0, 0.0, 0.0, 0.0]
+    first = ctrl.command(twist)
+    assert np.abs(first).max() == pytest.approx(step)  # from rest: one window
+    drive(robot, ctrl, twist, 0.2)
+    assert np.abs(ctrl.solve(twist)).max() > 20 * step  # up to speed
+    panda_env.reset()  # the clock goes back: taken for a reset
+    robot.update()
+    assert np.abs(ctrl.solve(twist)).max() == pytest.approx(step)
+    drive(robot, ctrl, twist, 0.2)
+    # A reset to the same time (a one-step episode) is not visible: reset() says so.
+    panda_env.data.qvel[:] = 0.0  # back at rest, at the same time
+    robot.set_joint_pos(PANDA_HOME)
+    robot.sync_commands()
+    robot.update()
+    assert np.abs(ctrl.solve(twist)).max() > 20 * step  # still the old episode's speed
+    ctrl.reset()
+    assert np.abs(ctrl.solve(twist)).max() == pytest.approx(step, rel=1e-6)

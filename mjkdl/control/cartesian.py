@@ -271,6 +271,16 @@ class CartesianVelocityController:
     def posture(self, value: Sequence[float]) -> None:
         self._posture = _vector(value, self._n, "posture")
 
+    def reset(self) -> None:
+        """Forget the previous solution: the next one starts from the measured velocities.
+
+        Call it after an episode reset (`Env.reset`, `set_joint_pos`): the acceleration bounds
+        start from the previous solution, which belongs to the old episode. A scene clock
+        that went backwards is taken for a reset too, but a reset to the same time is not.
+        """
+        self._last_time = math.inf
+        self._ready = False
+
     def solve(self, twist: Sequence[float], dt: float | None = None) -> np.ndarray:
         """Joint velocities for `twist` (6: linear then angular, along the control frame).
 
@@ -413,7 +423,7 @@ class CartesianVelocityController:
         those bounds win: the velocity is pinned to their end nearest to the last one.
         """
         time = self._robot.scene.time()
-        if time < self._last_time or self._last_time == math.inf:
+        if time < self._last_time:
             np.copyto(self._last, self._robot.jnt_vel_msr)  # first call, or after a reset
         self._last_time = time
         if self._amax == math.inf:
