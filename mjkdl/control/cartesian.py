@@ -226,6 +226,15 @@ class CartesianVelocityController:
         self._slot_a = np.array([slot.get(int(x), len(moving)) for x in bodies_a], dtype=int)
         self._slot_b = np.array([slot.get(int(x), len(moving)) for x in bodies_b], dtype=int)
         self._body_a, self._body_b = bodies_a, bodies_b
+        # Sides whose bodies are all welded to the world (a table) add nothing to a row.
+        self._sides = [
+            (sign, slots, bodies, points)
+            for sign, slots, bodies, points in (
+                (1.0, self._slot_a, bodies_a, slice(0, 3)),
+                (-1.0, self._slot_b, bodies_b, slice(3, 6)),
+            )
+            if np.any(slots < len(moving))
+        ]
         self._jacp = np.zeros((len(moving) + 1, 3, model.nv))
         self._jacr = np.zeros((len(moving) + 1, 3, model.nv))
         self._fromto = np.zeros((self._rows, 6))
@@ -489,10 +498,8 @@ class CartesianVelocityController:
             normal[inside] *= -1.0  # penetrating: the nearest points cross over
         row = np.zeros((len(act), n))
         bound = self._collision_gain * (d - self._min_distance)
-        for sign, slot, body, point in (
-            (1.0, self._slot_a[act], self._body_a[act], pa),
-            (-1.0, self._slot_b[act], self._body_b[act], pb),
-        ):
+        for sign, slots, bodies, points in self._sides:
+            slot, body, point = slots[act], bodies[act], ft[act, points]
             # A point p of a body moves with v + ω × (p - x): nᵀ J_p = nᵀ J_v + ((p - x) × n)ᵀ J_ω.
             lever = _cross(point - data.xpos[body], normal)
             row += sign * np.matmul(normal[:, None, :], jp[slot])[:, 0]
