@@ -22,6 +22,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import mjkdl as mjk
+from mjkdl.urdf import example_robot_data_path
 
 MODES = [mjk.CtrlMode.VELOCITY, mjk.CtrlMode.POSITION]
 # Menagerie's Panda position servos (kv/kp = 0.1 s) trail a ramp by 0.1 s: in POSITION mode
@@ -559,3 +560,23 @@ def test_acceleration_window_restarts_after_a_reset(panda_env) -> None:
     assert np.abs(ctrl.solve(twist)).max() > 20 * step  # still the old episode's speed
     ctrl.reset()
     assert np.abs(ctrl.solve(twist)).max() == pytest.approx(step, rel=1e-6)
+
+
+def test_six_joint_urdf_arm_has_no_posture_task_and_tracks() -> None:
+    """A UR5 from its URDF (motor actuators, VELOCITY mode): six joints, no null space."""
+    arm = mjk.RobotSpec(path=example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
+    with pytest.warns(UserWarning, match="dae"):
+        env = mjk.Env.build(base_spec(robots=[arm]))
+    with env:
+        robot = env.create_robot("base_link", "tool0")
+        start_q = [0.3, -1.2, 1.4, -1.5, -1.57, 0.2]
+        env.on_reset = lambda ctx: robot.set_joint_pos(start_q, call_forward=False)
+        robot.ctrl_mode = mjk.CtrlMode.VELOCITY
+        env.reset()
+        robot.update()
+        ctrl = mjk.CartesianVelocityController(robot)
+        start = robot.fk_frame()
+        drive(robot, ctrl, [0.0, 0.0, 0.05, 0.0, 0.0, 0.0], 1.0)
+        end = robot.fk_frame()
+        np.testing.assert_allclose(end.translation - start.translation, [0, 0, 0.05], atol=0.0025)
+        assert rotation_deg(start, end) < 2.0
