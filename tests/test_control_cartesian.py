@@ -580,3 +580,32 @@ def test_six_joint_urdf_arm_has_no_posture_task_and_tracks() -> None:
         end = robot.fk_frame()
         np.testing.assert_allclose(end.translation - start.translation, [0, 0, 0.05], atol=0.0025)
         assert rotation_deg(start, end) < 2.0
+
+
+def test_near_singular_pose_is_damped(panda_env) -> None:
+    """Arm straight up: the smallest singular value (0.04) is inside the damped zone (0.05)."""
+    robot = panda_arm(panda_env)
+    robot.set_joint_pos([0.0, 0.0, 0.0, -0.0698, 0.0, 0.0, 0.0])
+    robot.update()
+    jac = robot.jacobian()
+    _, sigma, vt = np.linalg.svd(jac)
+    assert sigma[5] < 0.05
+    weak = jac @ vt[5]  # the twist direction J can barely produce
+    weak *= 0.05 / np.linalg.norm(weak)
+    plain = mjk.CartesianVelocityController(
+        robot,
+        singular_damping=0.0,
+        damping=0.0,
+        max_joint_acceleration=None,
+        max_joint_velocity=100.0,
+    )
+    damped = mjk.CartesianVelocityController(
+        robot, max_joint_acceleration=None, max_joint_velocity=100.0
+    )
+    fast, calm = plain.solve(weak), damped.solve(weak)
+    assert np.abs(jac @ fast - weak).max() < 1e-9  # undamped: exact, at any speed
+    lam = 0.05 * (1 - (sigma[5] / 0.05) ** 2) + 1e-5
+    # Damped least squares along that direction: speed scaled by σ² / (σ² + λ).
+    ratio = sigma[5] ** 2 / (sigma[5] ** 2 + lam)
+    assert np.linalg.norm(calm) == pytest.approx(ratio * np.linalg.norm(fast), rel=1e-6)
+    assert np.linalg.norm(calm) < 0.5 * np.linalg.norm(fast)
