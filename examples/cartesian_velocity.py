@@ -7,9 +7,11 @@ position command of the Panda's own position servos. Nothing closes the loop on 
 position: the path is what the velocities add up to, as in dm_robotics_panda.
 
 The command itself follows the ideal path closely; the arm trails it by the servos' lag
-(Menagerie's gains: kv/kp = 0.1 s), which shows as the measured path error.
+(Menagerie's gains: kv/kp = 0.1 s), which shows as the measured path error. A wrist camera
+rides on the hand (`CameraSpec.attach_to`); `--camera wrist` watches through it.
 
     python examples/cartesian_velocity.py
+    python examples/cartesian_velocity.py --camera wrist
     python examples/cartesian_velocity.py --headless --duration 6.3
     python examples/cartesian_velocity.py --control-frame link0
 """
@@ -32,6 +34,18 @@ def options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--control-frame", default="", help='site or body the twist is expressed in ("": world)'
     )
+    parser.add_argument("--camera", default="task", choices=["task", "wrist"])
+
+
+def wrist_camera() -> mjk.CameraSpec:
+    """A camera on the hand, 8 cm off its axis, looking along the fingers."""
+    return mjk.CameraSpec(
+        name="wrist",
+        pos=[0.08, 0.0, 0.0],
+        euler=[180.0, 0.0, -90.0],
+        fovy=80.0,
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "hand"),
+    )
 
 
 def figure_eight(t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -43,7 +57,9 @@ def figure_eight(t: float) -> tuple[np.ndarray, np.ndarray]:
 
 def main() -> int:
     args = parse_args(__doc__.splitlines()[0], duration=2 * math.pi, extra=options)
-    with mjk.Env.build(panda_scene([panda()])) as env:
+    spec = panda_scene([panda()])
+    spec.cameras.append(wrist_camera())
+    with mjk.Env.build(spec) as env:
         robot = create_panda(env)
         env.reset()
         robot.update()
@@ -72,7 +88,8 @@ def main() -> int:
             ctrl.command(twist)
             statuses.add(ctrl.last_status.value)
 
-        run(env, follow, args, robot=robot, title="Cartesian velocity: figure eight")
+        title = "Cartesian velocity: figure eight"
+        run(env, follow, args, robot=robot, title=title, camera=args.camera)
         print(f"control frame: {args.control_frame or 'world'}")
         print(f"simulated: {env.time() - t0:.2f} s")
         print(f"max command path error: {worst['command']:.5f} m")

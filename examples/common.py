@@ -386,8 +386,3 @@ def create_panda(
 
     env.on_reset = place
     return robot
-
-
-def in_frame(frame: pin.SE3, point: np.ndarray) -> np.ndarray:
-    """`point` (world) expressed in `frame`."""
-    return frame.rotation.T @ (point - frame.translation)

@@ -8,9 +8,21 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import panda_arm, panda_spec
+from conftest import (
+    HOME,
+    PANDA_HOME,
+    PANDA_TCP,
+    base_spec,
+    gripper_tool,
+    menagerie,
+    panda_arm,
+    panda_spec,
+)
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mjkdl as mjk
+from mjkdl.urdf import example_robot_data_path
 
 MODES = [mjk.CtrlMode.VELOCITY, mjk.CtrlMode.POSITION]
 # Menagerie's Panda position servos (kv/kp = 0.1 s) trail a ramp by 0.1 s: in POSITION mode
@@ -431,3 +443,169 @@ def test_collision_rows_are_the_distance_rate_mujoco_measures() -> None:
             robot.set_joint_pos(q0)
             rate = (np.array(after) - np.array(before)) / eps
             np.testing.assert_allclose(-ctrl._A[active] @ qd, rate, atol=1e-4 * np.abs(qd).max())
+
+
+def test_closed_scene_makes_the_controller_raise() -> None:
+    env = mjk.Env.build(panda_spec())
+    robot = panda_arm(env)
+    ctrl = mjk.CartesianVelocityController(robot)
+    env.close()
+    for call in (
+        lambda: ctrl.solve(np.zeros(6)),
+        lambda: ctrl.command(np.zeros(6)),
+        ctrl.frame_rotation,
+    ):
+        with pytest.raises(RuntimeError, match="closed"):
+            call()
+
+
+@pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name)
+def test_gen3_with_its_2f85_tracks_on_its_authored_servos(tutorial_scene, mode) -> None:
+    """The tutorial's Gen3 (TCP at the 2F-85's pinch site), on Menagerie's own actuators."""
+    env = tutorial_scene(mjk.Env)
+    robot = env.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+    env.on_reset = lambda ctx: robot.set_joint_pos(HOME, call_forward=False)
+    robot.ctrl_mode = mode
+    env.reset()
+    robot.update()
+    ctrl = mjk.CartesianVelocityController(robot)
+    start = robot.fk_frame()
+    drive(robot, ctrl, [0.0, 0.05, -0.03, 0.0, 0.0, 0.0], 2.0)
+    drive(robot, ctrl, np.zeros(6), SERVO_LAG)
+    end = robot.fk_frame()
+    np.testing.assert_allclose(end.translation - start.translation, [0, 0.1, -0.06], atol=0.005)
+    assert rotation_deg(start, end) < 2.0
+
+
+@pytest.fixture(scope="module")
+def panda_for_properties():
+    with mjk.Env.build(panda_spec()) as env:
+        yield panda_arm(env)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(
+    q=st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7),
+    twist=st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6),
+    dt=st.sampled_from([0.002, 0.02, 0.1]),
+)
+def test_any_state_and_twist_give_a_bounded_finite_answer(panda_for_properties, q, twist, dt):
+    """Anywhere in the joint box, for any twist: finite, within the velocity limits, and one
+    period (at least the limit horizon) at that velocity stays inside the position limits."""
+    robot = panda_for_properties
+    lower, upper = robot.joint_limits.T
+    robot.set_joint_pos(lower + np.array(q) * (upper - lower))
+    robot.update()
+    ctrl = mjk.CartesianVelocityController(robot, max_joint_acceleration=None)
+    qd = ctrl.solve(twist, dt=dt)
+    assert ctrl.last_status is mjk.SolveStatus.OPTIMAL
+    assert np.isfinite(qd).all()
+    assert np.all(np.abs(qd) <= ctrl.velocity_limits + 1e-9)
+    ahead = robot.jnt_pos_msr + qd * max(dt, 0.05)
+    assert np.all(ahead <= upper + 1e-12) and np.all(ahead >= lower - 1e-12)
+
+
+def test_two_arms_driven_into_each_other_keep_the_margin() -> None:
+    """Each arm's controller avoids the other's hand; both hands are pushed together."""
+    arms = [
+        mjk.RobotSpec(path=menagerie("franka_emika_panda"), prefix=prefix, pos=[0.0, y, 0.0])
+        for prefix, y in (("a_", 0.3), ("b_", -0.3))
+    ]
+    with mjk.Env.build(base_spec(robots=arms)) as env:
+        robots, ctrls = {}, {}
+        for prefix in ("a_", "b_"):
+            robot = env.create_robot(
+                "link0", "hand", prefix=prefix, tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP)
+            )
+            robot.ctrl_mode = mjk.CtrlMode.POSITION
+            robots[prefix] = robot
+        env.on_reset = lambda ctx: [r.set_joint_pos(PANDA_HOME, False) for r in robots.values()]
+        env.reset()
+        for prefix, other in (("a_", "b_"), ("b_", "a_")):
+            robots[prefix].update()
+            ctrls[prefix] = mjk.CartesianVelocityController(
+                robots[prefix], avoid=[(f"{prefix}hand", f"{other}hand")], min_distance=0.06
+            )
+        model = env.model
+        hands = [subtree_geoms(model, env.body_id(f"{p}hand")) for p in ("a_", "b_")]
+        closest = np.inf
+        for _ in range(round(4.0 / env.timestep())):
+            for prefix, vy in (("a_", -0.1), ("b_", 0.1)):
+                robots[prefix].update()
+                ctrls[prefix].command([0.0, vy, 0.0, 0.0, 0.0, 0.0])
+            env.step()
+            env.forward()
+            closest = min(closest, hand_block_distance(env, *hands))
+        assert 0.06 - 5e-4 <= closest < 0.065
+
+
+def test_acceleration_window_restarts_after_a_reset(panda_env) -> None:
+    robot = panda_arm(panda_env)
+    ctrl = mjk.CartesianVelocityController(robot)  # 10 rad/s² by default
+    step = 10.0 * panda_env.timestep()
+    twist = [0.3, 0.0, 0.0, 0.0, 0.0, 0.0]
+    first = ctrl.command(twist)
+    assert np.abs(first).max() == pytest.approx(step)  # from rest: one window
+    drive(robot, ctrl, twist, 0.2)
+    assert np.abs(ctrl.solve(twist)).max() > 20 * step  # up to speed
+    panda_env.reset()  # the clock goes back: taken for a reset
+    robot.update()
+    assert np.abs(ctrl.solve(twist)).max() == pytest.approx(step)
+    drive(robot, ctrl, twist, 0.2)
+    # A reset to the same time (a one-step episode) is not visible: reset() says so.
+    panda_env.data.qvel[:] = 0.0  # back at rest, at the same time
+    robot.set_joint_pos(PANDA_HOME)
+    robot.sync_commands()
+    robot.update()
+    assert np.abs(ctrl.solve(twist)).max() > 20 * step  # still the old episode's speed
+    ctrl.reset()
+    assert np.abs(ctrl.solve(twist)).max() == pytest.approx(step, rel=1e-6)
+
+
+def test_six_joint_urdf_arm_has_no_posture_task_and_tracks() -> None:
+    """A UR5 from its URDF (motor actuators, VELOCITY mode): six joints, no null space."""
+    arm = mjk.RobotSpec(path=example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
+    with pytest.warns(UserWarning, match="dae"):
+        env = mjk.Env.build(base_spec(robots=[arm]))
+    with env:
+        robot = env.create_robot("base_link", "tool0")
+        start_q = [0.3, -1.2, 1.4, -1.5, -1.57, 0.2]
+        env.on_reset = lambda ctx: robot.set_joint_pos(start_q, call_forward=False)
+        robot.ctrl_mode = mjk.CtrlMode.VELOCITY
+        env.reset()
+        robot.update()
+        ctrl = mjk.CartesianVelocityController(robot)
+        start = robot.fk_frame()
+        drive(robot, ctrl, [0.0, 0.0, 0.05, 0.0, 0.0, 0.0], 1.0)
+        end = robot.fk_frame()
+        np.testing.assert_allclose(end.translation - start.translation, [0, 0, 0.05], atol=0.0025)
+        assert rotation_deg(start, end) < 2.0
+
+
+def test_near_singular_pose_is_damped(panda_env) -> None:
+    """Arm straight up: the smallest singular value (0.04) is inside the damped zone (0.05)."""
+    robot = panda_arm(panda_env)
+    robot.set_joint_pos([0.0, 0.0, 0.0, -0.0698, 0.0, 0.0, 0.0])
+    robot.update()
+    jac = robot.jacobian()
+    _, sigma, vt = np.linalg.svd(jac)
+    assert sigma[5] < 0.05
+    weak = jac @ vt[5]  # the twist direction J can barely produce
+    weak *= 0.05 / np.linalg.norm(weak)
+    plain = mjk.CartesianVelocityController(
+        robot,
+        singular_damping=0.0,
+        damping=0.0,
+        max_joint_acceleration=None,
+        max_joint_velocity=100.0,
+    )
+    damped = mjk.CartesianVelocityController(
+        robot, max_joint_acceleration=None, max_joint_velocity=100.0
+    )
+    fast, calm = plain.solve(weak), damped.solve(weak)
+    assert np.abs(jac @ fast - weak).max() < 1e-9  # undamped: exact, at any speed
+    lam = 0.05 * (1 - (sigma[5] / 0.05) ** 2) + 1e-5
+    # Damped least squares along that direction: speed scaled by σ² / (σ² + λ).
+    ratio = sigma[5] ** 2 / (sigma[5] ** 2 + lam)
+    assert np.linalg.norm(calm) == pytest.approx(ratio * np.linalg.norm(fast), rel=1e-6)
+    assert np.linalg.norm(calm) < 0.5 * np.linalg.norm(fast)

@@ -184,3 +184,13 @@ def test_bad_gripper_settings_are_named(tmp_path) -> None:
         pytest.raises(mjk.SpecError, match="actuator 'm' is not a position servo"),
     ):
         mjk.Gripper(env, "m", open=0, closed=1)
+
+
+def test_closed_scene_makes_the_gripper_raise() -> None:
+    env = mjk.Env.build(panda_spec())
+    hand = mjk.Gripper(env, "actuator8", open=255, closed=0)
+    env.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        hand.command(0.0)
+    with pytest.raises(RuntimeError, match="closed"):
+        hand.opening()

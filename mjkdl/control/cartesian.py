@@ -3,13 +3,15 @@
 Every call solves, for the joint velocities qd of the arm,
 
     minimise   |J qd - v|² + λ(σ) |qd|² + w |N (qd - k (q_ref - q))|²
-    subject to lb(q, dt) <= qd <= ub(q, dt)                 (position and velocity limits)
-               n_iᵀ (J_a,i - J_b,i) qd <= k_c (d_i - d_min)  (each close geom pair)
+    subject to lb <= qd <= ub       (position, velocity and acceleration limits, for period dt)
+               n_iᵀ (J_a,i - J_b,i) qd <= k_c (d_i - d_min) + n_iᵀ (u_b,i - u_a,i)
+                                                             (each close geom pair)
 
 with J the robot's world-aligned TCP Jacobian, v the twist rotated from the control frame into
 the world, λ a damping that grows as the smallest singular value of J falls (Levenberg-Marquardt
 style), N the projector onto the null space of J (the posture task cannot disturb the twist)
-and the last rows velocity dampers between geoms that should stay apart. DAQP solves it
+and the last rows velocity dampers between geoms that should stay apart (u: the points'
+measured velocity from joints that are not the robot's). DAQP solves it
 (see docs/control.md for the measurements behind that choice).
 """
 
@@ -34,6 +36,8 @@ if TYPE_CHECKING:
 
 # DAQP treats bounds at or beyond this magnitude as absent.
 _INF = 1e30
+# Model velocity limits at or above this (rad/s or m/s) stand for "none".
+_NO_LIMIT = 1e6
 
 
 class SolveStatus(enum.Enum):
@@ -57,13 +61,19 @@ class CartesianVelocityController:
     * joint positions are never crossed: the velocity bounds shrink as a limit nears, so one
       period at the bound closes `limit_gain` of the remaining gap (the period taken as at
       least `limit_horizon`, so servos that lag their command do not overshoot);
-    * joint velocities: the model's (`robot.model.velocityLimit`) where finite and positive,
-      else `max_joint_velocity`;
+    * joint velocities: the model's (`robot.model.velocityLimit`) where positive and below
+      1e6 (Pinocchio marks "none" with inf or the largest double), else `max_joint_velocity`;
     * joint accelerations: the velocity changes by at most `max_joint_acceleration * dt`
       between solutions (None: unlimited), so a servo is never handed a step;
     * `avoid=[(body_a, body_b), ...]`: every collision geom of body_a's subtree stays at least
       `min_distance` from those of body_b's; once a pair is closer than `influence_distance`
       its approach speed is capped at `collision_gain * (d - min_distance)`.
+
+    The other terms: `damping` (λ, the weight of |qd|²) plus up to `singular_damping`
+    once the smallest singular value of J falls below `singular_threshold`; a posture task in
+    the null space of J pulling toward `posture` (default: the pose now) at `posture_gain`
+    (1/s). `influence_distance` defaults to `min_distance + 0.1`; `dt`, the period the bounds
+    are computed for, defaults to the scene's timestep. docs/control.md has the formulation.
 
     When the constraints cannot all hold (an infeasible QP), `solve` returns zero velocity,
     sets `last_status` and warns once; it never raises for that.
@@ -168,8 +178,17 @@ class CartesianVelocityController:
             default = _vector(fallback, n, "max_joint_velocity")
         if np.any(default <= 0):
             raise SpecError(f"max_joint_velocity must be positive, got {fallback!r}")
-        model = np.asarray(self._robot.model.velocityLimit, dtype=float)[:n]
-        usable = np.isfinite(model) & (model > 0)
+        # The arm's entries, found by joint name: the model may hold more joints (a moving
+        # base, the tool's fingers) than the arm.
+        pin_model = self._robot.model
+        limits = np.asarray(pin_model.velocityLimit, dtype=float)
+        model = np.full(n, np.nan)
+        for i, name in enumerate(self._robot.joint_names):
+            joint = pin_model.getJointId(name)
+            if joint < pin_model.njoints:
+                model[i] = limits[pin_model.joints[joint].idx_v]
+        # Pinocchio marks "no limit" with inf or the largest double.
+        usable = (model > 0) & (model < _NO_LIMIT)
         return np.where(usable, model, default)
 
     def _bind(self) -> None:
@@ -207,6 +226,15 @@ class CartesianVelocityController:
         self._slot_a = np.array([slot.get(int(x), len(moving)) for x in bodies_a], dtype=int)
         self._slot_b = np.array([slot.get(int(x), len(moving)) for x in bodies_b], dtype=int)
         self._body_a, self._body_b = bodies_a, bodies_b
+        # Sides whose bodies are all welded to the world (a table) add nothing to a row.
+        self._sides = [
+            (sign, slots, bodies, points)
+            for sign, slots, bodies, points in (
+                (1.0, self._slot_a, bodies_a, slice(0, 3)),
+                (-1.0, self._slot_b, bodies_b, slice(3, 6)),
+            )
+            if np.any(slots < len(moving))
+        ]
         self._jacp = np.zeros((len(moving) + 1, 3, model.nv))
         self._jacr = np.zeros((len(moving) + 1, 3, model.nv))
         self._fromto = np.zeros((self._rows, 6))
@@ -251,6 +279,16 @@ class CartesianVelocityController:
     @posture.setter
     def posture(self, value: Sequence[float]) -> None:
         self._posture = _vector(value, self._n, "posture")
+
+    def reset(self) -> None:
+        """Forget the previous solution: the next one starts from the measured velocities.
+
+        Call it after an episode reset (`Env.reset`, `set_joint_pos`): the acceleration bounds
+        start from the previous solution, which belongs to the old episode. A scene clock
+        that went backwards is taken for a reset too, but a reset to the same time is not.
+        """
+        self._last_time = math.inf
+        self._ready = False
 
     def solve(self, twist: Sequence[float], dt: float | None = None) -> np.ndarray:
         """Joint velocities for `twist` (6: linear then angular, along the control frame).
@@ -394,7 +432,7 @@ class CartesianVelocityController:
         those bounds win: the velocity is pinned to their end nearest to the last one.
         """
         time = self._robot.scene.time()
-        if time < self._last_time or self._last_time == math.inf:
+        if time < self._last_time:
             np.copyto(self._last, self._robot.jnt_vel_msr)  # first call, or after a reset
         self._last_time = time
         if self._amax == math.inf:
@@ -416,9 +454,11 @@ class CartesianVelocityController:
     def _collision_rows(self) -> None:
         """One velocity-damper row per geom pair closer than the influence distance.
 
-        d' = nᵀ (v_b - v_a) >= -k (d - d_min), i.e. nᵀ (J_a - J_b) qd <= k (d - d_min), with n
-        the unit vector from the nearest point on geom a to the one on geom b and J_a, J_b the
-        Jacobians of those points (only the robot's joints are decision variables).
+        d' = nᵀ (v_b - v_a) >= -k (d - d_min), with n the unit vector from the nearest point
+        on geom a to the one on geom b. The points move by the robot's joints (J_a qd, J_b qd:
+        the decision variables) and by everything else that moves them — another robot, a
+        turning torso, the fingers — at its measured speed (u_a, u_b), so the row reads
+        nᵀ (J_a - J_b) qd <= k (d - d_min) + nᵀ (u_b - u_a).
         """
         model, data, n = self._model, self._data, self._n
         A, bu, dist, ft = self._A, self._bu, self._dist, self._fromto
@@ -440,6 +480,10 @@ class CartesianVelocityController:
         for k, body in enumerate(self._moving):
             mujoco.mj_jac(model, data, jacp[k], jacr[k], data.xpos[body], body)
         jp, jr = jacp[:, :, self._dofs], jacr[:, :, self._dofs]
+        # Body velocities from every joint but the robot's own: what the QP cannot change.
+        qvel, own = data.qvel, data.qvel[self._dofs]
+        lin = jacp @ qvel - jp @ own
+        ang = jacr @ qvel - jr @ own
         d, pa, pb = dist[act], ft[act, :3], ft[act, 3:]
         normal = pb - pa
         length = np.sqrt(np.einsum("ij,ij->i", normal, normal))
@@ -453,16 +497,18 @@ class CartesianVelocityController:
         if inside.any():
             normal[inside] *= -1.0  # penetrating: the nearest points cross over
         row = np.zeros((len(act), n))
-        for sign, slot, body, point in (
-            (1.0, self._slot_a[act], self._body_a[act], pa),
-            (-1.0, self._slot_b[act], self._body_b[act], pb),
-        ):
+        bound = self._collision_gain * (d - self._min_distance)
+        for sign, slots, bodies, points in self._sides:
+            slot, body, point = slots[act], bodies[act], ft[act, points]
             # A point p of a body moves with v + ω × (p - x): nᵀ J_p = nᵀ J_v + ((p - x) × n)ᵀ J_ω.
             lever = _cross(point - data.xpos[body], normal)
             row += sign * np.matmul(normal[:, None, :], jp[slot])[:, 0]
             row += sign * np.matmul(lever[:, None, :], jr[slot])[:, 0]
+            bound -= sign * (
+                np.einsum("ij,ij->i", normal, lin[slot]) + np.einsum("ij,ij->i", lever, ang[slot])
+            )
         A[act] = row
-        bu[n + act] = self._collision_gain * (d - self._min_distance)
+        bu[n + act] = bound
 
     def _qp(self) -> tuple[np.ndarray, int]:
         if not self._ready:
