@@ -188,7 +188,9 @@ def main() -> None:
     for name in ("seed settled", "gravcomp settled"):
         print(f"memory retained over 2000 steps, {name}: {_retained(cases[name][0].run)} bytes")
     held = cases["gravcomp settled"][0].scene.data.qpos[ARM]
-    print(f"largest joint drift of the gravity-compensated arm: {np.abs(held - HOME_Q).max():.2e} rad")
+    print(
+        f"largest joint drift of the gravity-compensated arm: {np.abs(held - HOME_Q).max():.2e} rad"
+    )
     for loop in [raw, raw_bare] + [c[0] for c in cases.values()]:
         loop.scene.close()
 

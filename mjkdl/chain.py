@@ -118,7 +118,10 @@ class Chain:
             return
         held = set(ancestors[ancestors.index(floating[0]) :])
         for e in range(m.neq):
-            if int(m.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_WELD), int(mujoco.mjtEq.mjEQ_CONNECT)):
+            if int(m.eq_type[e]) not in (
+                int(mujoco.mjtEq.mjEQ_WELD),
+                int(mujoco.mjtEq.mjEQ_CONNECT),
+            ):
                 continue
             if int(m.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
                 continue
@@ -140,7 +143,9 @@ class Chain:
         mocap = int(m.body_mocapid[b])
         if mocap >= 0:
             # MuJoCo places a mocap body at mocap_pos/mocap_quat in the world.
-            joint = self._add_pin_joint(pin.JointModelFreeFlyer(), 0, pin.SE3.Identity(), _frame_name(m, b))
+            joint = self._add_pin_joint(
+                pin.JointModelFreeFlyer(), 0, pin.SE3.Identity(), _frame_name(m, b)
+            )
             iq, iv = self.model.idx_qs[joint], self.model.idx_vs[joint]
             self.mocap.append((iq, iv, mocap))
             q_src.extend([-1] * 7)
@@ -242,7 +247,6 @@ class Chain:
         self.model.lowerPositionLimit, self.model.upperPositionLimit = lo, hi
         return jid
 
-
     def _add_site_frame(self, m: mujoco.MjModel, site: str) -> int:
         s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)
         if s < 0:
@@ -310,13 +314,24 @@ class Chain:
             if m.jnt_actfrclimited[j]:
                 limit[iv] = np.abs(m.jnt_actfrcrange[j]).max()
             for a in np.flatnonzero(
-                (m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT)) & (m.actuator_trnid[:, 0] == j)
+                (m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT))
+                & (m.actuator_trnid[:, 0] == j)
             ):
                 if m.actuator_forcelimited[a]:
                     force = np.abs(m.actuator_forcerange[a]).max() * abs(m.actuator_gear[a, 0])
                     limit[iv] = min(limit[iv], force)
         model.effortLimit = limit  # the same memory as upperEffortLimit
         model.lowerEffortLimit = -limit
+
+    def set_velocity_limits(self, limits: dict[str, float]) -> None:
+        """Joint velocity limits by MuJoCo joint name (MJCF has none; URDF files do)."""
+        model = self.model
+        limit = np.full(model.nv, np.inf)
+        for jid in range(1, model.njoints):
+            if model.nvs[jid] == 1 and model.names[jid] in limits:
+                limit[model.idx_vs[jid]] = limits[model.names[jid]]
+        model.velocityLimit = limit  # the same memory as upperVelocityLimit
+        model.lowerVelocityLimit = -limit
 
     def load_parameters(self, m: mujoco.MjModel) -> None:
         """(Re)load inertias, gravcomp, armature and gravity from `m` (run-time edits too).

@@ -152,9 +152,7 @@ class IKSolver:
         seed_hi = np.where(np.isfinite(hi), hi, np.pi)
         self._seeds = np.random.default_rng(seed).uniform(seed_lo, seed_hi, (max_restarts, nq))
 
-    def solve(
-        self, target: pin.SE3, q0: np.ndarray, q_rest: np.ndarray | None = None
-    ) -> IKResult:
+    def solve(self, target: pin.SE3, q0: np.ndarray, q_rest: np.ndarray | None = None) -> IKResult:
         """Joint positions within the limits that put the frame at `target`, seeded at `q0`.
 
         A `q0` outside the limits is first clipped into them. `q_rest`: the whole model's
@@ -172,8 +170,8 @@ class IKSolver:
             self._qfull[...] = q_rest
         try:
             q = np.array(q0, dtype=float)
-        except (TypeError, ValueError) as err:
-            raise SpecError(f"q0 must be a vector of numbers: {err}") from None
+        except (TypeError, ValueError) as error:
+            raise SpecError(f"q0 must be a vector of numbers: {error}") from None
         nq = len(self.lower)
         if q.shape != (nq,):
             raise SpecError(f"q0 must be a vector of length {nq}, got shape {q.shape}")

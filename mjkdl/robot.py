@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import copy
 import math
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -16,7 +18,7 @@ from .compile import euler_quat, vector
 from .errors import SpecError, unknown_name
 from .ik import IKResult, IKSolver
 from .scene import AuthoredActuators, Scene
-from .spec import CtrlMode, ForceTorqueSensorSpec, ToolFrameSpec
+from .spec import CtrlMode, ForceTorqueSensorSpec, SceneSpec, ToolFrameSpec
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # Default servo bandwidth for joints whose actuators are plain motors (URDF robots).
@@ -107,6 +109,7 @@ class Robot:
         chain = Chain(model, self._base_name, self._tip_name, tcp, self._tcp_offset)
         self._check_tool_body(model, chain)
         self._ft = {s.name: self._ft_ids(model, s) for s in self._tool.ft_sensors}
+        chain.set_velocity_limits(_urdf_velocity_limits(self._scene.spec))
         self._chain = chain
         self._model, self._data = model, data
         pm = chain.model
@@ -132,6 +135,8 @@ class Robot:
         # Measured ports are views of the model's q and v when the arm is contiguous in them
         # (the usual case), else gathered on every update.
         self._gather_ports = not (isinstance(self._arm_q, slice) and isinstance(self._arm_v, slice))
+        self._arm_q_idx = np.arange(pm.nq)[self._arm_q]  # index arrays for the gather path
+        self._arm_v_idx = np.arange(pm.nv)[self._arm_v]
         if self._gather_ports:
             self._pos_msr, self._vel_msr = np.zeros(n), np.zeros(n)
             self._g_arm = np.zeros(n)
@@ -141,9 +146,11 @@ class Robot:
         self._qsrc = None if chain.q_span is None else data.qpos[chain.q_span]
         self._vsrc = None if chain.v_span is None else data.qvel[chain.v_span]
         self._trq_src = _view(data.qfrc_actuator, self._dadr)
-        for name in ("_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd"):
-            old = getattr(self, name, None)
-            setattr(self, name, old if old is not None and old.shape == (n,) else np.zeros(n))
+        # Commands survive a rebind (a rebuild) when the chain keeps its length.
+        self._trq_msr: np.ndarray = self._kept("_trq_msr", n)
+        self._pos_cmd: np.ndarray = self._kept("_pos_cmd", n)
+        self._vel_cmd: np.ndarray = self._kept("_vel_cmd", n)
+        self._trq_cmd: np.ndarray = self._kept("_trq_cmd", n)
         self._ff = np.zeros(n)
         self._ctrl_buf = np.zeros(n)
         ports = ("_pos_msr", "_vel_msr", "_trq_msr", "_pos_cmd", "_vel_cmd", "_trq_cmd")
@@ -168,6 +175,11 @@ class Robot:
         self._motors = False  # TORQUE mode through contiguous actuators: the fast path
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
+            self._prepare()
+
+    def _kept(self, name: str, n: int) -> np.ndarray:
+        old = getattr(self, name, None)
+        return old if old is not None and old.shape == (n,) else np.zeros(n)
 
     def _prefixed(self, name: str) -> str:
         return self._prefix + name if name else ""
@@ -391,7 +403,9 @@ class Robot:
             )
         # v.v <= bound² holds when every entry is within bound (NaN compares false); only when
         # it does not is the exact, slower check needed: one BLAS call on the fast path.
-        if not value.dot(value) <= bound * bound:
+        with np.errstate(over="ignore", invalid="ignore"):
+            small = value.dot(value) <= bound * bound
+        if not small:
             if not np.isfinite(value).all():
                 raise SpecError(f"{name} must be finite, got {value!r}")
             if np.abs(value).max() > bound:
@@ -438,7 +452,7 @@ class Robot:
         self._pending = True
 
     def _after_reset(self) -> None:
-        """MuJoCo's data was reset: re-read the state and the model's dynamic parameters."""
+        """MuJoCo's data was reset: re-read the model's dynamic parameters and the state."""
         self.reload_inertias()
 
     def reload_inertias(self) -> None:
@@ -546,8 +560,12 @@ class Robot:
                     self._pending = False
                     self._ctrl[...] = self._trq_cmd
                 return
-            else:
-                self._prepare()
+            elif self._mode is not CtrlMode.TORQUE and self.gravity_feedforward:
+                # servos (actuated, else _control_error raised): _prepare, inlined
+                _gravity(self._pin, self._gdata, self._q)
+                if self._gc_model is not None or self._gather_ports:
+                    self._finish_gravity()
+                np.multiply(self._g_arm, self._ff_scale, out=self._ff)
         self._apply()
 
     def step(self) -> None:
@@ -561,7 +579,7 @@ class Robot:
         if self._gc_model is not None:
             self._gfull -= _gravity(self._gc_model, self._pdata, self._q)
         if self._gather_ports:
-            np.take(self._gfull, self._arm_v, out=self._g_arm)
+            np.take(self._gfull, self._arm_v_idx, out=self._g_arm)
 
     def _prepare(self) -> None:
         """What the mode adds to the commands at the measured state: gravity, once per update."""
@@ -640,8 +658,8 @@ class Robot:
         """The measured ports that are not plain views of MuJoCo's or Pinocchio's arrays."""
         d = self._data
         if self._gather_ports:
-            np.take(self._q, self._arm_q, out=self._pos_msr)
-            np.take(self._v, self._arm_v, out=self._vel_msr)
+            np.take(self._q, self._arm_q_idx, out=self._pos_msr)
+            np.take(self._v, self._arm_v_idx, out=self._vel_msr)
         if self._trq_src is not None:
             self._trq_msr[...] = self._trq_src
         else:
@@ -690,7 +708,10 @@ class Robot:
         Positions outside a joint's range are refused: MuJoCo would push the joint back.
         """
         q = self._vector(q, "set_joint_pos(q)")
-        lo, hi = self._pin.lowerPositionLimit[self._arm_q], self._pin.upperPositionLimit[self._arm_q]
+        lo, hi = (
+            self._pin.lowerPositionLimit[self._arm_q],
+            self._pin.upperPositionLimit[self._arm_q],
+        )
         outside = np.flatnonzero((q < lo) | (q > hi))
         if len(outside):
             i = int(outside[0])
@@ -889,6 +910,24 @@ def _tcp_offset(tool: ToolFrameSpec) -> pin.SE3 | None:
     if not np.any(pos) and np.array_equal(quat, [1.0, 0.0, 0.0, 0.0]):
         return None
     return pin.SE3(pin.Quaternion(*quat).matrix(), pos)
+
+
+def _urdf_velocity_limits(spec: SceneSpec) -> dict[str, float]:
+    """`<limit velocity>` of every URDF robot's joints, by compiled (prefixed) joint name."""
+    limits = {}
+    for robot in spec.robots:
+        path = Path(robot.path)
+        if path.suffix.lower() != ".urdf" or not path.is_file():
+            continue
+        for joint in ET.parse(path).iter("joint"):
+            limit = joint.find("limit")
+            try:
+                velocity = float(limit.get("velocity", "")) if limit is not None else math.nan
+            except ValueError:
+                continue
+            if velocity > 0:
+                limits[robot.prefix + joint.get("name", "")] = velocity
+    return limits
 
 
 def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:

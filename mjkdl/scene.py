@@ -32,7 +32,8 @@ class RobotHandle(Protocol):
     def _bind(self, model: mujoco.MjModel, data: mujoco.MjData) -> None: ...  # after a rebuild
     def _release(self, why: str = ...) -> None: ...  # the scene closes or drops the handle
     def sync_commands(self) -> None: ...
-    def _after_reset(self) -> None: ...
+    def _after_reset(self) -> None: ...  # re-read what the model and the reset changed
+    def _read_state(self) -> None: ...
 
 
 # The Robot class registers itself here, so this module never imports the robot layer above it.
@@ -398,11 +399,12 @@ class Env(Scene):
         finally:
             mujoco.mj_forward(self._model, self._data)
             for robot in self._robots:
+                robot._after_reset()  # the model's parameters may have been edited
                 robot.sync_commands()
             if self._robots:  # measured torques under the synced commands
                 mujoco.mj_forward(self._model, self._data)
                 for robot in self._robots:
-                    robot._after_reset()
+                    robot._read_state()
         name = model.key(key).name if key is not None else None
         return ResetInfo(float(self._data.time), key, name or None)
 

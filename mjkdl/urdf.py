@@ -26,7 +26,13 @@ READABLE_MESH_SUFFIXES = frozenset({".stl", ".obj", ".msh"})
 # MuJoCo's URDF reader defaults to strippath, fusestatic and discardvisual all true: that strips
 # the folders off mesh files, merges every fixed-joint link (tool0, ee_link, ...) into its parent
 # and deletes every visual geom. Override all three.
-_COMPILER_OVERRIDES = {"strippath": "false", "fusestatic": "false", "discardvisual": "false"}
+# URDF gives a link without <inertial> no mass; MuJoCo would derive one from its geoms.
+_COMPILER_OVERRIDES = {
+    "strippath": "false",
+    "fusestatic": "false",
+    "discardvisual": "false",
+    "inertiafromgeom": "false",
+}
 
 _ACTUATED_TYPES = frozenset({"revolute", "continuous", "prismatic"})
 _ERD_DISTRIBUTION = "example-robot-data"

@@ -202,3 +202,42 @@ def test_prismatic_and_revolute_chain():
         assert _within(res.q, lower, upper)
         pos, rot = _pose_errors(model, fid, res.q, target)
         assert pos <= TOL_POS and rot <= TOL_ROT
+
+
+def test_seed_past_a_limit_is_clipped_into_the_limits(gen3):
+    """MuJoCo's soft limits let a measured q pass a limit; IK must not answer from there."""
+    model, fid, lower, upper = gen3
+    q0 = HOME.copy()
+    q0[1] = upper[1] + 0.2  # joint 2 past its upper limit; the target is where q0 puts the TCP
+    res = IKSolver(model, fid, lower, upper, max_restarts=3).solve(_fk(model, fid, q0), q0)
+    assert _within(res.q, lower, upper)
+    pos, _ = _pose_errors(model, fid, res.q, _fk(model, fid, q0))
+    assert res.position_error == pytest.approx(pos, abs=1e-12)
+
+
+def test_target_must_be_finite(gen3):
+    model, fid, lower, upper = gen3
+    target = _fk(model, fid, HOME)
+    target.translation = np.array([np.nan, 0.0, 0.5])
+    with pytest.raises(ValueError, match="target must be finite"):
+        IKSolver(model, fid, lower, upper).solve(target, HOME)
+
+
+def test_arm_inside_a_larger_model(gen3):
+    """`joints`: solve for a run of joints, the others held where `q_rest` puts them."""
+    model, fid, lower, upper = gen3
+    arm = list(range(2, 8))  # joints 2-7; joint 1 stays at q_rest's value
+    solver = IKSolver(model, fid, lower[1:], upper[1:], joints=arm)
+    q_rest = HOME.copy()
+    q_rest[0] = 0.4
+    q_true = q_rest.copy()
+    q_true[1:] = _sample(lower[1:], upper[1:], 1, seed=4)[0]
+    res = solver.solve(_fk(model, fid, q_true), HOME[1:], q_rest)
+    assert res.success and res.q.shape == (6,)
+    full = q_rest.copy()
+    full[1:] = res.q
+    assert _pose_errors(model, fid, full, _fk(model, fid, q_true))[0] <= TOL_POS
+    with pytest.raises(ValueError, match="q_rest"):
+        solver.solve(_fk(model, fid, q_true), HOME[1:])
+    with pytest.raises(ValueError, match="consecutive"):
+        IKSolver(model, fid, lower[:2], upper[:2], joints=[1, 3])

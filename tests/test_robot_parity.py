@@ -113,7 +113,10 @@ def _randomize(case: Case, rng: np.random.Generator, moving: bool) -> None:
     d.qpos[:] = m.qpos0
     d.qvel[:] = 0.0
     for j in range(m.njnt):
-        if int(m.jnt_type[j]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        if int(m.jnt_type[j]) not in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
+        ):
             continue
         lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.pi, np.pi)
         d.qpos[m.jnt_qposadr[j]] = rng.uniform(lo, hi)
@@ -320,6 +323,40 @@ def _free_base_motion() -> Motion:
     )
 
 
+def _ball_mount_motion() -> Motion:
+    """The arm on a ball joint (anchor off the body origin) that sways under it."""
+    mount = mjk.SceneObject(name="ball", mjcf_path=str(ASSETS / "ball_mount.xml"), fixed=True)
+    scene, robot = _mounted_gen3(mount)
+    scene.data.qvel[:3] = [0.4, -0.3, 0.8]
+    return Motion(
+        Case(scene, robot, tcp_site="g_pinch"),
+        _toggle_fingers("g_fingers_actuator", 255.0),
+        ["g_right_driver_joint"],
+    )
+
+
+def _mocap_mount_motion() -> Motion:
+    """The arm on a mocap body that is moved and turned every step."""
+    arm = mjk.AttachmentSpec(
+        mjcf_path=menagerie("kinova_gen3"),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "mount"),
+    )
+    carrier = mjk.RobotSpec(path=str(ASSETS / "mocap_mount.xml"), attachments=[arm, gripper()])
+    with pytest.warns(UserWarning, match="pending keyframes"):  # Gen3's, attached in a robot
+        scene = mjk.Scene.build(base_spec(robots=[carrier]))
+    robot = scene.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+    robot.set_joint_pos(HOME_Q)
+    fingers = _toggle_fingers("g_fingers_actuator", 255.0)
+
+    def drive(scene: mjk.Scene, k: int) -> None:
+        fingers(scene, k)
+        angle = 0.004 * k
+        scene.data.mocap_pos[0] = [0.1 * np.sin(angle), 0.05 * k / MOTION_STEPS, 0.6]
+        scene.data.mocap_quat[0] = [np.cos(angle), 0.3 * np.sin(angle), 0.0, np.sin(angle)]
+
+    return Motion(Case(scene, robot, tcp_site="g_pinch"), drive, ["g_right_driver_joint"])
+
+
 def _rigid_tool_motion() -> Motion:
     """A rigid 1.5 kg tool, centre of mass off axis: its weight must join the last link."""
     tool = mjk.AttachmentSpec(
@@ -330,7 +367,9 @@ def _rigid_tool_motion() -> Motion:
     arm = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[tool])
     scene = mjk.Scene.build(base_spec(robots=[arm]))
     robot = scene.create_robot(
-        "base_link", "bracelet_link", tool=mjk.ToolFrameSpec(tool_body="bt_block", tcp_site="bt_tcp")
+        "base_link",
+        "bracelet_link",
+        tool=mjk.ToolFrameSpec(tool_body="bt_block", tcp_site="bt_tcp"),
     )
     robot.set_joint_pos(HOME_Q)
     return Motion(Case(scene, robot, tcp_site="bt_tcp"), lambda scene, k: None, [])
@@ -351,6 +390,8 @@ MOTIONS: dict[str, Callable[[], Motion]] = {
     "panda+hand": _panda_motion,
     "gen3+2f85 on hinge torso": _torso_motion,
     "gen3+2f85 on free base": _free_base_motion,
+    "gen3+2f85 on ball joint": _ball_mount_motion,
+    "gen3+2f85 on mocap body": _mocap_mount_motion,
     "gen3+rigid 1.5 kg tool": _rigid_tool_motion,
     "gen3+2f85 gravity_z=-3.7": lambda: _gen3_motion(gravity_z=-3.7),
     "gravcomp arm": _gravcomp_motion,

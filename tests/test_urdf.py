@@ -357,3 +357,15 @@ def test_attach_two_pandas_to_sites() -> None:
     assert model.equality(1).name == "right_panda_finger_joint2"
     assert _joint_range(model, "right_panda_joint4") == [-3.0718, -0.0698]
     assert model.body_pos[model.body("left_panda_link0").id].tolist() == [0, 0.5, 0]
+
+
+def test_link_without_inertial_has_no_mass(tmp_path) -> None:
+    """URDF: a link with geometry but no <inertial> has no mass (not one from its geoms)."""
+    box = '<collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision>'
+    flange = (
+        f'<link name="flange">{box}</link>'
+        '<joint name="mount" type="fixed"><parent link="arm"/><child link="flange"/></joint>'
+    )
+    model = load_urdf(_write_urdf(tmp_path / "tiny.urdf", box, flange)).compile()
+    assert model.body("flange").mass[0] == 0.0
+    assert model.body("arm").mass[0] == 1.0  # the authored <inertial>, the box not added
