@@ -445,3 +445,25 @@ def test_render_without_a_mode_warns(env: TaskEnv) -> None:
     env.reset(seed=0)
     with pytest.warns(UserWarning, match="render_mode"):
         assert env.render() is None
+
+
+def test_a_scene_that_raises_on_divergence_ends_the_episode(env: TaskEnv, monkeypatch) -> None:
+    # The scene layer may raise mjk.SimulationError from Scene.step instead of letting MuJoCo
+    # reset the state: the env reports it the same way.
+    class SimulationError(RuntimeError):
+        pass
+
+    def diverge(n: int = 1) -> None:
+        raise SimulationError("the simulation failed by t = 0.05 s: NaN in QACC")
+
+    monkeypatch.setattr("mjkdl.task.env._SimulationError", (SimulationError,))
+    first, _ = env.reset(seed=0)
+    monkeypatch.setattr(env.scene, "step", diverge)
+    obs, reward, terminated, truncated, info = env.step(np.zeros(7))
+    assert terminated and info == {
+        "diverged": True,
+        "error": "the simulation failed by t = 0.05 s: NaN in QACC",
+    }
+    np.testing.assert_array_equal(obs["panda_tcp_pos"], first["panda_tcp_pos"])
+    with pytest.raises(RuntimeError, match="NaN in QACC.*reset"):
+        env.step(np.zeros(7))
