@@ -71,11 +71,11 @@ def spec() -> task.TaskSpec:
             task.CameraSensor("wrist_camera", width=64, height=64, depth=True, name="wrist_cam"),
             task.BodyPoseSensor("ball", name="goal"),
         ],
-        initializers=[
-            task.PropPlacer(names, low=[0.3, -0.4, 0.06], high=[0.7, 0.4, 0.06]),
+        initializers=[  # the arm first, then the props around where it stands
             task.PoseInitializer(
                 "panda", low=[0.3, -0.3, 0.3, 165, -15, -120], high=[0.6, 0.3, 0.6, 195, 15, -60]
             ),
+            task.PropPlacer(names, low=[0.3, -0.4, 0.06], high=[0.7, 0.4, 0.06]),
         ],
         reward=task.ReachReward("panda_tcp_pos", "goal_pose"),
     )

@@ -216,7 +216,27 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         )
         self._action = np.zeros(len(labels))
 
+        if not isinstance(render_camera, str):
+            raise SpecError(f"render_camera must be a camera name, got {render_camera!r}")
+        self._render_camera_name = render_camera
+        self._render_size = (render_width, render_height)
+        self.observation_space = self._bind()
+        if self.render_mode == "rgb_array":
+            self._renderer(render_width, render_height)  # size errors now, not at render()
+        self._steps = 0
+        self._needs_reset = True
+        self._diverged: str | None = None
+
+    def _bind(self) -> spaces.Dict:
+        """Observation sources and the render camera on the scene's current model; the
+        observation space they make. Run again when the scene was rebuilt
+        (`scene.add_object`), since MuJoCo's arrays are new then."""
+        spec, scene = self.task_spec, self.scene
+        for r in self._renderers.values():
+            r.close()
+        self._readers, self._renderers = [], {}
         model, data = scene.model, scene.data
+        self._model = model
         sources: list[str] = []
         for i, (eff, arm) in enumerate(zip(self._effectors, spec.arms, strict=True)):
             sources.append(f"TaskSpec.arms[{i}]")
@@ -235,25 +255,26 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                     )
                 boxes[key], owner[key] = box, where
         boxes["time"] = spaces.Box(0.0, np.inf, (1,), np.float64)
-        self.observation_space = spaces.Dict(boxes, sort_keys=False)
         self._time = np.zeros(1)
         self._buffers = [(k, b) for r in self._readers for k, b in r.buffers.items()]
         self._buffers.append(("time", self._time))
-
-        if not isinstance(render_camera, str):
-            raise SpecError(f"render_camera must be a camera name, got {render_camera!r}")
         self._render_camera: int | mujoco.MjvCamera
-        if render_camera:
-            self._render_camera = self._camera_id(render_camera, "render_camera")
+        if self._render_camera_name:
+            self._render_camera = self._camera_id(self._render_camera_name, "render_camera")
         else:
             self._render_camera = mujoco.MjvCamera()
             mujoco.mjv_defaultFreeCamera(model, self._render_camera)
-        self._render_size = (render_width, render_height)
-        if self.render_mode == "rgb_array":
-            self._renderer(render_width, render_height)  # size errors now, not at render()
-        self._steps = 0
-        self._needs_reset = True
-        self._diverged: str | None = None
+        return spaces.Dict(boxes, sort_keys=False)
+
+    def _follow_rebuild(self) -> None:
+        """Rebind to a rebuilt scene; its observations must keep their names and shapes."""
+        new, old = self._bind().spaces, self.observation_space.spaces
+        changed = sorted(k for k in new.keys() | old.keys() if new.get(k) != old.get(k))
+        if changed:
+            raise SpecError(
+                f"the scene was rebuilt and observations {changed} changed their space; "
+                "build a new TaskEnv for the new scene"
+            )
 
     def _add_arm(self, arm: ArmSpec, where: str, start: int) -> _Effector:
         scene = self.scene
@@ -325,6 +346,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             raise SpecError(f"reset(options=...): TaskEnv takes no options, got {dict(options)}")
         super().reset(seed=seed)
         scene = self.scene
+        if scene.model is not self._model:
+            self._follow_rebuild()
         scene.reset()
         for eff in self._effectors:
             eff.new_episode()
@@ -352,6 +375,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if self._diverged is not None:
             raise RuntimeError(f"the simulation diverged ({self._diverged}); call reset()")
         a = self._checked_action(action)
+        if self.scene.model is not self._model:
+            self._follow_rebuild()
         for eff in self._effectors:
             eff.apply(a, self._period)
         why = self._advance()
@@ -473,8 +498,6 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
     def close(self) -> None:
         """Release renderers, the viewer and the scene; later calls raise RuntimeError."""
-        for reader in self._readers:
-            reader.close()
         self._readers = []
         for r in self._renderers.values():
             r.close()

@@ -59,11 +59,11 @@ def panda_reach_spec() -> TaskSpec:
         scene=panda_scene([ball]),
         arms=[panda_arm()],
         sensors=[BodyPoseSensor("ball", name="goal")],
-        initializers=[
-            PropPlacer(["ball"], low=[0.35, -0.3, z], high=[0.65, 0.3, z]),
+        initializers=[  # the arm first: the ball is then placed clear of it
             PoseInitializer(
                 "panda", low=[0.3, -0.2, 0.3, 165, -15, -105], high=[0.6, 0.2, 0.6, 195, 15, -75]
             ),
+            PropPlacer(["ball"], low=[0.35, -0.3, z], high=[0.65, 0.3, z]),
         ],
         reward=ReachReward("panda_tcp_pos", "goal_pose"),
     )

@@ -8,6 +8,7 @@ torques, F/T wrenches) those MuJoCo applied over the last physics step (see `Tas
 
 from __future__ import annotations
 
+import abc
 import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
@@ -44,18 +45,16 @@ class Sensor(Protocol):
     def read(self, env: TaskEnv) -> Mapping[str, ArrayLike]: ...
 
 
-class Reader:
+class Reader(abc.ABC):
     """A bound observation source: `spaces` by name, `read()` fills `buffers` in place."""
 
     def __init__(self, boxes: dict[str, spaces.Box]) -> None:
         self.spaces = boxes
         self.buffers = {k: np.zeros(b.shape, dtype=b.dtype) for k, b in boxes.items()}
 
+    @abc.abstractmethod
     def read(self) -> None:
-        raise NotImplementedError
-
-    def close(self) -> None:
-        """Release native resources (renderers); the default holds none."""
+        """Copy the current values into `buffers`."""
 
 
 def _box(shape: tuple[int, ...], low: float = -_INF, high: float = _INF, dtype=np.float64):

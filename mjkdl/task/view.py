@@ -8,7 +8,7 @@ keys (F8-F12) are listed in `SimulateViewer`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -16,8 +16,7 @@ import numpy as np
 
 from ..errors import SpecError, unknown_name
 from .env import TaskEnv
-
-Policy = Callable[[Mapping[str, np.ndarray]], Any]
+from .rollout import Policy
 
 
 def _task_viewer(env: TaskEnv, title: str) -> Any:
