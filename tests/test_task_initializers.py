@@ -202,8 +202,7 @@ def test_physics_randomizer_unknown_body() -> None:
 
 
 def test_randomized_arm_masses_reach_the_pinocchio_model() -> None:
-    env = env_with(PhysicsRandomizer(["link6", "link7", "hand"], mass_scale=(1.5, 2.0)),
-                   objects=[])
+    env = env_with(PhysicsRandomizer(["link6", "link7", "hand"], mass_scale=(1.5, 2.0)), objects=[])
     robot = env.robots["panda"]
     data = env.scene.data
     nominal = robot.gravity_torques().copy()  # before any reset: the authored masses
@@ -212,7 +211,22 @@ def test_randomized_arm_masses_reach_the_pinocchio_model() -> None:
         mujoco.mj_forward(env.scene.model, data)
         robot.update()
         # At rest MuJoCo's bias force is gravity alone: Pinocchio must agree with the new masses.
-        np.testing.assert_allclose(robot.gravity_torques(), data.qfrc_bias[:7], rtol=1e-8,
-                                   atol=1e-9)
+        np.testing.assert_allclose(
+            robot.gravity_torques(), data.qfrc_bias[:7], rtol=1e-8, atol=1e-9
+        )
         assert np.abs(robot.gravity_torques() - nominal).max() > 0.05
+    env.close()
+
+
+def test_a_failed_reset_leaves_no_episode_to_step() -> None:
+    env = env_with(objects=[])
+    env.reset(seed=0)
+    env.step(np.zeros(7))
+    env.task_spec.initializers = [
+        PoseInitializer("panda", [3, 0, 0, 0, 0, 0], [3, 0, 0, 0, 0, 0], max_tries=1)
+    ]
+    with pytest.raises(ValueError, match="PoseInitializer"):
+        env.reset(seed=1)
+    with pytest.raises(RuntimeError, match="before reset"):
+        env.step(np.zeros(7))
     env.close()

@@ -58,7 +58,6 @@ class _Effector:
         n = 6 if controller is not None else robot.n_joints
         self.slice = slice(start, start + n)
         self.grip_index = start + n if gripper is not None else -1
-        self.stop = start + n + (gripper is not None)
         self.home = None if arm.home is None else np.asarray(arm.home, dtype=float)
 
     def new_episode(self) -> None:
@@ -89,7 +88,11 @@ class _Effector:
 
 
 class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
-    """A task as a Gymnasium environment (see `TaskSpec`).
+    """A task as a Gymnasium environment (see `TaskSpec`; the env keeps a deep copy of it).
+
+    `.scene` is the `mjk.Env` that owns MuJoCo's model and data, `.robots[name]` and
+    `.grippers[name]` the arms' handles, `.task_spec` the description, `.action_labels` one
+    name per action entry (`"panda.vx"`, ..., `"panda.gripper"`).
 
     The action concatenates, per arm in order, a twist `[vx, vy, vz, wx, wy, wz]` of the TCP
     along the control frame (Cartesian velocity) or one value per joint (joint modes), then
@@ -345,6 +348,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if options:
             raise SpecError(f"reset(options=...): TaskEnv takes no options, got {dict(options)}")
         super().reset(seed=seed)
+        self._needs_reset = True  # until this reset completes (an initializer may raise)
         scene = self.scene
         if scene.model is not self._model:
             self._follow_rebuild()
