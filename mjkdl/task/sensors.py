@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import abc
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import mujoco
@@ -249,7 +249,7 @@ class CameraReader(Reader):
         model: mujoco.MjModel,
         data: mujoco.MjData,
         s: CameraSensor,
-        renderer,
+        renderer: Callable[[int, int], mujoco.Renderer],
         where: str,
     ) -> None:
         cam = _lookup(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", s.camera, f"{where}.camera")
@@ -280,12 +280,11 @@ class CameraReader(Reader):
         flags[mujoco.mjtRndFlag.mjRND_SHADOW], flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
             self._flags
         )
-        if self._depth is not None:
+        r.update_scene(self._data, camera=self._cam)
+        if self._depth is not None:  # the same scene, read as depth, then as colour
             r.enable_depth_rendering()
-            r.update_scene(self._data, camera=self._cam)
             r.render(out=self._depth)
             r.disable_depth_rendering()
-        r.update_scene(self._data, camera=self._cam)
         r.render(out=self._rgb)
 
 
