@@ -2,7 +2,8 @@
 
 One control step is 0.1 s of simulation: 50 physics steps of 2 ms. Compared in one process,
 interleaved in blocks of `STEPS` control steps (each block starts from a fresh reset, untimed):
-(a) raw MuJoCo: `mj_step(m, d, 50)` on the same compiled model, the arm held by its servos;
+(a) raw MuJoCo: `mj_step(m, d, 50)` on the same compiled model from the state the env's
+    episode starts in (arm pose, ball), the arm held there by its authored servos;
 (b) `env.step(action)`: the action checked and clipped, the Cartesian QP solved, 50 physics
     steps, a forward pass, every observation read and copied, the reward;
 (c) the same with a 128x128 RGB camera observation (and with depth as well), shadows and
@@ -30,24 +31,28 @@ import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when
 
 import mjkdl as mjk
 from mjkdl.task import CameraSensor, TaskEnv  # importing mjkdl.task registers the tasks
-from mjkdl.task.registry import PANDA_HOME, panda_reach_spec
+from mjkdl.task.registry import panda_reach_spec
 
 STEPS = 20  # control steps per block (2 s of simulation)
 CAMERA_STEPS = 5
 DM_ROBOTICS_PANDA = 209.0  # control steps/s, from the issue
 
 
-def raw_loop() -> tuple[Callable[[], None], Callable[[int], None], mjk.Scene]:
-    """The scene of PandaReach-v0, stepped by MuJoCo alone with the authored servos holding
-    the arm at home (ctrl = home, the hand open)."""
+def raw_loop(
+    template: TaskEnv, seed: int = 0
+) -> tuple[Callable[[], None], Callable[[int], None], mjk.Scene]:
+    """The scene of PandaReach-v0 stepped by MuJoCo alone, from the state `template` starts
+    its episode of `seed` in (the arm's pose, the ball's place), the authored servos holding
+    the arm there and the hand opening: the physics `env.step` runs, without the env."""
     scene = mjk.Scene.build(panda_reach_spec().scene)
     m, d = scene.model, scene.data
     substeps = round(0.1 / m.opt.timestep)
 
     def reset() -> None:
+        template.reset(seed=seed)
         mujoco.mj_resetData(m, d)
-        d.qpos[:7] = PANDA_HOME
-        d.ctrl[:7] = PANDA_HOME
+        d.qpos[:] = template.scene.data.qpos
+        d.ctrl[:7] = d.qpos[:7]
         d.ctrl[7] = 255.0
         mujoco.mj_forward(m, d)
 
@@ -136,9 +141,9 @@ def main() -> None:
     )
     args = parser.parse_args()
 
-    raw_reset, raw_run, raw_scene = raw_loop()
-    raw = (raw_reset, raw_run)
     plain = TaskEnv(panda_reach_spec())
+    raw_reset, raw_run, raw_scene = raw_loop(TaskEnv(panda_reach_spec()))
+    raw = (raw_reset, raw_run)
     times, cpu = interleaved({"raw MuJoCo": raw, "env.step": env_loop(plain)}, args.blocks, STEPS)
     # Software OpenGL takes tens of ms per image: fewer, shorter blocks for the cameras.
     rgb, rgbd = camera_env(False), camera_env(True)
