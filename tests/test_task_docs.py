@@ -14,8 +14,9 @@ import mjkdl.task
 TASK_DOC = ROOT / "docs" / "task.md"
 
 
-def test_task_doc_blocks_run_and_print_what_they_say(monkeypatch) -> None:
+def test_task_doc_blocks_run_and_print_what_they_say(monkeypatch, tmp_path) -> None:
     menagerie("franka_emika_panda")
+    monkeypatch.chdir(tmp_path)  # the page writes episode.mp4 into the working folder
     viewed: list[tuple] = []
 
     # No display here: task.view records its call and runs a few steps headless instead.

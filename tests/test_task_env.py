@@ -490,3 +490,18 @@ def test_the_env_follows_a_rebuilt_scene(env: TaskEnv) -> None:
     env.scene.remove_object("ball")  # the ball_pose sensor's body
     with pytest.raises(KeyError, match=r"'ball' in TaskSpec\.sensors\[0\]\.body"):
         env.step(np.zeros(7))
+
+
+def test_an_episode_records_at_real_speed(env: TaskEnv, tmp_path) -> None:
+    import imageio_ffmpeg
+
+    path = tmp_path / "episode.mp4"
+    with mjk.VideoRecorder.open(env.scene, path, 160, 120, fps=1 / env.control_timestep) as rec:
+        rec.use_camera("front")
+        env.reset(seed=0)
+        rec.record_frame()
+        for _ in range(20):
+            env.step(np.array([0, 0.2, 0, 0, 0, 0, 0]))
+            rec.record_frame()
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(path))
+    assert frames == 21 and seconds == pytest.approx(2.1, abs=0.05)  # one frame per step
