@@ -6,7 +6,8 @@ arm's servos off and write MuJoCo's own bias forces into `qfrc_applied` between 
 
     seed            update(); jnt_trq_cmd = gravity_torques(); step()   (TORQUE)
     gravcomp        update(); step()   with robot.gravity_compensation = True
-    position        update(); jnt_pos_cmd = HOME; step()   (POSITION, gravity feed-forward)
+    position        update(); jnt_pos_cmd = HOME; step()   (POSITION, gravity feed-forward),
+                    against a raw loop with the same servos and qfrc_bias as feed-forward
     bare seed       the seed loop on a Gen3 without gripper
 
 each measured settled (after 3 s) and, for the gripper cases, over the first second after a
@@ -66,12 +67,24 @@ def _home(scene: mjk.Scene) -> None:
     mujoco.mj_forward(m, d)
 
 
-def raw_loop(gripper: bool = True) -> Loop:
-    """The hand-written MuJoCo loop; the arm's servos are switched off, the force holds it."""
+def raw_loop(gripper: bool = True, servos_of: mjk.Scene | None = None) -> Loop:
+    """The hand-written MuJoCo loop: MuJoCo's bias forces hold the arm.
+
+    Without `servos_of` the arm's servos are switched off and the force goes into
+    `qfrc_applied`; with it the arm's actuators get that scene's (POSITION mode) servo
+    parameters and the force goes into their controls as feed-forward, holding home.
+    """
     scene = mjk.Scene.build(_spec(gripper))
     m, d = scene.model, scene.data
-    m.actuator_gainprm[ARM] = 0.0
-    m.actuator_biasprm[ARM] = 0.0
+    if servos_of is None:
+        m.actuator_gainprm[ARM] = 0.0
+        m.actuator_biasprm[ARM] = 0.0
+    else:
+        src = servos_of.model
+        for field in ("gaintype", "biastype", "gainprm", "biasprm", "ctrllimited"):
+            getattr(m, f"actuator_{field}")[ARM] = getattr(src, f"actuator_{field}")[ARM]
+    # A servo's joint torque is gear * gain * (ctrl - q): feed-forward enters scaled.
+    scale = 1.0 / (m.actuator_gear[ARM, 0] * m.actuator_gainprm[ARM, 0]) if servos_of else None
     _home(scene)
 
     def run(n: int) -> None:
@@ -80,7 +93,13 @@ def raw_loop(gripper: bool = True) -> Loop:
             d.qfrc_applied[ARM] = d.qfrc_bias[ARM]
             mujoco.mj_step2(m, d)
 
-    return Loop(run, lambda: _home(scene), scene)
+    def run_servo(n: int) -> None:
+        for _ in range(n):
+            mujoco.mj_step1(m, d)
+            d.ctrl[ARM] = HOME_Q + d.qfrc_bias[ARM] * scale
+            mujoco.mj_step2(m, d)
+
+    return Loop(run if servos_of is None else run_servo, lambda: _home(scene), scene)
 
 
 def mjkdl_loop(kind: str, gripper: bool = True) -> Loop:
@@ -134,24 +153,34 @@ def _retained(run: Callable[[int], None]) -> int:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", help="run one loop only (a name printed below, or 'raw')")
+    parser.add_argument(
+        "--only", help="run one loop only: a case printed below, or 'raw gripper|bare|servos'"
+    )
     parser.add_argument("--steps", type=int, default=1000, help="steps for --only")
     args = parser.parse_args()
 
-    raw, raw_bare = raw_loop(), raw_loop(gripper=False)
-    # name -> (loop, its raw baseline, phase); a "first" phase restarts after a reset.
-    cases: dict[str, tuple[Loop, Loop, str]] = {
-        "seed settled": (mjkdl_loop("seed"), raw, "settled"),
-        "seed first second": (mjkdl_loop("seed"), raw, "first"),
-        "bare seed settled": (mjkdl_loop("seed", gripper=False), raw_bare, "settled"),
-        "position settled": (mjkdl_loop("position"), raw, "settled"),
-        "gravcomp settled": (mjkdl_loop("gravcomp"), raw, "settled"),
-        "gravcomp first second": (mjkdl_loop("gravcomp"), raw, "first"),
+    position = mjkdl_loop("position")
+    raws = {
+        "gripper": raw_loop(),
+        "bare": raw_loop(gripper=False),
+        "servos": raw_loop(servos_of=position.scene),
     }
-    for loop in [raw, raw_bare] + [c[0] for c in cases.values()]:
+    # name -> (loop, its raw baseline, phase); a "first" phase restarts after a reset.
+    cases: dict[str, tuple[Loop, str, str]] = {
+        "seed settled": (mjkdl_loop("seed"), "gripper", "settled"),
+        "seed first second": (mjkdl_loop("seed"), "gripper", "first"),
+        "bare seed settled": (mjkdl_loop("seed", gripper=False), "bare", "settled"),
+        "position settled": (position, "servos", "settled"),
+        "gravcomp settled": (mjkdl_loop("gravcomp"), "gripper", "settled"),
+        "gravcomp first second": (mjkdl_loop("gravcomp"), "gripper", "first"),
+    }
+    loops = list(raws.values()) + [c[0] for c in cases.values()]
+    for loop in loops:
         loop.run(WARMUP)
     if args.only:
-        (raw if args.only == "raw" else cases[args.only][0]).run(args.steps)
+        (raws[args.only[4:]] if args.only.startswith("raw ") else cases[args.only][0]).run(
+            args.steps
+        )
         return
 
     def timed(loop: Loop, phase: str) -> float:
@@ -164,18 +193,13 @@ def main() -> None:
 
     ratios: dict[str, list[float]] = {name: [] for name in cases}
     base: dict[tuple[str, str], list[float]] = {}
+    pairs = sorted({(key, phase) for _, key, phase in cases.values()})
     for _ in range(BLOCKS):
-        raws = {
-            (key, phase): timed(loop, phase)
-            for key, loop in (("gripper", raw), ("bare", raw_bare))
-            for phase in ("settled", "first")
-            if not (key == "bare" and phase == "first")
-        }
-        for k, t in raws.items():
+        block = {(key, phase): timed(raws[key], phase) for key, phase in pairs}
+        for k, t in block.items():
             base.setdefault(k, []).append(t)
-        for name, (loop, baseline, phase) in cases.items():
-            key = "bare" if baseline is raw_bare else "gripper"
-            ratios[name].append(timed(loop, phase) / raws[key, phase])
+        for name, (loop, key, phase) in cases.items():
+            ratios[name].append(timed(loop, phase) / block[key, phase])
 
     print(f"MuJoCo {mjk.mujoco_version()}, {BLOCKS} interleaved blocks")
     for (key, phase), t in base.items():
@@ -191,7 +215,7 @@ def main() -> None:
     print(
         f"largest joint drift of the gravity-compensated arm: {np.abs(held - HOME_Q).max():.2e} rad"
     )
-    for loop in [raw, raw_bare] + [c[0] for c in cases.values()]:
+    for loop in loops:
         loop.scene.close()
 
 

@@ -127,8 +127,10 @@ class Robot:
         self._dadr = chain.dof_adr
         self._arm_q, self._arm_v = chain.arm_q, chain.arm_v
         self._arm_only = self._arm_v == slice(0, pm.nv)  # no other joints in the model
-        self._q = np.zeros(pm.nq)  # the whole model's measured q and v
-        self._v = np.zeros(pm.nv)
+        # The whole model's measured q and v; kept over a rebuild of the same model, so views
+        # taken before (the measured ports) stay live.
+        self._q = self._kept("_q", pm.nq)
+        self._v = self._kept("_v", pm.nv)
         self._qx = np.zeros(pm.nq)  # scratch for calls at an explicit arm q
         self._vx = np.zeros(pm.nv)
         self._ax = np.zeros(pm.nv)
