@@ -338,6 +338,7 @@ def test_step_before_reset_and_after_close(env: TaskEnv) -> None:
         (lambda s: setattr(s.arms[0], "actuation", "cartesian"), ValueError, "Actuation"),
         (lambda s: s.arms.append(panda_arm()), ValueError, "unique"),
         (lambda s: setattr(s, "arms", []), ValueError, "non-empty"),
+        (lambda s: setattr(s, "sensors", BodyPoseSensor("ball")), ValueError, "sensors must be"),
     ],
 )
 def test_bad_specs_name_the_field(change, error, message) -> None:

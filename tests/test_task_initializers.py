@@ -165,6 +165,10 @@ def test_joint_initializer_draws_in_its_box() -> None:
     env.task_spec.initializers = [JointInitializer("panda", low[:3], high[:3])]
     with pytest.raises(ValueError, match=r"JointInitializer\('panda'\)\.low must have 7"):
         env.reset(seed=0)
+    high[3] = 0.5  # joint4's upper limit is -0.0698
+    env.task_spec.initializers = [JointInitializer("panda", low, high)]
+    with pytest.raises(ValueError, match="joint limits of joint4"):
+        env.reset(seed=0)
     env.close()
 
 

@@ -179,6 +179,11 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             fn = getattr(spec, field)
             if fn is not None and not callable(fn):
                 raise SpecError(f"TaskSpec.{field} must be callable or None, got {fn!r}")
+        for field in ("sensors", "initializers"):
+            if not isinstance(getattr(spec, field), (list, tuple)):
+                raise SpecError(
+                    f"TaskSpec.{field} must be a list, got {type(getattr(spec, field)).__name__}"
+                )
         for i, init in enumerate(spec.initializers):
             if not callable(init):
                 raise SpecError(f"TaskSpec.initializers[{i}] must be callable (env, rng)")

@@ -165,6 +165,11 @@ class JointInitializer:
         where = f"JointInitializer({self.arm!r})"
         robot = _robot(env, self.arm, where)
         lo, hi = _box(self.low, self.high, robot.n_joints, where)
+        limits = robot.joint_limits
+        outside = (lo < limits[:, 0]) | (hi > limits[:, 1])
+        if outside.any():
+            names = ", ".join(np.array(robot.joint_names)[outside])
+            raise SpecError(f"{where}: the box leaves the joint limits of {names}")
         robot.set_joint_pos(rng.uniform(lo, hi))
 
 
