@@ -58,9 +58,9 @@ def _limit_vector(name: str, value: np.ndarray, nq: int) -> np.ndarray:
 class IKSolver:
     """Damped, box-constrained Gauss–Newton IK for one frame of a Pinocchio model.
 
-    The solved joints are the model's (all 1-DoF) or the contiguous run `joints` of 1-DoF
-    joints (an arm inside a larger model); the others stay at the configuration `solve` is
-    given. An instance owns its work buffers: share it between threads only with a lock.
+    The solved joints are the model's (all 1-DoF) or the 1-DoF `joints` (an arm inside a
+    larger model); the others stay at the configuration `solve` is given. An instance owns its
+    work buffers: share it between threads only with a lock.
     """
 
     #: λ = DAMP_ERROR·|e|² + DAMP_FLOOR (Sugihara 2011), tuned on the Kinova Gen3.
@@ -87,7 +87,7 @@ class IKSolver:
 
         Unlimited joints take -inf/+inf.  `max_iters` bounds each attempt; `max_restarts` is
         the number of extra seeds (drawn from `seed`) tried after the caller's seed fails.
-        `joints`: the Pinocchio joint ids to solve for (default: all), consecutive 1-DoF ones.
+        `joints`: the Pinocchio joint ids (1-DoF, in model order) to solve for; default all.
         """
         if not isinstance(model, pin.Model):
             raise SpecError(f"model must be a pinocchio.Model, got {type(model).__name__}")
@@ -98,13 +98,15 @@ class IKSolver:
             or any(model.nqs[j] != 1 or model.nvs[j] != 1 for j in ids)
         ):
             raise SpecError("joints must be 1-DoF joints of the model (nq == nv == 1 each)")
-        iq, iv = model.idx_qs[ids[0]], model.idx_vs[ids[0]]
+        if len(set(ids)) != len(ids) or ids != sorted(ids):
+            raise SpecError("joints must be distinct and in the model's order")
         nq = len(ids)
-        if [model.idx_qs[j] for j in ids] != list(range(iq, iq + nq)) or [
-            model.idx_vs[j] for j in ids
-        ] != list(range(iv, iv + nq)):
-            raise SpecError("joints must be consecutive in the model's q and v")
-        self._q_slice, self._v_slice = slice(iq, iq + nq), slice(iv, iv + nq)
+        # Where the solved joints sit in q and v: slices when consecutive (no copies).
+        qs = [model.idx_qs[j] for j in ids]
+        vs = [model.idx_vs[j] for j in ids]
+        run = qs == list(range(qs[0], qs[0] + nq)) and vs == list(range(vs[0], vs[0] + nq))
+        self._q_at: slice | np.ndarray = slice(qs[0], qs[0] + nq) if run else np.array(qs)
+        self._v_at: slice | np.ndarray = slice(vs[0], vs[0] + nq) if run else np.array(vs)
         self._partial = nq != model.nq
         if not 0 <= frame_id < model.nframes:
             raise SpecError(f"frame_id {frame_id} out of range [0, {model.nframes})")
@@ -129,7 +131,7 @@ class IKSolver:
         # a view on pinocchio's buffer, so it is fetched once.
         support = model.supports[model.frames[self.frame_id].parentJoint][1:]
         mask = np.zeros((1, nq))
-        mask[0, [model.joints[j].idx_v - iv for j in support if j in ids]] = 1.0
+        mask[0, [ids.index(j) for j in support if j in ids]] = 1.0
         # The damped Hessian J'J + λI is computed as A'A with A = [J; √λ·I].
         aug = np.zeros((6 + nq, nq))
         # mju_boxQP needs lower < upper strictly: a locked joint is opened by one ulp.
@@ -139,7 +141,7 @@ class IKSolver:
             model,
             data,
             self.frame_id,
-            data.J[:, self._v_slice],
+            data.J[:, self._v_at] if run else None,  # None: gathered every iteration
             None if mask.all() else mask,
             aug,
             aug[:6],
@@ -219,9 +221,9 @@ class IKSolver:
         cjj, ufp, log6 = pin.computeJointJacobians, pin.updateFramePlacement, pin.log6
         boxqp, mul, sub, sqrt = mujoco.mju_boxQP, np.multiply, np.subtract, math.sqrt
         best, since = math.inf, 0
-        qfull, qs = self._qfull, self._q_slice
+        qfull, q_at, v_at = self._qfull, self._q_at, self._v_at
         for it in range(self.max_iters + 1):
-            qfull[qs] = q
+            qfull[q_at] = q
             cjj(model, data, qfull)
             oMf = ufp(model, data, fid)
             e = log6(oMf * target_inv).vector
@@ -242,7 +244,10 @@ class IKSolver:
                     break
             # q+ = argmin |J(q+ - q) + e|² + λ|q+ - q|²  s.t.  lower <= q+ <= upper, that is
             # min ½x'Hx + x'(J'e - Hq) over the box; mju_boxQP warm-starts at and writes to q.
-            aug_jac[...] = jac
+            if jac is None:
+                aug_jac[...] = data.J[:, v_at]
+            else:
+                aug_jac[...] = jac
             if mask is not None:
                 mul(aug_jac, mask, out=aug_jac)
             aug_diag[...] = sqrt(ce * err + cw)
@@ -256,7 +261,7 @@ class IKSolver:
     def _errors(self, q: np.ndarray, target: pin.SE3) -> tuple[float, float]:
         """Position (m) and rotation (rad) error of the frame at `q` from `target`."""
         data = self._loop[1]
-        self._qfull[self._q_slice] = q
+        self._qfull[self._q_at] = q
         pin.framesForwardKinematics(self.model, data, self._qfull)
         oMf = data.oMf[self.frame_id]
         pos = float(np.linalg.norm(oMf.translation - target.translation))

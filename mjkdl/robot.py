@@ -40,6 +40,43 @@ class _Actuation:
     kv: float
 
 
+class _Command:
+    """A command port of a Robot: reads as a read-only view, assignment is checked and copied.
+
+    A descriptor rather than a property so the per-step assignment of a float64 array is
+    one Python call: its checks (type, length, finite and within MuJoCo's control range) are
+    inlined here, anything else goes through `Robot._assign`.
+    """
+
+    def __init__(self, doc: str) -> None:
+        self.__doc__ = doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name  # jnt_trq_cmd
+        self.attr = "_" + name[4:]  # _trq_cmd
+
+    def __get__(self, robot: Robot | None, owner: type | None = None) -> np.ndarray:
+        if robot is None:
+            return self  # type: ignore[return-value]  # the descriptor itself, for help()
+        robot._check_open()
+        return robot._ro[self.attr]
+
+    def __set__(self, robot: Robot, value: object) -> None:
+        port = robot.__dict__[self.attr]
+        # v.v <= bound² holds when every entry is within the bound (NaN compares false).
+        if (
+            type(value) is np.ndarray
+            and value.dtype is _F64
+            and value.shape == robot._shape
+            and robot._active  # an active handle is open
+            and value.dot(value) <= _MAX_CTRL2
+        ):
+            port[...] = value
+            robot._pending = True
+        else:
+            robot._assign(port, value, self.name)
+
+
 class Robot:
     """A controllable serial chain of a `Scene`, modelled in Pinocchio.
 
@@ -96,6 +133,7 @@ class Robot:
         self._applied_mode: CtrlMode | None = None
         self._active = False
         self._gravcomp = False
+        self._fast = 0  # which fast path update() takes, see _choose_path
         self.gravity_feedforward = True
         self._bind(scene.model, scene.data)
         self._hold_commands()
@@ -126,7 +164,8 @@ class Robot:
         self._qadr = chain.qpos_adr
         self._dadr = chain.dof_adr
         self._arm_q, self._arm_v = chain.arm_q, chain.arm_v
-        self._arm_only = self._arm_v == slice(0, pm.nv)  # no other joints in the model
+        # No other joints in the model: gravity is the arm's as it is.
+        self._arm_only = isinstance(self._arm_v, slice) and self._arm_v == slice(0, pm.nv)
         # The whole model's measured q and v; kept over a rebuild of the same model, so views
         # taken before (the measured ports) stay live.
         self._q = self._kept("_q", pm.nq)
@@ -175,6 +214,8 @@ class Robot:
         self._ctrl_view = _view(data.ctrl, ids)
         self._ctrl = self._ctrl_buf if self._ctrl_view is None else self._ctrl_view
         self._motors = False  # TORQUE mode through contiguous actuators: the fast path
+        self._servo_cmd: np.ndarray | None = None  # the servo mode's command, when contiguous
+        self._fast = 0
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
             self._prepare()
@@ -357,35 +398,11 @@ class Robot:
             self._check_open()
         return self._ro["_trq_msr"]
 
-    @property
-    def jnt_pos_cmd(self) -> np.ndarray:
-        """Joint position command (POSITION mode)."""
-        self._check_open()
-        return self._ro["_pos_cmd"]
-
-    @jnt_pos_cmd.setter
-    def jnt_pos_cmd(self, value: np.ndarray) -> None:
-        self._assign(self._pos_cmd, value, "jnt_pos_cmd")
-
-    @property
-    def jnt_vel_cmd(self) -> np.ndarray:
-        """Joint velocity command (VELOCITY mode)."""
-        self._check_open()
-        return self._ro["_vel_cmd"]
-
-    @jnt_vel_cmd.setter
-    def jnt_vel_cmd(self, value: np.ndarray) -> None:
-        self._assign(self._vel_cmd, value, "jnt_vel_cmd")
-
-    @property
-    def jnt_trq_cmd(self) -> np.ndarray:
-        """Joint torque command (TORQUE mode)."""
-        self._check_open()
-        return self._ro["_trq_cmd"]
-
-    @jnt_trq_cmd.setter
-    def jnt_trq_cmd(self, value: np.ndarray) -> None:
-        self._assign(self._trq_cmd, value, "jnt_trq_cmd")
+    jnt_pos_cmd = _Command("Joint position command (POSITION mode).")
+    jnt_vel_cmd = _Command("Joint velocity command (VELOCITY mode).")
+    jnt_trq_cmd = _Command(
+        "Joint torque command (TORQUE mode; on top of gravity with gravity_compensation)."
+    )
 
     def _vector(self, value: object, name: str, bound: float = math.inf) -> np.ndarray:
         """`value` checked to be n finite numbers, as a float64 array (no copy if it is one).
@@ -418,21 +435,10 @@ class Robot:
         return value
 
     def _assign(self, port: np.ndarray, value: object, name: str) -> None:
-        # The checks of _vector for a float64 array on an active handle, inlined: a control
-        # loop assigns a command every step.
-        if (
-            type(value) is np.ndarray
-            and value.dtype is _F64
-            and value.shape == self._shape
-            and value.dot(value) <= _MAX_CTRL2
-            and self._active
-            and self._open
-        ):
-            port[...] = value
-        else:
-            port[...] = self._vector(value, name, _MAX_CTRL)
-            if not self._active:
-                self._activate()
+        """Check `value` as command `name` and copy it into `port` (the slow path of _Command)."""
+        port[...] = self._vector(value, name, _MAX_CTRL)
+        if not self._active:
+            self._activate()
         self._pending = True
 
     def sync_commands(self) -> None:
@@ -466,6 +472,7 @@ class Robot:
         self._check_open()
         self._chain.load_parameters(self._model)
         self._gc_model = self._chain.gravcomp_model
+        self._choose_path()
         self._gravity_z = float(self._model.opt.gravity[2])
         self._read_state()
 
@@ -484,6 +491,7 @@ class Robot:
                     "control (any number may read; close() the other to take over)"
                 )
         self._active = True
+        self._choose_path()
 
     # ------------------------------------------------------------------ control
 
@@ -507,6 +515,7 @@ class Robot:
             self._activate()
         self._mode = mode
         self._pending = True
+        self._choose_path()
 
     @property
     def gravity_compensation(self) -> bool:
@@ -532,17 +541,31 @@ class Robot:
             self._activate()
         self._gravcomp = bool(on)
         self._pending = True
+        self._choose_path()
 
     def update(self) -> None:
         """Read the measured state, then apply the command ports for the current mode."""
-        if not self._open:
-            self._check_open()
-        # _read_state, inlined: this runs once per control step.
+        fast = self._fast
+        if fast:  # TORQUE through contiguous motors, all checks done beforehand (_choose_path)
+            self._q[...] = self._qsrc
+            self._v[...] = self._vsrc
+            self._trq_msr[...] = self._trq_src
+            if fast == 2:  # gravity compensation
+                _gravity(self._pin, self._gdata, self._q)
+                self._pending = False
+                np.add(self._trq_cmd, self._g_arm, out=self._ctrl)
+            elif self._pending:
+                self._pending = False
+                self._ctrl[...] = self._trq_cmd
+            return
+        # _read_state, inlined: this runs once per control step (a closed handle never reads
+        # plainly, so the check for it waits for the other branch).
         if self._plain_read:
             self._q[...] = self._qsrc
             self._v[...] = self._vsrc
             self._trq_msr[...] = self._trq_src
         else:
+            self._check_open()
             self._read_state()
         if not self._active:
             self._activate()
@@ -563,12 +586,34 @@ class Robot:
                     self._ctrl[...] = self._trq_cmd
                 return
             elif self._mode is not CtrlMode.TORQUE and self.gravity_feedforward:
-                # servos (actuated, else _control_error raised): _prepare, inlined
+                # servos (actuated, else _control_error raised): _prepare and _apply, inlined
                 _gravity(self._pin, self._gdata, self._q)
                 if self._gc_model is not None or self._gather_ports:
                     self._finish_gravity()
                 np.multiply(self._g_arm, self._ff_scale, out=self._ff)
+                if self._servo_cmd is not None:
+                    self._pending = False
+                    np.add(self._servo_cmd, self._ff, out=self._ctrl)
+                    return
         self._apply()
+
+    def _choose_path(self) -> None:
+        """Pick update()'s fast path: 1 for TORQUE through contiguous motors on plain reads of
+        an active handle, 2 for the same with gravity compensation (no gravcomp share to
+        remove), 0 for the general path."""
+        fast = (
+            self._open
+            and self._active
+            and self._plain_read
+            and self._motors
+            and self._mode is self._applied_mode
+        )
+        if not fast:
+            self._fast = 0
+        elif self._gravcomp:
+            self._fast = 2 if self._gc_model is None else 0
+        else:
+            self._fast = 1
 
     def step(self) -> None:
         """Advance the scene one timestep; pending commands (of every robot) apply first."""
@@ -612,6 +657,12 @@ class Robot:
                 np.add(self._trq_cmd, self._g_arm, out=ctrl)
             else:
                 ctrl[...] = self._trq_cmd
+            return
+        if self._servo_cmd is not None:  # the same for POSITION and VELOCITY
+            if self.gravity_feedforward:
+                np.add(self._servo_cmd, self._ff, out=ctrl)
+            else:
+                ctrl[...] = self._servo_cmd
             return
         mode = self._mode
         if mode is CtrlMode.TORQUE:
@@ -674,6 +725,7 @@ class Robot:
         self._applied_mode = mode
         self._pending = True
         self._motors = False
+        self._servo_cmd = None
         if not self._actuation:
             return
         m = self._model
@@ -700,7 +752,11 @@ class Robot:
         # The servo's joint torque is gear²·k·(setpoint - q): feed-forward enters scaled.
         if mode is not CtrlMode.TORQUE:
             self._ff_scale = 1.0 / (gear * gear * (kp if mode is CtrlMode.POSITION else kv))
-        self._motors = mode is CtrlMode.TORQUE and self._ctrl_view is not None
+        contiguous = self._ctrl_view is not None
+        self._motors = mode is CtrlMode.TORQUE and contiguous
+        if contiguous and mode is not CtrlMode.TORQUE:
+            self._servo_cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd
+        self._choose_path()
 
     # ------------------------------------------------------------------ state
 
@@ -881,6 +937,9 @@ class Robot:
         self._active = False
         self._applied_mode = None
         self._motors = False
+        self._servo_cmd = None
+        self._plain_read = False
+        self._fast = 0
         self._open = False
         self._closed_why = why
 

@@ -212,6 +212,23 @@ def test_mass_matrix_matches_full_m_with_armature(case: Case) -> None:
         assert _rel(case.robot.mass_matrix(), full[np.ix_(dofs, dofs)]) <= DYN_TOL
 
 
+def test_ik_on_an_arm_not_contiguous_in_the_model() -> None:
+    """IK moves the arm's joints only; the pendulum between them in q keeps its angle."""
+    arm = mjk.RobotSpec(path=str(ASSETS / "branch_arm.xml"))
+    with mjk.Scene.build(base_spec(robots=[arm])) as scene:
+        robot = scene.create_robot("base", "l3", tool=mjk.ToolFrameSpec(tcp_site="tcp"))
+        scene.data.qpos[1] = 0.7  # the pendulum
+        robot.set_joint_pos([0.1, 0.2, 0.3])
+        robot.update()
+        target = robot.fk_frame(np.array([0.5, -0.4, 0.8]))
+        result = robot.ik(target)
+        assert result.success
+        robot.set_joint_pos(result.q)
+        site = scene.site_frame("tcp")
+        assert np.abs(site.translation - target.translation).max() < 1e-6
+        assert scene.data.qpos[1] == 0.7
+
+
 def test_inverse_dynamics_matches_mujoco(case: Case) -> None:
     """RNEA equals MuJoCo's M(q) a + qfrc_bias with the other joints held still."""
     rng = np.random.default_rng(7)
@@ -384,6 +401,17 @@ def _gravcomp_motion() -> Motion:
     return Motion(Case(scene, robot, tip_body="l3"), lambda scene, k: None, [])
 
 
+def _branch_motion() -> Motion:
+    """A passive pendulum on the first link: the arm's q entries are not contiguous."""
+    arm = mjk.RobotSpec(path=str(ASSETS / "branch_arm.xml"))
+    scene = mjk.Scene.build(base_spec(robots=[arm]))
+    robot = scene.create_robot("base", "l3", tool=mjk.ToolFrameSpec(tcp_site="tcp"))
+    assert isinstance(robot.arm_q, np.ndarray)  # the gathered path is the one under test
+    robot.set_joint_pos([0.4, -0.6, 0.3])
+    scene.data.qvel[1] = 3.0  # the pendulum swings
+    return Motion(Case(scene, robot, tcp_site="tcp"), lambda scene, k: None, ["swing"])
+
+
 HOME_Q = np.array([0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708])
 MOTIONS: dict[str, Callable[[], Motion]] = {
     "gen3+2f85": _gen3_motion,
@@ -395,6 +423,7 @@ MOTIONS: dict[str, Callable[[], Motion]] = {
     "gen3+rigid 1.5 kg tool": _rigid_tool_motion,
     "gen3+2f85 gravity_z=-3.7": lambda: _gen3_motion(gravity_z=-3.7),
     "gravcomp arm": _gravcomp_motion,
+    "arm with a pendulum branch": _branch_motion,
 }
 
 
