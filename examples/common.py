@@ -317,3 +317,86 @@ def run(
     finally:
         viewer.close()
     return steps
+
+
+# ---------------------------------------------------------------------- Panda (control layer)
+
+# Menagerie's Panda "home" keyframe (arm joints), the TCP between the fingertips (0.1034 m
+# below `hand`, which has no site there) and the hand's actuator: ctrl 255 open ... 0 closed.
+PANDA_HOME = np.array([0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853])
+PANDA_TCP = [0.0, 0.0, 0.1034]
+PANDA_HAND = "actuator8"
+
+
+def panda(
+    prefix: str = "",
+    attach_to: mjk.AttachTarget | None = None,
+    pos: Sequence[float] = (0.0, 0.0, 0.0),
+    euler: Sequence[float] = (0.0, 0.0, 0.0),
+    hand: bool = True,
+) -> mjk.RobotSpec:
+    """Menagerie's Panda, with its hand or without (`panda_nohand.xml`, for another gripper)."""
+    path = Path(mjk.menagerie.model_path("franka_emika_panda"))
+    if not hand:
+        path = path.parent / "panda_nohand.xml"
+    return mjk.RobotSpec(
+        path=str(path), prefix=prefix, attach_to=attach_to, pos=list(pos), euler=list(euler)
+    )
+
+
+def look_at(name: str, eye: Sequence[float], target: Sequence[float], fovy: float = 45.0):
+    """A fixed camera at `eye` looking at `target`, upright (world z up in the image)."""
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    back = (eye - target) / np.linalg.norm(eye - target)  # cameras look along their -z
+    right = np.cross([0.0, 0.0, 1.0], back)
+    right /= np.linalg.norm(right)
+    rot = np.column_stack([right, np.cross(back, right), back])
+    # MuJoCo's intrinsic xyz Euler angles of rot = Rx(a) Ry(b) Rz(c).
+    a = math.atan2(-rot[1, 2], rot[2, 2])
+    b = math.asin(max(-1.0, min(1.0, rot[0, 2])))
+    c = math.atan2(-rot[0, 1], rot[0, 0])
+    euler = [math.degrees(x) for x in (a, b, c)]
+    return mjk.CameraSpec(name=name, pos=list(eye), euler=euler, fovy=fovy)
+
+
+def panda_scene(
+    robots: list[mjk.RobotSpec],
+    objects: Sequence[mjk.SceneObject] = (),
+    camera: mjk.CameraSpec | None = None,
+) -> mjk.SceneSpec:
+    """Pandas on the floor at 2 ms steps, with a `task` camera (default: on the one at 0)."""
+    view = camera or look_at("task", eye=[1.6, -1.2, 1.2], target=[0.3, 0.0, 0.4])
+    return mjk.SceneSpec(
+        timestep=0.002,
+        add_floor=True,
+        add_skybox=True,
+        objects=list(objects),
+        robots=robots,
+        cameras=[view],
+    )
+
+
+def create_panda(
+    env: mjk.Env,
+    prefix: str = "",
+    home: np.ndarray = PANDA_HOME,
+    tip: str = "hand",
+    tool: mjk.ToolFrameSpec | None = None,
+) -> mjk.Robot:
+    """The Panda chain `link0` -> `tip` (default: its hand and TCP); resets put it at `home`.
+
+    The arm is in POSITION mode, on Menagerie's own position actuators. A Panda carrying
+    another gripper passes its own `tip` and `tool`.
+    """
+    tool = tool if tool is not None else mjk.ToolFrameSpec(tcp_pos=PANDA_TCP)
+    robot = env.create_robot("link0", tip, prefix=prefix, tool=tool)
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    previous = env.on_reset
+
+    def place(ctx: mjk.ResetContext) -> None:
+        if previous is not None:
+            previous(ctx)
+        robot.set_joint_pos(home, call_forward=False)
+
+    env.on_reset = place
+    return robot

@@ -1,6 +1,7 @@
 """mjkdl: MuJoCo scenes from plain dataclasses, Pinocchio kinematics and dynamics on top."""
 
 from . import assets, menagerie
+from .control import CartesianVelocityController, Gripper, SolveStatus
 from .errors import BuildError, MjkdlError, ModelFileError, SpecError, UnknownNameError
 from .ik import IKResult
 from .record import OffscreenRenderError, VideoRecorder, VideoResolution, VideoWriteError
@@ -33,10 +34,12 @@ __all__ = [
     "AttachmentSpec",
     "BuildError",
     "CameraSpec",
+    "CartesianVelocityController",
     "Condim",
     "CtrlMode",
     "Env",
     "ForceTorqueSensorSpec",
+    "Gripper",
     "IKResult",
     "MjkdlError",
     "ModelFileError",
@@ -53,6 +56,7 @@ __all__ = [
     "SceneSpec",
     "Shape",
     "SimulateViewer",
+    "SolveStatus",
     "SpecError",
     "ToolFrameSpec",
     "UnknownNameError",

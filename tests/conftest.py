@@ -123,3 +123,25 @@ def tutorial_scene() -> Callable[[], mjk.Scene]:
     yield build
     for scene in built:
         scene.close()
+
+
+# ---------------------------------------------------------------------- Panda (control tests)
+
+PANDA_HOME = [0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853]
+PANDA_TCP = [0.0, 0.0, 0.1034]  # between the fingertips, below Menagerie's `hand` body
+
+
+def panda_spec(**kw) -> mjk.SceneSpec:
+    """Menagerie's Panda with its hand at the origin, plus whatever `kw` adds to the scene."""
+    arm = mjk.RobotSpec(path=menagerie("franka_emika_panda"))
+    return base_spec(robots=[arm], **kw)
+
+
+def panda_arm(env: mjk.Env, mode: mjk.CtrlMode = mjk.CtrlMode.VELOCITY) -> mjk.Robot:
+    """The Panda chain `link0` -> `hand` with the TCP offset, reset to `PANDA_HOME` in `mode`."""
+    robot = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
+    env.on_reset = lambda ctx: robot.set_joint_pos(PANDA_HOME, call_forward=False)
+    robot.ctrl_mode = mode
+    env.reset()
+    robot.update()
+    return robot

@@ -726,3 +726,80 @@ def test_robot_prefix_and_target_name_types():
     target = mjk.AttachTarget(mjk.AttachKind.Site, None)
     with pytest.raises(ValueError, match=r"robots\[0\]\.attach_to\.name must be a string"):
         _build(base_spec(robots=[mjk.RobotSpec(path=gen3, attach_to=target)]))
+
+
+# ----------------------------------------------------------------------------- wrist cameras
+
+
+def _euler_matrix(deg) -> np.ndarray:
+    """MuJoCo's default intrinsic xyz Euler angles (degrees) as a rotation matrix."""
+    rx, ry, rz = (
+        pin.AngleAxis(np.radians(a), axis).matrix() for a, axis in zip(deg, np.eye(3), strict=True)
+    )
+    return rx @ ry @ rz
+
+
+def _wrist_camera_spec() -> mjk.SceneSpec:
+    arm = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[gripper()])
+    cameras = [
+        mjk.CameraSpec(
+            name="on_body",
+            pos=[0.05, 0.0, -0.03],
+            euler=[180.0, 0.0, -90.0],
+            fovy=60.0,
+            attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "bracelet_link"),
+        ),
+        mjk.CameraSpec(
+            name="on_site",
+            pos=[0.0, 0.08, -0.1],
+            euler=[20.0, -10.0, 35.0],
+            fovy=70.0,
+            attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "g_pinch"),
+        ),
+    ]
+    return base_spec(robots=[arm], cameras=cameras)
+
+
+def test_wrist_cameras_follow_their_body_and_site():
+    offsets = {
+        "on_body": ([0.05, 0.0, -0.03], [180.0, 0.0, -90.0]),
+        "on_site": ([0.0, 0.08, -0.1], [20.0, -10.0, 35.0]),
+    }
+    with _build(_wrist_camera_spec()) as scene:
+        robot = scene.create_robot("base_link", "bracelet_link")
+        model, data = scene.model, scene.data
+        body, site = scene.body_id("bracelet_link"), scene.site_id("g_pinch")
+        rng = np.random.default_rng(11)
+        for _ in range(5):
+            robot.set_joint_pos(rng.uniform(-2.0, 2.0, 7))
+            scene.step(20)  # moving, not only placed
+            scene.forward()
+            hosts = {
+                "on_body": (data.xpos[body], data.xmat[body].reshape(3, 3)),
+                "on_site": (data.site_xpos[site], data.site_xmat[site].reshape(3, 3)),
+            }
+            for name, (pos, euler) in offsets.items():
+                cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name)
+                host_pos, host_rot = hosts[name]
+                expected_pos = host_pos + host_rot @ np.array(pos)
+                assert np.abs(data.cam_xpos[cam] - expected_pos).max() < 1e-12
+                expected_rot = host_rot @ _euler_matrix(euler)
+                assert np.abs(data.cam_xmat[cam].reshape(3, 3) - expected_rot).max() < 1e-12
+
+
+@pytest.mark.parametrize(
+    ("kind", "name", "pattern"),
+    [
+        (mjk.AttachKind.Body, "bracelet_lnk", r"no body named 'bracelet_lnk'.*bracelet_link"),
+        (mjk.AttachKind.Site, "g_pnch", r"no site named 'g_pnch'.*g_pinch"),
+    ],
+)
+def test_camera_on_unknown_mount_is_named(kind, name, pattern):
+    spec = _wrist_camera_spec()
+    spec.cameras[0].attach_to = mjk.AttachTarget(kind, name)
+    with pytest.raises(mjk.UnknownNameError, match=pattern) as err:
+        _build(spec)
+    assert "cameras[0]" in str(err.value)
+    spec.cameras[0].attach_to = mjk.AttachTarget(mjk.AttachKind.Frame, "bracelet_link")
+    with pytest.raises(mjk.SpecError, match=r"cameras\[0\].*must be an AttachTarget of kind Body"):
+        _build(spec)

@@ -146,3 +146,128 @@ def test_record_video(tmp_path: Path) -> None:
     simulated = number(r"fps, ", out)
     assert seconds == pytest.approx(simulated, abs=0.2)
     assert frames == pytest.approx(20 * simulated, abs=3)
+
+
+# ---------------------------------------------------------------------- task environments
+
+
+def test_rl_environment() -> None:
+    menagerie("franka_emika_panda")
+    out = run_example("rl_environment", "--duration", "4")
+    assert "wrist_cam_depth: (64, 64) float32" in out and "goal_pose: (7,) float64" in out
+    assert number("simulated:", out) == pytest.approx(4.0)
+    # The agent hovers 0.1 m above the ball: reward 1 - distance.
+    distance = number("distance:", out)
+    assert distance == pytest.approx(0.1, abs=0.01)
+    assert number("reward:", out) == pytest.approx(1.0 - distance, abs=1e-4)
+    near, far = numbers(r"wrist depth:", out)[0], number(r"\.\. ", out)
+    assert 0.0 < near < far < 1.0
+
+
+def test_random_agent() -> None:
+    menagerie("franka_emika_panda")
+    import gymnasium as gym
+
+    import mjkdl.task
+
+    out = run_example("random_agent", "--episodes", "2", "--duration", "1", "--seed", "5")
+    assert number("episodes:", out) == 2
+    env = gym.make("mjkdl/PandaReach-v0")  # the same seeded episodes, in this process
+    expected = [mjkdl.task.run_episode(env, s, max_steps=10).total_reward for s in (5, 6)]
+    env.close()
+    assert numbers(r"return", out)[:2] == pytest.approx(expected, abs=1e-4)
+    assert numbers(r"steps", out)[:2] == [10, 10]
+
+
+def test_ray_rollouts() -> None:
+    menagerie("franka_emika_panda")
+    pytest.importorskip("ray")
+    out = run_example("ray_rollouts", "--episodes", "4", "--actors", "2", "--duration", "0.3",
+                      "--verify")
+    assert number("episodes:", out) == 4
+    assert numbers(r"steps", out)[:4] == [3, 3, 3, 3]
+    assert "matches sequential: True" in out
+
+
+# ---------------------------------------------------------------------- control layer (Panda)
+
+
+@pytest.fixture
+def _panda() -> None:
+    menagerie("franka_emika_panda")
+
+
+@pytest.mark.usefixtures("_panda")
+@pytest.mark.parametrize("frame", ["", "link0"])
+def test_cartesian_velocity(frame: str) -> None:
+    out = run_example("cartesian_velocity", "--duration", "6.3", "--control-frame", frame)
+    assert f"control frame: {frame or 'world'}" in out
+    assert number("simulated:", out) == pytest.approx(6.3, abs=0.01)
+    # The integrated command stays on the eight; the arm trails it by the servos' 0.1 s lag.
+    assert number("max command path error:", out) < 0.003
+    assert number("max measured path error:", out) < 0.02
+    assert number("max out-of-plane drift:", out) < 0.002
+    assert number("max TCP rotation:", out) < 0.5
+    assert "QP status: optimal" in out
+
+
+@pytest.mark.usefixtures("_panda")
+def test_joint_velocity() -> None:
+    out = run_example("joint_velocity", "--duration", "6.3")
+    assert "mode: VELOCITY" in out
+    assert number("max joint velocity error:", out) < 0.005
+    assert number("max joint position error:", out) < 0.005
+
+
+@pytest.mark.usefixtures("_panda")
+@pytest.mark.parametrize("seed", [0, 3])
+def test_gripper(seed: int) -> None:
+    out = run_example("gripper", "--duration", "6", "--seed", str(seed))
+    opened, closed = (int(x) for x in re.search(r"actions: (\d+) open, (\d+) closed", out).groups())
+    assert opened + closed == 10 and opened > 0 and closed > 0
+    assert numbers("opening when open:", out)[0] > 0.99
+    # Closed on the 5 cm box: each finger stops 2.5 cm out of its 4 cm stroke, not at 0.
+    lo, hi = (float(x) for x in re.search(r"when closed: ([\d.]+) to ([\d.]+)", out).groups())
+    assert 0.025 / 0.04 - 0.02 < lo <= hi < 0.025 / 0.04 + 0.02
+    assert number("box moved:", out) < 0.005
+
+
+@pytest.mark.usefixtures("_panda")
+def test_custom_gripper() -> None:
+    out = run_example("custom_gripper", "--duration", "8")
+    assert "TCP at g_pinch" in out
+    lo, hi = (float(x) for x in re.search(r"opening range: ([\d.]+) to ([\d.]+)", out).groups())
+    assert lo < 0.08 and hi > 0.97
+    assert number("opening lags the action by", out) < 0.5
+    assert number(r"mean error then", out) < 0.03
+
+
+@pytest.mark.usefixtures("_panda")
+def test_two_arm_robot() -> None:
+    out = run_example("two_arm_robot", "--duration", "8")
+    lo, hi = (
+        float(x) for x in re.search(r"torso turned: ([-\d.]+) to ([-\d.]+) deg", out).groups()
+    )
+    assert lo < -55 and hi > 55
+    for arm in ("left", "right"):
+        line = re.search(
+            rf"{arm}: x in the torso frame ([-+\d.]+) to ([-+\d.]+) m, "
+            r"max off-axis ([\d.]+) m",
+            out,
+        )
+        assert line, out
+        x_lo, x_hi, off = (float(x) for x in line.groups())
+        assert x_lo < -0.09 and x_hi > 0.08  # ±0.1 m commanded, open loop
+        assert off < 0.005  # the motion stays on the torso's x while it turns ±60°
+
+
+@pytest.mark.usefixtures("_panda")
+def test_multiple_robots() -> None:
+    out = run_example("multiple_robots", "--duration", "3")
+    for name, pose in (
+        ("r1", r"\(\+0.00, \+0.00\) m, yaw \+0"),
+        ("r2", r"\(\+1.00, -0.80\) m, yaw \+135"),
+        ("r3", r"\(\+1.00, \+0.80\) m, yaw -135"),
+    ):
+        assert re.search(rf"{name}: base at {pose} deg, 7 joints, QP optimal", out), out
+    assert number("max difference between the motions in the base frames:", out) < 0.002

@@ -806,3 +806,67 @@ def test_unnamed_bodies_keep_the_tcp_where_mujoco_has_it(tmp_path) -> None:
         robot.set_joint_pos([0.4, -0.3])
         site = scene.data.site_xpos[scene.site_id("tcp")]
         assert np.abs(robot.fk_frame().translation - site).max() < 1e-12
+
+
+# ---------------------------------------------------------------------- TCP offsets
+
+
+def _euler_matrix(deg) -> np.ndarray:
+    """MuJoCo's default intrinsic xyz Euler angles (degrees) as a rotation matrix."""
+    rx, ry, rz = (
+        pin.AngleAxis(np.radians(a), axis).matrix() for a, axis in zip(deg, np.eye(3), strict=True)
+    )
+    return rx @ ry @ rz
+
+
+@pytest.mark.parametrize(
+    ("tcp_pos", "tcp_euler"),
+    [([0.0, 0.0, 0.1034], [0.0, 0.0, 0.0]), ([0.01, -0.02, 0.1], [10, -20, 45])],
+)
+def test_tcp_offset_from_the_tip_body_matches_mujoco(tcp_pos, tcp_euler) -> None:
+    """Panda's hand has no site: the TCP is an offset from the `hand` body."""
+    arm = mjk.RobotSpec(path=menagerie("franka_emika_panda"))
+    tool = mjk.ToolFrameSpec(tcp_pos=tcp_pos, tcp_euler=tcp_euler)
+    with mjk.Scene.build(base_spec(robots=[arm])) as scene:
+        robot = scene.create_robot("link0", "hand", tool=tool)
+        assert robot.has_tcp_frame
+        model, data = scene.model, scene.data
+        hand = scene.body_id("hand")
+        dofs = [model.joint(n).dofadr[0] for n in robot.joint_names]
+        lower, upper = robot.joint_limits.T
+        rng = np.random.default_rng(7)
+        jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+        for _ in range(20):
+            robot.set_joint_pos(rng.uniform(lower, upper))
+            rot = data.xmat[hand].reshape(3, 3) @ _euler_matrix(tcp_euler)
+            point = data.xpos[hand] + data.xmat[hand].reshape(3, 3) @ np.asarray(tcp_pos)
+            tcp = robot.fk_frame()
+            assert np.abs(tcp.translation - point).max() < 1e-9
+            assert np.abs(tcp.rotation - rot).max() < 1e-9
+            mujoco.mj_jac(model, data, jacp, jacr, point, hand)
+            expected = np.vstack([jacp[:, dofs], jacr[:, dofs]])
+            assert np.abs(robot.jacobian() - expected).max() < 1e-9
+
+
+def test_tcp_offset_from_a_site_matches_mujoco(gen3) -> None:
+    scene, _ = gen3
+    pos, euler = [0.0, 0.01, 0.02], [0.0, 30.0, -15.0]
+    tool = mjk.ToolFrameSpec(tool_body="g_base", tcp_site="g_pinch", tcp_pos=pos, tcp_euler=euler)
+    robot = scene.create_robot("base_link", "bracelet_link", tool=tool)
+    model, data = scene.model, scene.data
+    site = scene.site_id("g_pinch")
+    body = model.site_bodyid[site]
+    dofs = [model.joint(n).dofadr[0] for n in robot.joint_names]
+    lower, upper = robot.joint_limits.T
+    rng = np.random.default_rng(8)
+    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    for _ in range(20):
+        robot.set_joint_pos(rng.uniform(np.maximum(lower, -3.0), np.minimum(upper, 3.0)))
+        site_rot = data.site_xmat[site].reshape(3, 3)
+        point = data.site_xpos[site] + site_rot @ np.asarray(pos)
+        tcp = robot.fk_frame()
+        assert np.abs(tcp.translation - point).max() < 1e-9
+        assert np.abs(tcp.rotation - site_rot @ _euler_matrix(euler)).max() < 1e-9
+        mujoco.mj_jac(model, data, jacp, jacr, point, body)
+        expected = np.vstack([jacp[:, dofs], jacr[:, dofs]])
+        assert np.abs(robot.jacobian() - expected).max() < 1e-9

@@ -1,0 +1,591 @@
+"""`TaskEnv`: a `TaskSpec` as a `gymnasium.Env` — arms, effectors, sensors and episodes."""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from .. import errors
+from ..control import CartesianVelocityController, Gripper
+from ..errors import SpecError, UnknownNameError
+from ..record import offscreen_renderer
+from ..robot import Robot
+from ..scene import Env
+from ..spec import CtrlMode, SceneSpec
+from .sensors import ArmReader, CameraReader, PoseReader, Reader, Sensor, UserReader
+from .spec import Actuation, ArmSpec, BodyPoseSensor, CameraSensor, GripperSpec, TaskSpec
+
+# Scene.step raises this on divergence where the scene layer provides it; the env also checks
+# MuJoCo's own warnings, since mj_step resets a diverged state instead of keeping NaN.
+_SimulationError: tuple[type[BaseException], ...] = tuple(
+    e for e in (getattr(errors, "SimulationError", None),) if e is not None
+)
+_DIVERGENCE_WARNINGS = (
+    int(mujoco.mjtWarning.mjWARN_BADQPOS),
+    int(mujoco.mjtWarning.mjWARN_BADQVEL),
+    int(mujoco.mjtWarning.mjWARN_BADQACC),
+)
+_CARTESIAN_LABELS = ("vx", "vy", "vz", "wx", "wy", "wz")
+_MODES = {
+    Actuation.JOINT_POSITION: CtrlMode.POSITION,
+    Actuation.JOINT_VELOCITY: CtrlMode.VELOCITY,
+    Actuation.JOINT_TORQUE: CtrlMode.TORQUE,
+    # The controller integrates its joint velocities into the position command, which the
+    # arm's servos track: the TCP holds still under gravity and contact at a zero twist.
+    Actuation.CARTESIAN_VELOCITY: CtrlMode.POSITION,
+}
+
+
+class _Effector:
+    """One arm's slice of the action: written to its robot (and gripper) every step."""
+
+    def __init__(
+        self,
+        arm: ArmSpec,
+        robot: Robot,
+        gripper: Gripper | None,
+        controller: CartesianVelocityController | None,
+        start: int,
+    ) -> None:
+        self.arm, self.robot, self.gripper, self.controller = arm, robot, gripper, controller
+        n = 6 if controller is not None else robot.n_joints
+        self.slice = slice(start, start + n)
+        self.grip_index = start + n if gripper is not None else -1
+        self.home = None if arm.home is None else np.asarray(arm.home, dtype=float)
+
+    def new_episode(self) -> None:
+        """Arm at home, gripper open, and a fresh controller: the QP's acceleration bounds
+        start from the state, not from the last episode's motion (its own reset detection
+        goes by a clock that an episode of one step does not advance)."""
+        if self.home is not None:
+            self.robot.set_joint_pos(self.home, call_forward=False)
+        if self.gripper is not None:
+            self.gripper.command(0.0)
+        if self.controller is not None:
+            self.controller = _controller(self.robot, self.arm)
+
+    def apply(self, action: np.ndarray, period: float) -> None:
+        robot, arm = self.robot, self.arm.actuation
+        robot.update()
+        a: Any = action[self.slice]
+        if self.controller is not None:
+            self.controller.command(a, period)
+        elif arm is Actuation.JOINT_POSITION:
+            robot.jnt_pos_cmd = a
+        elif arm is Actuation.JOINT_VELOCITY:
+            robot.jnt_vel_cmd = a
+        else:  # torque on top of gravity compensation, as a torque-controlled arm takes it
+            robot.jnt_trq_cmd = a + robot.gravity_torques()
+        if self.gripper is not None:
+            self.gripper.command(action[self.grip_index])
+
+
+class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
+    """A task as a Gymnasium environment (see `TaskSpec`; the env keeps a deep copy of it).
+
+    `.scene` is the `mjk.Env` that owns MuJoCo's model and data, `.robots[name]` and
+    `.grippers[name]` the arms' handles, `.task_spec` the description, `.action_labels` one
+    name per action entry (`"panda.vx"`, ..., `"panda.gripper"`).
+
+    The action concatenates, per arm in order, a twist `[vx, vy, vz, wx, wy, wz]` of the TCP
+    along the control frame (Cartesian velocity) or one value per joint (joint modes), then
+    the gripper's entry in [0, 1] when it has one. Actions are clipped into `action_space`
+    (a policy's exploration noise past a bound acts at the bound); NaN or infinite entries
+    are an error naming them. Each `step` holds the action for `control_timestep`, i.e.
+    `control_timestep / scene.timestep` physics steps.
+
+    Observations are fresh arrays every step (the agent may keep them); see `ArmReader`,
+    `CameraSensor` and `BodyPoseSensor` for their meaning. `truncated` becomes true once
+    `time_limit` seconds have passed since `reset`. A diverging simulation ends the episode
+    (`terminated=True`, `info["diverged"]`, the previous observation), and `step` then
+    raises until `reset`.
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}  # noqa: RUF012
+    observation_space: spaces.Dict
+    action_space: spaces.Box
+
+    def __init__(
+        self,
+        spec: TaskSpec,
+        render_mode: str | None = None,
+        *,
+        render_camera: str = "",
+        render_width: int = 640,
+        render_height: int = 480,
+    ) -> None:
+        if not isinstance(spec, TaskSpec):
+            raise SpecError(f"TaskEnv takes a TaskSpec, got {type(spec).__name__}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise SpecError(
+                f"render_mode must be None, 'rgb_array' or 'human', got {render_mode!r}"
+            )
+        self.task_spec = copy.deepcopy(spec)
+        self.render_mode = render_mode
+        self._closed = True  # until built: close() must work on a half-built env
+        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._readers: list[Reader] = []
+        self._viewer: Any = None
+        self._stepper: Callable[[], bool] | None = None
+        self._check_spec(self.task_spec)
+        self.scene = Env.build(self.task_spec.scene)
+        self._closed = False
+        try:
+            self._build(render_camera, render_width, render_height)
+        except BaseException:
+            self.close()
+            raise
+
+    # ------------------------------------------------------------------ building
+
+    @staticmethod
+    def _check_spec(spec: TaskSpec) -> None:
+        if not isinstance(spec.scene, SceneSpec):
+            raise SpecError(f"TaskSpec.scene must be a SceneSpec, got {type(spec.scene).__name__}")
+        if not isinstance(spec.arms, list) or not spec.arms:
+            raise SpecError("TaskSpec.arms must be a non-empty list of ArmSpec")
+        names = []
+        for i, arm in enumerate(spec.arms):
+            where = f"TaskSpec.arms[{i}]"
+            if not isinstance(arm, ArmSpec):
+                raise SpecError(f"{where} must be an ArmSpec, got {type(arm).__name__}")
+            if not isinstance(arm.name, str) or not arm.name:
+                raise SpecError(f"{where}.name must be a non-empty string, got {arm.name!r}")
+            if not isinstance(arm.actuation, Actuation):
+                raise SpecError(f"{where}.actuation must be an Actuation, got {arm.actuation!r}")
+            if arm.gripper is not None and not isinstance(arm.gripper, GripperSpec):
+                raise SpecError(f"{where}.gripper must be a GripperSpec or None")
+            for field in ("max_linear_velocity", "max_angular_velocity"):
+                value = getattr(arm, field)
+                if not _positive(value):
+                    raise SpecError(f"{where}.{field} must be a positive number, got {value!r}")
+            names.append(arm.name)
+        if len(set(names)) != len(names):
+            raise SpecError(f"TaskSpec.arms: names must be unique, got {names}")
+        for field in ("control_timestep", "time_limit"):
+            if not _positive(getattr(spec, field)):
+                raise SpecError(
+                    f"TaskSpec.{field} must be a positive number of seconds, "
+                    f"got {getattr(spec, field)!r}"
+                )
+        for field in ("reward", "terminated"):
+            fn = getattr(spec, field)
+            if fn is not None and not callable(fn):
+                raise SpecError(f"TaskSpec.{field} must be callable or None, got {fn!r}")
+        for field in ("sensors", "initializers"):
+            if not isinstance(getattr(spec, field), (list, tuple)):
+                raise SpecError(
+                    f"TaskSpec.{field} must be a list, got {type(getattr(spec, field)).__name__}"
+                )
+        for i, init in enumerate(spec.initializers):
+            if not callable(init):
+                raise SpecError(f"TaskSpec.initializers[{i}] must be callable (env, rng)")
+
+    def _build(self, render_camera: str, render_width: int, render_height: int) -> None:
+        spec, scene = self.task_spec, self.scene
+        dt = scene.timestep()
+        substeps = round(spec.control_timestep / dt)
+        if substeps < 1 or abs(substeps * dt - spec.control_timestep) > 1e-9 * max(1.0, substeps):
+            raise SpecError(
+                f"TaskSpec.control_timestep ({spec.control_timestep:g} s) must be a whole "
+                f"number of physics timesteps ({dt:g} s)"
+            )
+        self._substeps = substeps
+        self._period = substeps * dt
+        self._max_steps = math.ceil(spec.time_limit / self._period - 1e-9)
+        self.metadata = {**self.metadata, "render_fps": 1.0 / self._period}
+
+        self.robots: dict[str, Robot] = {}
+        self.grippers: dict[str, Gripper] = {}
+        self._effectors: list[_Effector] = []
+        low: list[np.ndarray] = []
+        high: list[np.ndarray] = []
+        labels: list[str] = []
+        for i, arm in enumerate(spec.arms):
+            eff = self._add_arm(arm, f"TaskSpec.arms[{i}]", start=sum(len(x) for x in low))
+            lo, hi, names = _action_bounds(eff, scene.model)
+            low.append(lo)
+            high.append(hi)
+            labels += [f"{arm.name}.{n}" for n in names]
+        self._action_low = np.concatenate(low)
+        self._action_high = np.concatenate(high)
+        self.action_labels = labels
+        self.action_space = spaces.Box(
+            self._action_low.astype(np.float32),
+            self._action_high.astype(np.float32),
+            dtype=np.float32,
+        )
+        self._action = np.zeros(len(labels))
+
+        if not isinstance(render_camera, str):
+            raise SpecError(f"render_camera must be a camera name, got {render_camera!r}")
+        self._render_camera_name = render_camera
+        self._render_size = (render_width, render_height)
+        self.observation_space = self._bind()
+        if self.render_mode == "rgb_array":
+            self._renderer(render_width, render_height)  # size errors now, not at render()
+        self._steps = 0
+        self._needs_reset = True
+        self._diverged: str | None = None
+
+    def _bind(self) -> spaces.Dict:
+        """Observation sources and the render camera on the scene's current model; the
+        observation space they make. Run again when the scene was rebuilt
+        (`scene.add_object`), since MuJoCo's arrays are new then."""
+        spec, scene = self.task_spec, self.scene
+        for r in self._renderers.values():
+            r.close()
+        self._readers, self._renderers = [], {}
+        model, data = scene.model, scene.data
+        self._model = model
+        sources: list[str] = []
+        for i, (eff, arm) in enumerate(zip(self._effectors, spec.arms, strict=True)):
+            sources.append(f"TaskSpec.arms[{i}]")
+            self._readers.append(ArmReader(model, data, arm, eff.robot, eff.gripper, sources[-1]))
+        for i, sensor in enumerate(spec.sensors):
+            sources.append(f"TaskSpec.sensors[{i}]")
+            self._readers.append(self._reader(sensor, sources[-1]))
+        boxes: dict[str, spaces.Space] = {}
+        owner: dict[str, str] = {"time": "the env (seconds since reset)"}
+        for where, reader in zip(sources, self._readers, strict=True):
+            for key, box in reader.spaces.items():
+                if key in owner:
+                    raise SpecError(
+                        f"observation {key!r} is produced by both {owner[key]} and {where}; "
+                        "give the sensors distinct names"
+                    )
+                boxes[key], owner[key] = box, where
+        boxes["time"] = spaces.Box(0.0, np.inf, (1,), np.float64)
+        self._time = np.zeros(1)
+        self._buffers = [(k, b) for r in self._readers for k, b in r.buffers.items()]
+        self._buffers.append(("time", self._time))
+        self._render_camera: int | mujoco.MjvCamera
+        if self._render_camera_name:
+            self._render_camera = self._camera_id(self._render_camera_name, "render_camera")
+        else:
+            self._render_camera = mujoco.MjvCamera()
+            mujoco.mjv_defaultFreeCamera(model, self._render_camera)
+        return spaces.Dict(boxes, sort_keys=False)
+
+    def _follow_rebuild(self) -> None:
+        """Rebind to a rebuilt scene; its observations must keep their names and shapes."""
+        new, old = self._bind().spaces, self.observation_space.spaces
+        changed = sorted(k for k in new.keys() | old.keys() if new.get(k) != old.get(k))
+        if changed:
+            raise SpecError(
+                f"the scene was rebuilt and observations {changed} changed their space; "
+                "build a new TaskEnv for the new scene"
+            )
+
+    def _add_arm(self, arm: ArmSpec, where: str, start: int) -> _Effector:
+        scene = self.scene
+        try:
+            robot = scene.create_robot(arm.base_body, arm.tip_body, arm.prefix, arm.tool)
+        except (UnknownNameError, SpecError) as err:
+            raise type(err)(f"{where} ({arm.name!r}): {err}") from None
+        robot.ctrl_mode = _MODES[arm.actuation]
+        gripper = None
+        if arm.gripper is not None:
+            g = arm.gripper
+            try:
+                gripper = Gripper(scene, arm.prefix + g.actuator, g.open, g.closed, g.binary)
+            except (UnknownNameError, SpecError) as err:
+                raise type(err)(f"{where}.gripper: {err}") from None
+            self.grippers[arm.name] = gripper
+        if arm.home is not None:
+            try:
+                robot.set_joint_pos(np.asarray(arm.home, dtype=float), call_forward=False)
+            except (SpecError, ValueError, TypeError) as err:
+                raise SpecError(f"{where}.home: {err}") from None
+        controller = None
+        if arm.actuation is Actuation.CARTESIAN_VELOCITY:
+            try:
+                controller = _controller(robot, arm)
+            except (UnknownNameError, SpecError) as err:
+                raise type(err)(f"{where}.control_frame: {err}") from None
+        self.robots[arm.name] = robot
+        eff = _Effector(arm, robot, gripper, controller, start)
+        self._effectors.append(eff)
+        return eff
+
+    def _reader(self, sensor: object, where: str) -> Reader:
+        model, data = self.scene.model, self.scene.data
+        if isinstance(sensor, CameraSensor):
+            return CameraReader(model, data, sensor, self._renderer, where)
+        if isinstance(sensor, BodyPoseSensor):
+            return PoseReader(model, data, sensor, where)
+        if isinstance(sensor, Sensor):
+            return UserReader(sensor, self, where)
+        raise SpecError(
+            f"{where} must be a CameraSensor, a BodyPoseSensor or a Sensor (space/read), "
+            f"got {type(sensor).__name__}"
+        )
+
+    def _renderer(self, width: int, height: int) -> mujoco.Renderer:
+        """The one renderer of this size (every camera of that size shares it)."""
+        r = self._renderers.get((width, height))
+        if r is None:
+            r = offscreen_renderer(self.scene.model, width, height)
+            self._renderers[(width, height)] = r
+        return r
+
+    def _camera_id(self, name: str, where: str) -> int:
+        i = mujoco.mj_name2id(self.scene.model, mujoco.mjtObj.mjOBJ_CAMERA, name)
+        if i < 0:
+            raise errors.unknown_name("camera", name, self.scene.camera_names(), where=where)
+        return i
+
+    # ------------------------------------------------------------------ episodes
+
+    def reset(
+        self, *, seed: int | None = None, options: Mapping[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Start an episode: MuJoCo's initial state, each arm at `home` with its gripper
+        open, then the initializers in order with the env's generator (seeded by `seed`)."""
+        self._check_open()
+        if options:
+            raise SpecError(f"reset(options=...): TaskEnv takes no options, got {dict(options)}")
+        super().reset(seed=seed)
+        self._needs_reset = True  # until this reset completes (an initializer may raise)
+        scene = self.scene
+        if scene.model is not self._model:
+            self._follow_rebuild()
+        scene.reset()
+        for eff in self._effectors:
+            eff.new_episode()
+        for init in self.task_spec.initializers:
+            init(self, self.np_random)
+        mujoco.mj_forward(scene.model, scene.data)
+        for eff in self._effectors:
+            eff.robot.sync_commands()
+        mujoco.mj_forward(scene.model, scene.data)  # torques under the synced commands
+        self._steps = 0
+        self._needs_reset = False
+        self._diverged = None
+        obs = self._observe()
+        if self.render_mode == "human":
+            self.render()
+        return obs, {"diverged": False}
+
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """Apply `action` for one control period; (obs, reward, terminated, truncated, info)."""
+        self._check_open()
+        if self._needs_reset:
+            raise RuntimeError("TaskEnv.step() before reset(): call reset() to start an episode")
+        if self._diverged is not None:
+            raise RuntimeError(f"the simulation diverged ({self._diverged}); call reset()")
+        a = self._checked_action(action)
+        if self.scene.model is not self._model:
+            self._follow_rebuild()
+        for eff in self._effectors:
+            eff.apply(a, self._period)
+        why = self._advance()
+        self._steps += 1
+        truncated = self._steps >= self._max_steps
+        if why is not None:
+            self._diverged = why
+            obs = {k: b.copy() for k, b in self._buffers}  # the last finite observation
+            return obs, 0.0, True, truncated, {"diverged": True, "error": why}
+        _refresh_kinematics(self.scene.model, self.scene.data)
+        obs = self._observe()
+        spec = self.task_spec
+        reward = 0.0 if spec.reward is None else float(spec.reward(obs))
+        terminated = False if spec.terminated is None else bool(spec.terminated(obs))
+        return obs, reward, terminated, truncated, {"diverged": False}
+
+    def _checked_action(self, action: object) -> np.ndarray:
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise SpecError(f"action must be an array of numbers, got {action!r}") from None
+        shape = self.action_space.shape
+        if a.shape != shape:
+            layout = ", ".join(self.action_labels)
+            raise SpecError(f"action must have shape {shape} ({layout}), got shape {a.shape}")
+        if not math.isfinite(a.dot(a)) and not np.isfinite(a).all():
+            bad = [f"{self.action_labels[i]}={a[i]}" for i in np.flatnonzero(~np.isfinite(a))]
+            raise SpecError(f"action entries must be finite, got {', '.join(bad)}")
+        out = self._action
+        np.maximum(a, self._action_low, out=out)
+        np.minimum(out, self._action_high, out=out)
+        return out
+
+    def _advance(self) -> str | None:
+        """Run one control period of physics; why it diverged, or None."""
+        scene = self.scene
+        warning = scene.data.warning
+        before = sum(int(warning[w].number) for w in _DIVERGENCE_WARNINGS)
+        try:
+            if self._stepper is None:
+                scene.step(self._substeps)
+            else:
+                self._step_through(self._stepper)
+        except _SimulationError as err:
+            return str(err)
+        data = scene.data
+        after = sum(int(warning[w].number) for w in _DIVERGENCE_WARNINGS)
+        if after != before:
+            names = [mujoco.mjtWarning(w).name for w in _DIVERGENCE_WARNINGS if warning[w].number]
+            return f"MuJoCo reported {', '.join(names)} at t={data.time:.4f} s"
+        q, v = data.qpos, data.qvel
+        if not (math.isfinite(q.dot(q)) and math.isfinite(v.dot(v))) and not (
+            np.isfinite(q).all() and np.isfinite(v).all()
+        ):
+            return f"the state is not finite at t={data.time:.4f} s"
+        return None
+
+    def _step_through(self, stepper: Callable[[], bool]) -> None:
+        """Physics steps through a viewer's `step` (paced, shown); headless once it closes."""
+        for k in range(self._substeps):
+            if not stepper():
+                self._stepper = None
+                self.scene.step(self._substeps - k)
+                return
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        for reader in self._readers:
+            reader.read()
+        self._time[0] = self.scene.data.time
+        return {k: b.copy() for k, b in self._buffers}
+
+    @property
+    def control_timestep(self) -> float:
+        """Seconds of simulation per `step` (a whole number of physics timesteps)."""
+        return self._period
+
+    @property
+    def elapsed_steps(self) -> int:
+        """Control steps since the last reset."""
+        return self._steps
+
+    # ------------------------------------------------------------------ rendering
+
+    def render(self) -> np.ndarray | None:
+        """`rgb_array`: an image of `render_camera` (the free camera when ""); `human`: the
+        interactive viewer, which then shows every physics step in real time."""
+        self._check_open()
+        if self.render_mode == "rgb_array":
+            r = self._renderer(*self._render_size)
+            flags = r.scene.flags  # shared with camera sensors of this size, which may differ
+            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 1
+            r.update_scene(self.scene.data, camera=self._render_camera)
+            return r.render()
+        if self.render_mode == "human":
+            if self._viewer is None:
+                from ..viewer import SimulateViewer  # the viewer needs a display: open on use
+
+                self._viewer = SimulateViewer.open(self.scene, "mjkdl task")
+                if isinstance(self._render_camera, int):
+                    self._viewer.use_camera(self.scene.model.camera(self._render_camera).name)
+                self._stepper = self._viewer.step
+            return None
+        gym.logger.warn(
+            "TaskEnv.render() without a render_mode does nothing; build the env with "
+            'render_mode="rgb_array" or "human"'
+        )
+        return None
+
+    # ------------------------------------------------------------------ lifecycle
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` was called."""
+        return self._closed
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("this TaskEnv is closed")
+
+    def close(self) -> None:
+        """Release renderers, the viewer and the scene; later calls raise RuntimeError."""
+        self._readers = []
+        for r in self._renderers.values():
+            r.close()
+        self._renderers = {}
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        self._stepper = None
+        scene = getattr(self, "scene", None)
+        if scene is not None:
+            scene.close()
+        self._closed = True
+
+
+def _controller(robot: Robot, arm: ArmSpec) -> CartesianVelocityController:
+    """The arm's Cartesian controller, its null-space posture at `home` when there is one."""
+    return CartesianVelocityController(robot, control_frame=arm.control_frame, posture=arm.home)
+
+
+def _refresh_kinematics(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Poses, tendon/actuator lengths and velocities of the state `mj_step` left.
+
+    `mj_step` computes everything from the state it starts with, then integrates, so poses
+    would lag the joints by one physics step. These stages bring them up to date for a tenth
+    of an `mj_forward`; forces (joint torques, F/T sensors, contacts) stay those of the last
+    physics step, which are the ones that moved the arm there.
+    """
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    mujoco.mj_tendon(model, data)
+    mujoco.mj_transmission(model, data)
+    mujoco.mj_comVel(model, data)
+
+
+def _positive(value: object) -> bool:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    return math.isfinite(float(value)) and float(value) > 0
+
+
+def _action_bounds(
+    eff: _Effector, model: mujoco.MjModel
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Bounds and entry names of one arm's slice of the action."""
+    arm, robot = eff.arm, eff.robot
+    if arm.actuation is Actuation.CARTESIAN_VELOCITY:
+        lin, ang = arm.max_linear_velocity, arm.max_angular_velocity
+        high = np.array([lin] * 3 + [ang] * 3, dtype=float)
+        low, names = -high, list(_CARTESIAN_LABELS)
+    else:
+        joints = robot.joint_names
+        if arm.actuation is Actuation.JOINT_POSITION:
+            low, high = robot.joint_limits[:, 0].copy(), robot.joint_limits[:, 1].copy()
+        elif arm.actuation is Actuation.JOINT_VELOCITY:
+            # Pinocchio marks "no limit" with the largest double; the Box is float32.
+            limit = np.asarray(robot.model.velocityLimit, dtype=float)[: robot.n_joints]
+            usable = (limit > 0) & (limit < np.finfo(np.float32).max)
+            high = np.where(usable, limit, arm.max_angular_velocity)
+            low = -high
+        else:
+            high = _effort_limits(model, joints)
+            low = -high
+        names = list(joints)
+    if eff.gripper is not None:
+        low, high = np.append(low, 0.0), np.append(high, 1.0)
+        names.append("gripper")
+    return low, high, names
+
+
+def _effort_limits(model: mujoco.MjModel, joints: list[str]) -> np.ndarray:
+    """Per joint: its actuator force range (times gear), else the joint's own, else inf."""
+    out = np.full(len(joints), np.inf)
+    for i, name in enumerate(joints):
+        j = model.joint(name).id
+        if model.jnt_actfrclimited[j]:
+            out[i] = np.abs(model.jnt_actfrcrange[j]).min()
+        for a in range(model.nu):
+            joint_trn = int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
+            if joint_trn and model.actuator_trnid[a, 0] == j and model.actuator_forcelimited[a]:
+                frc = np.abs(model.actuator_forcerange[a]).min() * abs(model.actuator_gear[a, 0])
+                out[i] = min(out[i], frc)
+    return out

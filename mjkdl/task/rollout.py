@@ -1,0 +1,95 @@
+"""Whole episodes, reproducible from a seed: what a rollout worker (a process, a Ray actor) runs."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ..errors import SpecError
+
+Policy = Callable[[Mapping[str, np.ndarray]], Any]
+
+
+@dataclass(frozen=True)
+class Episode:
+    """What one episode gave: its seed, length, summed reward and how it ended."""
+
+    seed: int
+    steps: int
+    total_reward: float
+    terminated: bool
+    truncated: bool
+
+
+def run_episode(
+    env: gym.Env, seed: int, policy: Policy | None = None, max_steps: int | None = None
+) -> Episode:
+    """Reset `env` with `seed` and act until the episode ends (or `max_steps` steps).
+
+    `policy(obs) -> action`; None samples the action space, seeded with `seed` too, so the
+    episode depends on the seed alone — in any process, on any machine with the same versions.
+    """
+    if max_steps is not None and (not isinstance(max_steps, int) or max_steps < 1):
+        raise SpecError(f"max_steps must be a positive integer or None, got {max_steps!r}")
+    obs, _ = env.reset(seed=seed)
+    if policy is None:
+        env.action_space.seed(seed)
+    total, steps = 0.0, 0
+    terminated = truncated = False
+    while not (terminated or truncated) and (max_steps is None or steps < max_steps):
+        action = env.action_space.sample() if policy is None else policy(obs)
+        obs, reward, terminated, truncated, _ = env.step(action)
+        total += float(reward)
+        steps += 1
+    return Episode(seed, steps, total, bool(terminated), bool(truncated))
+
+
+def ray_collect(
+    env_id: str,
+    seeds: Sequence[int],
+    *,
+    actors: int = 2,
+    policy: Policy | None = None,
+    max_steps: int | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+) -> list[Episode]:
+    """One `run_episode` per seed, spread over `actors` Ray actors; results in seed order.
+
+    Each actor builds `gymnasium.make(env_id, **env_kwargs)` once and runs its share of the
+    seeds, so the results equal a sequential run with the same seeds. Connect first with
+    `ray.init()` (this machine) or `ray.init(address=...)` (a cluster whose nodes have mjkdl
+    and the models installed); without it Ray starts a local instance. Needs `mjkdl[ray]`.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise ImportError("ray_collect needs Ray: pip install 'mjkdl[ray]'") from None
+    if not isinstance(actors, int) or actors < 1:
+        raise SpecError(f"actors must be a positive integer, got {actors!r}")
+    seeds = [int(s) for s in seeds]
+    kwargs = dict(env_kwargs or {})
+
+    class Worker:
+        def __init__(self) -> None:
+            import mjkdl.task  # noqa: F401  (registers the tasks in the actor's process)
+
+            self.env = gym.make(env_id, **kwargs)
+
+        def run(self, share: list[int]) -> list[Episode]:
+            return [run_episode(self.env, s, policy, max_steps) for s in share]
+
+    count = min(actors, max(1, len(seeds)))
+    actor: Any = ray.remote(Worker)
+    workers = [actor.remote() for _ in range(count)]
+    shares = [seeds[k::count] for k in range(count)]
+    results = ray.get([w.run.remote(share) for w, share in zip(workers, shares, strict=True)])
+    for w in workers:
+        ray.kill(w)
+    ordered: list[Episode] = [None] * len(seeds)  # type: ignore[list-item]
+    for k, part in enumerate(results):
+        ordered[k::count] = part
+    return ordered

@@ -1,0 +1,314 @@
+"""Observation sources of a task: the arms' state, cameras, body poses and user sensors.
+
+Each source is bound to the compiled model once and then copies MuJoCo's numbers into arrays
+allocated at binding, so reading a step's observation allocates nothing but what the caller
+returns. Poses and velocities are those of the joint state of the same step; forces (joint
+torques, F/T wrenches) those MuJoCo applied over the last physics step (see `TaskEnv.step`).
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
+
+import mujoco
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import ArrayLike
+
+from ..compile import euler_quat, vector
+from ..errors import SpecError, unknown_name
+from ..spec import ToolFrameSpec
+from .spec import ArmSpec, BodyPoseSensor, CameraSensor
+
+if TYPE_CHECKING:
+    from ..control import Gripper
+    from ..robot import Robot
+    from .env import TaskEnv
+
+_INF = np.inf
+
+
+@runtime_checkable
+class Sensor(Protocol):
+    """A user observation source for `TaskSpec.sensors`.
+
+    `space(env)` is called once, when the env is built: the observations it adds, by name.
+    `read(env)` is called at every reset and step and returns a value for each of them, of the
+    declared shape (it is copied into the observation).
+    """
+
+    def space(self, env: TaskEnv) -> Mapping[str, spaces.Box]: ...
+
+    def read(self, env: TaskEnv) -> Mapping[str, ArrayLike]: ...
+
+
+class Reader(abc.ABC):
+    """A bound observation source: `spaces` by name, `read()` fills `buffers` in place."""
+
+    def __init__(self, boxes: dict[str, spaces.Box]) -> None:
+        self.spaces = boxes
+        self.buffers = {k: np.zeros(b.shape, dtype=b.dtype) for k, b in boxes.items()}
+
+    @abc.abstractmethod
+    def read(self) -> None:
+        """Copy the current values into `buffers`."""
+
+
+def _box(shape: tuple[int, ...], low: float = -_INF, high: float = _INF, dtype=np.float64):
+    return spaces.Box(low=low, high=high, shape=shape, dtype=dtype)
+
+
+def _lookup(model: mujoco.MjModel, obj: mujoco.mjtObj, kind: str, name: str, where: str) -> int:
+    """MuJoCo id of `name`, or an UnknownNameError naming `where` and the close names."""
+    i = mujoco.mj_name2id(model, obj, name) if isinstance(name, str) and name else -1
+    if i < 0:
+        count = {
+            mujoco.mjtObj.mjOBJ_BODY: model.nbody,
+            mujoco.mjtObj.mjOBJ_SITE: model.nsite,
+            mujoco.mjtObj.mjOBJ_CAMERA: model.ncam,
+            mujoco.mjtObj.mjOBJ_SENSOR: model.nsensor,
+            mujoco.mjtObj.mjOBJ_ACTUATOR: model.nu,
+        }[obj]
+        known = [mujoco.mj_id2name(model, obj, k) or "" for k in range(count)]
+        raise unknown_name(kind, str(name), known, where=where)
+    return i
+
+
+def _frame_id(model: mujoco.MjModel, name: str, where: str) -> tuple[mujoco.mjtObj, int]:
+    """A site, else a body, called `name`: (`mjOBJ_SITE` or `mjOBJ_XBODY`, id)."""
+    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) if name else -1
+    if site >= 0:
+        return mujoco.mjtObj.mjOBJ_SITE, site
+    body = _lookup(model, mujoco.mjtObj.mjOBJ_BODY, "site or body", name, where)
+    return mujoco.mjtObj.mjOBJ_XBODY, body
+
+
+def _frame_views(data: mujoco.MjData, kind: mujoco.mjtObj, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """Views (position (3,), rotation (3, 3)) of a site's or body's world frame."""
+    if kind == mujoco.mjtObj.mjOBJ_SITE:
+        return data.site_xpos[i], data.site_xmat[i].reshape(3, 3)
+    return data.xpos[i], data.xmat[i].reshape(3, 3)
+
+
+class ArmReader(Reader):
+    """`{arm}_joint_pos/_joint_vel/_joint_torques/_tcp_pos/_tcp_quat/_tcp_vel`, the gripper's
+    opening and the tool's wrench(es), read from MuJoCo's data.
+
+    The TCP is the tool's `tcp_site` (or the tip body) offset by `tcp_pos`/`tcp_euler`, as in
+    `Robot.fk_frame`; its velocity is `[v, w]` relative to the world, expressed along the axes
+    of the arm's control frame (the world when it has none), as the Cartesian action is.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        arm: ArmSpec,
+        robot: Robot,
+        gripper: Gripper | None,
+        where: str,
+    ) -> None:
+        n, p = robot.n_joints, arm.name
+        tool = arm.tool if arm.tool is not None else ToolFrameSpec()
+        boxes = {
+            f"{p}_joint_pos": _box((n,)),
+            f"{p}_joint_vel": _box((n,)),
+            f"{p}_joint_torques": _box((n,)),
+            f"{p}_tcp_pos": _box((3,)),
+            f"{p}_tcp_quat": _box((4,), -1.0, 1.0),
+            f"{p}_tcp_vel": _box((6,)),
+        }
+        if gripper is not None:
+            boxes[f"{p}_gripper"] = _box((1,), 0.0, 1.0)
+        ft = tool.ft_sensors
+        for s in ft:
+            boxes[f"{p}_wrench" if len(ft) == 1 else f"{p}_{s.name}_wrench"] = _box((6,))
+        super().__init__(boxes)
+        self._data, self._model = data, model
+        self._gripper = gripper
+        b = self.buffers
+        self._pos, self._vel, self._trq = (b[f"{p}_joint_{k}"] for k in ("pos", "vel", "torques"))
+        self._tcp_pos, self._tcp_quat, self._tcp_vel = (
+            b[f"{p}_tcp_{k}"] for k in ("pos", "quat", "vel")
+        )
+        self._grip = b.get(f"{p}_gripper")
+        jids = [model.joint(name).id for name in robot.joint_names]
+        self._qadr = model.jnt_qposadr[jids].astype(np.intp)
+        self._dadr = model.jnt_dofadr[jids].astype(np.intp)
+
+        # The TCP's reference frame; `robot` resolved these names when it was created.
+        if tool.tcp_site:
+            self._ref_kind = mujoco.mjtObj.mjOBJ_SITE
+            ref = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, arm.prefix + tool.tcp_site)
+        else:
+            self._ref_kind = mujoco.mjtObj.mjOBJ_XBODY
+            ref = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, arm.prefix + arm.tip_body)
+        self._ref = ref
+        self._ref_pos, self._ref_mat = _frame_views(data, self._ref_kind, ref)
+        self._off_pos = vector(tool.tcp_pos, 3, f"{where}.tool.tcp_pos")
+        off_rot = np.empty(9)
+        mujoco.mju_quat2Mat(off_rot, euler_quat(tool.tcp_euler, f"{where}.tool.tcp_euler"))
+        self._off_rot = off_rot.reshape(3, 3)
+        self._rot = np.empty((3, 3))
+        self._rot_flat = self._rot.reshape(9)
+        self._arm_vel = np.empty(6)  # [w, v] at the reference frame's origin, world axes
+        self._lever = np.empty(3)
+        self._cross = np.empty(3)
+        self._lin = np.empty(3)
+        if arm.control_frame:
+            kind, cf = _frame_id(model, arm.control_frame, f"{where}.control_frame")
+            self._cf_mat: np.ndarray | None = _frame_views(data, kind, cf)[1].reshape(9)
+        else:
+            self._cf_mat = None
+        self._wrench = []
+        for s in ft:
+            key = f"{p}_wrench" if len(ft) == 1 else f"{p}_{s.name}_wrench"
+            views = []
+            for name in (s.force_sensor, s.torque_sensor):
+                i = _lookup(
+                    model,
+                    mujoco.mjtObj.mjOBJ_SENSOR,
+                    "sensor",
+                    arm.prefix + name,
+                    f"{where}.tool.ft_sensors[{s.name!r}]",
+                )
+                adr = int(model.sensor_adr[i])
+                views.append(data.sensordata[adr : adr + 3])
+            self._wrench.append((b[key][:3], b[key][3:], *views))
+
+    def read(self) -> None:
+        d = self._data
+        np.take(d.qpos, self._qadr, out=self._pos)
+        np.take(d.qvel, self._dadr, out=self._vel)
+        np.take(d.qfrc_actuator, self._dadr, out=self._trq)
+        # TCP = reference frame * offset.
+        pos = self._tcp_pos
+        np.dot(self._ref_mat, self._off_pos, out=pos)
+        pos += self._ref_pos
+        np.dot(self._ref_mat, self._off_rot, out=self._rot)
+        mujoco.mju_mat2Quat(self._tcp_quat, self._rot_flat)
+        # Velocity of the TCP point: that of the reference origin plus w x lever.
+        mujoco.mj_objectVelocity(self._model, d, self._ref_kind, self._ref, self._arm_vel, 0)
+        w = self._arm_vel[:3]
+        np.subtract(pos, self._ref_pos, out=self._lever)
+        mujoco.mju_cross(self._cross, w, self._lever)
+        np.add(self._arm_vel[3:], self._cross, out=self._lin)
+        vel = self._tcp_vel
+        if self._cf_mat is None:
+            vel[:3] = self._lin
+            vel[3:] = w
+        else:
+            mujoco.mju_mulMatTVec3(vel[:3], self._cf_mat, self._lin)
+            mujoco.mju_mulMatTVec3(vel[3:], self._cf_mat, w)
+        if self._grip is not None and self._gripper is not None:
+            self._grip[0] = self._gripper.opening()  # already clipped to [0, 1]
+        for force, torque, f_view, t_view in self._wrench:
+            force[:] = f_view
+            torque[:] = t_view
+
+
+class PoseReader(Reader):
+    """`{name}_pose`: a body's world position and quaternion."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, s: BodyPoseSensor, where: str):
+        body = _lookup(model, mujoco.mjtObj.mjOBJ_BODY, "body", s.body, f"{where}.body")
+        name = s.name or s.body
+        super().__init__({f"{name}_pose": _box((7,))})
+        self._out = self.buffers[f"{name}_pose"]
+        self._pos, self._quat = data.xpos[body], data.xquat[body]
+
+    def read(self) -> None:
+        self._out[:3] = self._pos
+        self._out[3:] = self._quat
+
+
+def intrinsics(fovy_deg: float, width: int, height: int) -> np.ndarray:
+    """Pinhole matrix of a MuJoCo camera rendered at `width`x`height`.
+
+    MuJoCo's `fovy` is the vertical field of view and pixels are square, so
+    fx = fy = (height / 2) / tan(fovy / 2). Pixel centres sit at integer coordinates (OpenCV's
+    convention), so the principal point is ((width - 1) / 2, (height - 1) / 2); the matrix maps
+    camera-frame points with x right, y down, z forward (MuJoCo's camera looks along its -z,
+    with y up).
+    """
+    f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
+    return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+
+
+class CameraReader(Reader):
+    """`{name}_rgb`, `{name}_depth` (metres) and `{name}_intrinsics` of one camera.
+
+    Renderers come from `renderer(width, height)`, shared by every camera of the same size.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        s: CameraSensor,
+        renderer: Callable[[int, int], mujoco.Renderer],
+        where: str,
+    ) -> None:
+        cam = _lookup(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", s.camera, f"{where}.camera")
+        for field in ("width", "height"):
+            value = getattr(s, field)
+            if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value <= 0:
+                raise SpecError(f"{where}.{field} must be a positive integer, got {value!r}")
+        name = s.name or s.camera
+        h, w = int(s.height), int(s.width)
+        boxes = {f"{name}_rgb": _box((h, w, 3), 0, 255, np.uint8)}
+        if s.depth:
+            boxes[f"{name}_depth"] = _box((h, w), 0.0, _INF, np.float32)
+        boxes[f"{name}_intrinsics"] = _box((3, 3))
+        super().__init__(boxes)
+        try:
+            self._renderer: mujoco.Renderer = renderer(w, h)
+        except SpecError as err:
+            raise SpecError(f"{where}: {err}") from None
+        self._data, self._cam = data, cam
+        self._flags = (bool(s.shadows), bool(s.reflections))
+        self._rgb = self.buffers[f"{name}_rgb"]
+        self._depth = self.buffers.get(f"{name}_depth")
+        self.buffers[f"{name}_intrinsics"][:] = intrinsics(float(model.cam_fovy[cam]), w, h)
+
+    def read(self) -> None:
+        r = self._renderer
+        flags = r.scene.flags  # the renderer is shared: set this camera's look every time
+        flags[mujoco.mjtRndFlag.mjRND_SHADOW], flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
+            self._flags
+        )
+        r.update_scene(self._data, camera=self._cam)
+        if self._depth is not None:  # the same scene, read as depth, then as colour
+            r.enable_depth_rendering()
+            r.render(out=self._depth)
+            r.disable_depth_rendering()
+        r.render(out=self._rgb)
+
+
+class UserReader(Reader):
+    """Adapts a `Sensor`: its values are checked and copied into the observation."""
+
+    def __init__(self, sensor: Sensor, env: TaskEnv, where: str) -> None:
+        boxes = sensor.space(env)
+        if not isinstance(boxes, Mapping) or not all(
+            isinstance(k, str) and isinstance(b, spaces.Box) for k, b in boxes.items()
+        ):
+            raise SpecError(f"{where}.space(env) must return a mapping of names to Box spaces")
+        super().__init__(dict(boxes))
+        self._sensor, self._env, self._where = sensor, env, where
+
+    def read(self) -> None:
+        values = self._sensor.read(self._env)
+        for key, buf in self.buffers.items():
+            if key not in values:
+                raise SpecError(f"{self._where}.read(env) returned no {key!r}")
+            value = np.asarray(values[key])
+            if value.shape != buf.shape:
+                raise SpecError(
+                    f"{self._where}.read(env)[{key!r}] has shape {value.shape}, "
+                    f"its space says {buf.shape}"
+                )
+            np.copyto(buf, value, casting="unsafe")

@@ -1,0 +1,508 @@
+"""TaskEnv: spaces from the spec, episodes, actuation modes, observations, bad input."""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterator
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import menagerie
+
+import mjkdl as mjk
+from mjkdl.task import Actuation, ArmSpec, BodyPoseSensor, CameraSensor, TaskEnv, TaskSpec
+from mjkdl.task.registry import PANDA_HOME, panda_arm, panda_reach_spec, panda_scene
+
+PANDA_FORCES = [87.0] * 4 + [12.0] * 3
+
+
+@pytest.fixture(autouse=True)
+def _panda() -> None:
+    menagerie("franka_emika_panda")
+
+
+def make(**kw) -> TaskEnv:
+    """A Panda task: `arms`/`scene`/... override the defaults (one Cartesian arm, a ball)."""
+    ball = mjk.SceneObject(
+        name="ball", shape=mjk.Shape.SPHERE, size=[0.03], mass=0.1, pos=[0.5, 0.0, 0.032]
+    )
+    fields = {
+        "scene": panda_scene([ball]),
+        "arms": [panda_arm()],
+        "sensors": [BodyPoseSensor("ball")],
+    }
+    fields.update(kw)
+    return TaskEnv(TaskSpec(**fields))
+
+
+@pytest.fixture
+def env() -> Iterator[TaskEnv]:
+    e = make()
+    yield e
+    e.close()
+
+
+ARM_KEYS = ["joint_pos", "joint_vel", "joint_torques", "tcp_pos", "tcp_quat", "tcp_vel", "gripper"]
+
+
+def test_spaces_follow_the_spec_exactly(env: TaskEnv) -> None:
+    obs_space = env.observation_space.spaces
+    assert list(obs_space) == [f"panda_{k}" for k in ARM_KEYS] + ["ball_pose", "time"]
+    shapes = {k: v.shape for k, v in obs_space.items()}
+    assert shapes == {
+        "panda_joint_pos": (7,),
+        "panda_joint_vel": (7,),
+        "panda_joint_torques": (7,),
+        "panda_tcp_pos": (3,),
+        "panda_tcp_quat": (4,),
+        "panda_tcp_vel": (6,),
+        "panda_gripper": (1,),
+        "ball_pose": (7,),
+        "time": (1,),
+    }
+    assert all(v.dtype == np.float64 for v in obs_space.values())
+    box = env.action_space
+    assert box.shape == (7,) and box.dtype == np.float32
+    assert box.low.tolist() == [-0.5] * 3 + [-1.0] * 3 + [0.0]
+    assert box.high.tolist() == [0.5] * 3 + [1.0] * 3 + [1.0]
+    assert env.action_labels == [f"panda.{k}" for k in ("vx", "vy", "vz", "wx", "wy", "wz")] + [
+        "panda.gripper"
+    ]
+    obs, info = env.reset(seed=0)
+    assert list(obs) == list(obs_space) and env.observation_space.contains(obs)
+    assert info == {"diverged": False}
+
+
+def test_joint_actuation_bounds_come_from_the_model() -> None:
+    arms = [
+        ArmSpec("p", "link0", "hand", actuation=Actuation.JOINT_POSITION, home=PANDA_HOME),
+        ArmSpec(
+            "v",
+            "link0",
+            "hand",
+            prefix="b/",
+            actuation=Actuation.JOINT_VELOCITY,
+            max_angular_velocity=0.7,
+        ),
+        ArmSpec("t", "link0", "hand", prefix="c/", actuation=Actuation.JOINT_TORQUE),
+    ]
+    path = menagerie("franka_emika_panda")
+    scene = mjk.SceneSpec(
+        timestep=0.002,
+        add_floor=True,
+        add_skybox=False,
+        robots=[
+            mjk.RobotSpec(path=path),
+            mjk.RobotSpec(path=path, prefix="b/", pos=[0, 1, 0]),
+            mjk.RobotSpec(path=path, prefix="c/", pos=[0, 2, 0]),
+        ],
+    )
+    env = TaskEnv(TaskSpec(scene=scene, arms=arms))
+    model = env.scene.model
+    ranges = np.array([model.joint(f"joint{i}").range for i in range(1, 8)])
+    box = env.action_space
+    assert box.shape == (21,)
+    np.testing.assert_array_equal(box.low[:7], ranges[:, 0].astype(np.float32))
+    np.testing.assert_array_equal(box.high[:7], ranges[:, 1].astype(np.float32))
+    assert box.high[7:14].tolist() == pytest.approx([0.7] * 7)  # Panda's MJCF has no limit
+    assert box.high[14:].tolist() == PANDA_FORCES  # the actuators' forcerange
+    assert box.low[14:].tolist() == [-f for f in PANDA_FORCES]
+    env.close()
+
+
+def test_reset_with_a_seed_repeats_the_episode() -> None:
+    a = make(initializers=panda_reach_spec().initializers[:1])
+    b = make(initializers=panda_reach_spec().initializers[:1])
+    rng = np.random.default_rng(5)
+    actions = [rng.uniform(a.action_space.low, a.action_space.high) for _ in range(5)]
+    runs = []
+    for env in (a, b, a):
+        obs, _ = env.reset(seed=11)
+        trace = [obs["panda_joint_pos"]]
+        for act in actions:
+            obs, reward, *_ = env.step(act)
+            trace += [obs["panda_tcp_pos"], obs["ball_pose"], np.array([reward])]
+        runs.append(np.concatenate(trace))
+    np.testing.assert_array_equal(runs[0], runs[1])
+    np.testing.assert_array_equal(runs[0], runs[2])
+    other, _ = a.reset(seed=12)
+    assert not np.allclose(other["panda_joint_pos"], runs[0][:7])
+    a.close()
+    b.close()
+
+
+def test_truncated_exactly_at_the_time_limit() -> None:
+    env = make(control_timestep=0.1, time_limit=0.3)
+    env.reset(seed=0)
+    zero = np.zeros(7)
+    flags = [env.step(zero)[3] for _ in range(3)]
+    assert flags == [False, False, True]
+    assert env.scene.time() == pytest.approx(0.3, abs=1e-12)
+    assert env.elapsed_steps == 3 and env.control_timestep == pytest.approx(0.1)
+    env.close()
+
+
+def test_one_step_is_control_timestep_of_physics(env: TaskEnv) -> None:
+    obs, _ = env.reset(seed=0)
+    obs, *_ = env.step(np.zeros(7))
+    assert obs["time"][0] == pytest.approx(0.1, abs=1e-12)
+    assert env.scene.data.time == pytest.approx(50 * 0.002, abs=1e-12)
+
+
+def test_actions_are_clipped_into_the_space() -> None:
+    envs = [make(), make()]
+    inside = np.array([0.5, -0.5, 0, 0, 0, 1.0, 1.0])
+    beyond = np.array([3.0, -7.0, 0, 0, 0, 5.0, 9.0])
+    out = []
+    for env, act in zip(envs, (inside, beyond), strict=True):
+        env.reset(seed=1)
+        out.append([env.step(act)[0]["panda_joint_pos"] for _ in range(3)])
+        env.close()
+    np.testing.assert_array_equal(np.array(out[0]), np.array(out[1]))
+
+
+def test_cartesian_velocity_moves_the_tcp_along_the_control_frame() -> None:
+    # The arm stands turned by 90 degrees about z; "link0" axes: its x is the world's y.
+    path = menagerie("franka_emika_panda")
+    scene = panda_scene([])
+    scene.robots = [mjk.RobotSpec(path=path, euler=[0, 0, 90])]
+    arm = panda_arm()
+    arm.control_frame = "link0"
+    env = TaskEnv(TaskSpec(scene=scene, arms=[arm]))
+    obs, _ = env.reset(seed=0)
+    start = obs["panda_tcp_pos"]
+    for _ in range(10):
+        obs, *_ = env.step(np.array([0.1, 0, 0, 0, 0, 0, 0]))
+    moved = obs["panda_tcp_pos"] - start
+    assert moved[1] == pytest.approx(0.1, abs=0.01)  # 1 s at 0.1 m/s, along world y
+    assert abs(moved[0]) < 0.005 and abs(moved[2]) < 0.005
+    # The velocity observation is along the control frame: x there.
+    robot, data = env.robots["panda"], env.scene.data
+    robot.update()
+    world = robot.jacobian() @ robot.jnt_vel_msr
+    rot = data.xmat[env.scene.body_id("link0")].reshape(3, 3)
+    np.testing.assert_allclose(obs["panda_tcp_vel"][:3], rot.T @ world[:3], atol=1e-9)
+    np.testing.assert_allclose(obs["panda_tcp_vel"][3:], rot.T @ world[3:], atol=1e-9)
+    env.close()
+
+
+def test_tcp_observations_match_pinocchio(env: TaskEnv) -> None:
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    robot = env.robots["panda"]
+    for _ in range(5):
+        obs, *_ = env.step(rng.uniform(env.action_space.low, env.action_space.high))
+        robot.update()
+        tcp = robot.fk_frame()
+        np.testing.assert_allclose(obs["panda_tcp_pos"], tcp.translation, atol=1e-9)
+        quat = obs["panda_tcp_quat"]
+        expected = pin.Quaternion(tcp.rotation).coeffs()  # x, y, z, w
+        sign = np.sign(quat[0] * expected[3]) or 1.0
+        np.testing.assert_allclose(quat, sign * np.roll(expected, 1), atol=1e-9)
+        np.testing.assert_array_equal(obs["panda_joint_pos"], robot.jnt_pos_msr)
+        np.testing.assert_array_equal(obs["panda_joint_vel"], robot.jnt_vel_msr)
+        np.testing.assert_allclose(
+            obs["panda_tcp_vel"], robot.jacobian() @ robot.jnt_vel_msr, atol=1e-9
+        )
+
+
+def test_gripper_observation_follows_the_action(env: TaskEnv) -> None:
+    obs, _ = env.reset(seed=0)
+    assert obs["panda_gripper"][0] == pytest.approx(0.0, abs=0.05)  # qpos0: fingers shut
+    for _ in range(10):
+        obs, *_ = env.step(np.zeros(7))  # 0: open
+    assert obs["panda_gripper"][0] == pytest.approx(1.0, abs=0.02)
+    close = np.zeros(7)
+    close[6] = 1.0
+    for _ in range(10):
+        obs, *_ = env.step(close)
+    assert obs["panda_gripper"][0] < 0.05
+
+
+def test_joint_position_actuation_tracks_the_command() -> None:
+    arm = panda_arm()
+    arm.actuation, arm.gripper = Actuation.JOINT_POSITION, None
+    env = make(arms=[arm])
+    obs, _ = env.reset(seed=0)
+    target = np.array(PANDA_HOME) + 0.2
+    for _ in range(20):
+        obs, *_ = env.step(target)
+    np.testing.assert_allclose(obs["panda_joint_pos"], target, atol=0.01)
+    env.close()
+
+
+def test_zero_torque_holds_the_arm_against_gravity() -> None:
+    arm = panda_arm()
+    arm.actuation = Actuation.JOINT_TORQUE
+    env = make(arms=[arm])
+    obs, _ = env.reset(seed=0)
+    start = obs["panda_tcp_pos"]
+    for _ in range(10):
+        obs, *_ = env.step(np.zeros(8))
+    assert np.linalg.norm(obs["panda_tcp_pos"] - start) < 0.01
+    env.close()
+
+
+def test_observations_are_the_agents_own(env: TaskEnv) -> None:
+    obs, _ = env.reset(seed=0)
+    keep = obs["panda_joint_pos"].copy()
+    obs["panda_joint_pos"][:] = 99.0
+    nxt, *_ = env.step(np.zeros(7))
+    assert not np.shares_memory(nxt["panda_joint_pos"], obs["panda_joint_pos"])
+    assert np.abs(nxt["panda_joint_pos"] - keep).max() < 0.01
+
+
+def test_divergence_ends_the_episode_without_nan(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT here
+
+    def blow_up(env: TaskEnv, rng: np.random.Generator) -> None:
+        env.scene.data.qvel[:] = 1e12
+
+    env = make(initializers=[blow_up])
+    first, _ = env.reset(seed=0)
+    obs, reward, terminated, truncated, info = env.step(np.zeros(7))
+    assert terminated and info["diverged"] and not truncated and reward == 0.0
+    assert "BADQVEL" in info["error"] or "diverge" in info["error"].lower()
+    assert all(np.isfinite(v).all() for v in obs.values())
+    np.testing.assert_array_equal(obs["panda_joint_pos"], first["panda_joint_pos"])
+    with pytest.raises(RuntimeError, match="diverged"):
+        env.step(np.zeros(7))
+    env.task_spec.initializers = []
+    obs, _ = env.reset(seed=0)
+    assert not env.step(np.zeros(7))[2]
+    env.close()
+
+
+# ---------------------------------------------------------------------- bad input
+
+
+def test_wrong_action_shape_names_the_layout(env: TaskEnv) -> None:
+    env.reset(seed=0)
+    with pytest.raises(mjk.SpecError, match=r"shape \(7,\).*panda\.vx.*panda\.gripper.*\(6,\)"):
+        env.step(np.zeros(6))
+    with pytest.raises(ValueError, match="numbers"):
+        env.step(["a"] * 7)
+
+
+def test_nan_action_names_the_entry(env: TaskEnv) -> None:
+    env.reset(seed=0)
+    act = np.zeros(7)
+    act[4] = np.nan
+    with pytest.raises(mjk.SpecError, match=r"finite.*panda\.wy=nan"):
+        env.step(act)
+
+
+def test_step_before_reset_and_after_close(env: TaskEnv) -> None:
+    with pytest.raises(RuntimeError, match="before reset"):
+        env.step(np.zeros(7))
+    env.close()
+    env.close()  # twice is fine
+    for call in (lambda: env.step(np.zeros(7)), lambda: env.reset(seed=0), env.render):
+        with pytest.raises(RuntimeError, match="closed"):
+            call()
+
+
+@pytest.mark.parametrize(
+    ("change", "error", "message"),
+    [
+        (lambda s: setattr(s.arms[0], "tip_body", "hnad"), KeyError, r"arms\[0\].*'hnad'.*hand"),
+        (lambda s: setattr(s.arms[0].gripper, "actuator", "act8"), KeyError, r"gripper.*act8"),
+        (lambda s: setattr(s.arms[0], "control_frame", "lnk0"), KeyError, r"control_frame.*lnk0"),
+        (
+            lambda s: s.sensors.append(BodyPoseSensor("bal")),
+            KeyError,
+            r"sensors\[1\]\.body.*'bal'.*ball",
+        ),
+        (
+            lambda s: s.sensors.append(CameraSensor("frnt")),
+            KeyError,
+            r"sensors\[1\]\.camera.*'frnt'.*front",
+        ),
+        (
+            lambda s: s.sensors.append(CameraSensor("front", width=0)),
+            ValueError,
+            r"sensors\[1\]\.width",
+        ),
+        (lambda s: s.sensors.append(object()), ValueError, r"sensors\[1\] must be"),
+        (
+            lambda s: s.sensors.append(BodyPoseSensor("ball")),
+            ValueError,
+            r"'ball_pose'.*sensors\[0\] and TaskSpec\.sensors\[1\]",
+        ),
+        (lambda s: setattr(s, "control_timestep", 0.003), ValueError, "whole number"),
+        (lambda s: setattr(s, "time_limit", -1.0), ValueError, "time_limit"),
+        (lambda s: setattr(s.arms[0], "home", [0.0] * 3), ValueError, r"arms\[0\]\.home"),
+        (lambda s: setattr(s.arms[0], "actuation", "cartesian"), ValueError, "Actuation"),
+        (lambda s: s.arms.append(panda_arm()), ValueError, "unique"),
+        (lambda s: setattr(s, "arms", []), ValueError, "non-empty"),
+        (lambda s: setattr(s, "sensors", BodyPoseSensor("ball")), ValueError, "sensors must be"),
+    ],
+)
+def test_bad_specs_name_the_field(change, error, message) -> None:
+    ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.03], mass=0.1)
+    spec = TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()], sensors=[BodyPoseSensor("ball")])
+    change(spec)
+    with pytest.raises(error) as err:
+        TaskEnv(spec)
+    for fragment in message.split(".*"):  # each piece, in any order
+        assert re.search(fragment, str(err.value)), (fragment, str(err.value))
+
+
+def test_bad_constructor_arguments() -> None:
+    with pytest.raises(ValueError, match="TaskSpec"):
+        TaskEnv("panda")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="render_mode"):
+        make_kw = {"scene": panda_scene([]), "arms": [panda_arm()]}
+        TaskEnv(TaskSpec(**make_kw), render_mode="video")
+    with pytest.raises(KeyError, match="'nope' in render_camera; known: front"):
+        TaskEnv(TaskSpec(scene=panda_scene([]), arms=[panda_arm()]), render_camera="nope")
+
+
+def test_reset_rejects_options(env: TaskEnv) -> None:
+    with pytest.raises(ValueError, match="options"):
+        env.reset(seed=0, options={"keyframe": 0})
+    env.reset(seed=0, options={})
+
+
+def test_rgb_array_render_shows_the_named_camera() -> None:
+    env = TaskEnv(
+        TaskSpec(scene=panda_scene([]), arms=[panda_arm()]),
+        render_mode="rgb_array",
+        render_camera="front",
+        render_width=160,
+        render_height=120,
+    )
+    env.reset(seed=0)
+    img = env.render()
+    assert img.shape == (120, 160, 3) and img.dtype == np.uint8
+    ref = mujoco.Renderer(env.scene.model, 120, 160)
+    ref.update_scene(env.scene.data, camera="front")
+    np.testing.assert_array_equal(img, ref.render())
+    ref.close()
+    env.close()
+    assert math.isfinite(float(img.mean()))
+
+
+def test_one_step_episodes_repeat(env: TaskEnv) -> None:
+    # The controller's state must not leak from an episode that ended at its first step.
+    act = np.array([0.4, -0.3, 0.2, 0.5, -0.5, 0.8, 1.0])
+    runs = []
+    for _ in range(3):
+        env.reset(seed=9)
+        runs.append(env.step(act)[0]["panda_joint_pos"])
+    np.testing.assert_array_equal(runs[0], runs[1])
+    np.testing.assert_array_equal(runs[0], runs[2])
+
+
+class _Clock:
+    """A user sensor whose observation name clashes with the env's own `time`."""
+
+    def space(self, env):
+        from gymnasium import spaces
+
+        return {"time": spaces.Box(0, 1, (1,))}
+
+    def read(self, env):
+        return {"time": [0.0]}
+
+
+def test_a_sensor_cannot_take_the_envs_time() -> None:
+    with pytest.raises(ValueError, match=r"'time' is produced by both the env.*sensors\[1\]"):
+        make(sensors=[BodyPoseSensor("ball"), _Clock()])
+
+
+def test_two_arms_take_their_slices_of_the_action() -> None:
+    path = menagerie("franka_emika_panda")
+    scene = panda_scene([])
+    scene.robots.append(mjk.RobotSpec(path=path, prefix="r/", pos=[0.0, 1.0, 0.0]))
+    right = panda_arm("right")
+    right.prefix = "r/"
+    env = TaskEnv(TaskSpec(scene=scene, arms=[panda_arm("left"), right]))
+    assert env.action_space.shape == (14,)
+    assert env.action_labels[7:] == [f"right.{k}" for k in ("vx", "vy", "vz", "wx", "wy", "wz")] + [
+        "right.gripper"
+    ]
+    assert env.grippers["right"].actuator == "r/actuator8"
+    obs, _ = env.reset(seed=0)
+    start = {k: obs[f"{k}_tcp_pos"] for k in ("left", "right")}
+    act = np.zeros(14)
+    act[9] = 0.1  # right arm up at 0.1 m/s, the left one still; both hands open
+    for _ in range(5):
+        obs, *_ = env.step(act)
+    assert obs["right_tcp_pos"][2] - start["right"][2] == pytest.approx(0.05, abs=0.01)
+    assert np.linalg.norm(obs["left_tcp_pos"] - start["left"]) < 0.003
+    assert obs["left_gripper"][0] > 0.9 and obs["right_gripper"][0] > 0.9
+    act[6] = 1.0  # the left hand closes, the right one stays open
+    for _ in range(5):
+        obs, *_ = env.step(act)
+    assert obs["left_gripper"][0] < 0.1 and obs["right_gripper"][0] > 0.9
+    env.close()
+
+
+def test_render_without_a_mode_warns(env: TaskEnv) -> None:
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert env.render() is None
+
+
+def test_a_scene_that_raises_on_divergence_ends_the_episode(env: TaskEnv, monkeypatch) -> None:
+    # The scene layer may raise mjk.SimulationError from Scene.step instead of letting MuJoCo
+    # reset the state: the env reports it the same way.
+    class SimulationError(RuntimeError):
+        pass
+
+    def diverge(n: int = 1) -> None:
+        raise SimulationError("the simulation failed by t = 0.05 s: NaN in QACC")
+
+    monkeypatch.setattr("mjkdl.task.env._SimulationError", (SimulationError,))
+    first, _ = env.reset(seed=0)
+    monkeypatch.setattr(env.scene, "step", diverge)
+    obs, reward, terminated, truncated, info = env.step(np.zeros(7))
+    assert reward == 0.0 and not truncated
+    assert terminated and info == {
+        "diverged": True,
+        "error": "the simulation failed by t = 0.05 s: NaN in QACC",
+    }
+    np.testing.assert_array_equal(obs["panda_tcp_pos"], first["panda_tcp_pos"])
+    with pytest.raises(RuntimeError, match=r"NaN in QACC.*reset"):
+        env.step(np.zeros(7))
+
+
+def test_the_env_follows_a_rebuilt_scene(env: TaskEnv) -> None:
+    obs, _ = env.reset(seed=0)
+    env.scene.add_object(
+        mjk.SceneObject(
+            name="block", shape=mjk.Shape.BOX, size=[0.05] * 3, mass=0.5, pos=[0.0, 0.6, 0.5]
+        )
+    )
+    for _ in range(3):
+        obs, *_ = env.step(np.array([0, 0, 0.1, 0, 0, 0, 0]))
+    # New arrays behind the observations: they still follow the simulation.
+    assert obs["time"][0] == pytest.approx(0.3)
+    env.robots["panda"].update()
+    np.testing.assert_allclose(
+        obs["panda_tcp_pos"], env.robots["panda"].fk_frame().translation, atol=1e-9
+    )
+    block = env.scene.data.xpos[env.scene.body_id("block")]
+    assert block[2] < 0.5 - 0.3  # falling
+    env.scene.remove_object("ball")  # the ball_pose sensor's body
+    with pytest.raises(KeyError, match=r"'ball' in TaskSpec\.sensors\[0\]\.body"):
+        env.step(np.zeros(7))
+
+
+def test_an_episode_records_at_real_speed(env: TaskEnv, tmp_path) -> None:
+    import imageio_ffmpeg
+
+    path = tmp_path / "episode.mp4"
+    with mjk.VideoRecorder.open(env.scene, path, 160, 120, fps=1 / env.control_timestep) as rec:
+        rec.use_camera("front")
+        env.reset(seed=0)
+        rec.record_frame()
+        for _ in range(20):
+            env.step(np.array([0, 0.2, 0, 0, 0, 0, 0]))
+            rec.record_frame()
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(path))
+    assert frames == 21 and seconds == pytest.approx(2.1, abs=0.05)  # one frame per step
