@@ -480,9 +480,14 @@ def test_bad_timestep_named(value):
         _build(base_spec(timestep=value))
 
 
-def test_timestep_given_as_text_is_read_as_a_number():
-    with _build(base_spec(timestep="0.004")) as scene:
-        assert scene.timestep() == 0.004
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("timestep", "0.004"), ("timestep", True), ("gravity_z", "-9.81"), ("add_floor", "no")],
+)
+def test_no_silent_coercion(field, value):
+    """Text is not read as a number and "no" is not a true floor flag (issue #13)."""
+    with pytest.raises(mjk.SpecError, match=rf"SceneSpec\.{field} must be"):
+        _build(base_spec(**{field: value}))
 
 
 def test_missing_object_file(tmp_path):
