@@ -1,11 +1,18 @@
 """mjkdl: MuJoCo scenes from plain dataclasses, Pinocchio kinematics and dynamics on top."""
 
 from . import menagerie
-from .errors import BuildError, MjkdlError, ModelFileError, SpecError, UnknownNameError
+from .errors import (
+    BuildError,
+    MjkdlError,
+    ModelFileError,
+    SimulationError,
+    SpecError,
+    UnknownNameError,
+)
 from .ik import IKResult
 from .record import OffscreenRenderError, VideoRecorder, VideoResolution, VideoWriteError
 from .robot import Robot
-from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_version
+from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_log_path, mujoco_version
 from .spec import (
     AttachKind,
     AttachmentSpec,
@@ -53,6 +60,7 @@ __all__ = [
     "SceneSpec",
     "Shape",
     "SimulateViewer",
+    "SimulationError",
     "SpecError",
     "ToolFrameSpec",
     "UnknownNameError",
@@ -60,6 +68,7 @@ __all__ = [
     "VideoResolution",
     "VideoWriteError",
     "menagerie",
+    "mujoco_log_path",
     "mujoco_version",
     "scene_object_site_name",
 ]

@@ -29,6 +29,16 @@ class BuildError(MjkdlError, ValueError):
     """MuJoCo refused to compile or attach what the spec describes."""
 
 
+class SimulationError(MjkdlError, RuntimeError):
+    """The simulation diverged (NaN, Inf or huge qpos/qvel/qacc/ctrl) or overflowed its
+    contact or constraint buffers; `warnings` maps MuJoCo's warning name to (count, info)."""
+
+    def __init__(self, message: str, time: float, warnings: dict[str, tuple[int, int]]) -> None:
+        super().__init__(message)
+        self.time = time
+        self.warnings = warnings
+
+
 def unknown_name(kind: str, name: str, known: Iterable[str], where: str = "") -> UnknownNameError:
     """A lookup error for `name` that lists the closest known names."""
     known = [k for k in known if k]

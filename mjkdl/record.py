@@ -422,4 +422,3 @@ class VideoRecorder(Closable):
             self._finalizer()
         finally:
             self._renderer.close()
-
