@@ -136,7 +136,7 @@ class Scene(Closable):
         """Release MuJoCo's model and data; later calls on this scene raise RuntimeError."""
         self._model = None
         self._data = None
-        self._warn = _NO_WARNINGS  # the view would keep MjData alive
+        self._warn = _NO_WARNINGS  # no view into freed memory
         self._robots = []
 
     def _check_open(self) -> None:  # the same check as Closable's, without a property call
