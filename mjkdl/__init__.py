@@ -10,7 +10,13 @@ from .errors import (
     UnknownNameError,
 )
 from .ik import IKResult
-from .record import OffscreenRenderError, VideoRecorder, VideoResolution, VideoWriteError
+from .record import (
+    OffscreenRenderError,
+    RecordingError,
+    VideoRecorder,
+    VideoResolution,
+    VideoWriteError,
+)
 from .robot import Robot
 from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_log_path, mujoco_version
 from .spec import (
@@ -49,6 +55,7 @@ __all__ = [
     "ModelFileError",
     "NoDisplayError",
     "OffscreenRenderError",
+    "RecordingError",
     "ResetContext",
     "ResetHookError",
     "ResetInfo",
