@@ -50,6 +50,9 @@ _PLURAL = {AttachKind.Body: "bodies", AttachKind.Site: "sites", AttachKind.Frame
 # empty-prefix save caveat. Real conflicts still raise (see `_attach`).
 _QUIET = ("Attach conflict when attaching", "Attaching a spec with an empty prefix")
 
+# Element kinds whose names must be unique (MuJoCo checks them only when compiling).
+_NAMESPACES = ("bodies", "joints", "geoms", "sites", "cameras", "actuators", "sensors", "tendons")
+
 # A resource-provider URI ("http://...", "mem://..."): not a file on disk.
 _SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 
@@ -340,14 +343,29 @@ def _attach(s: mujoco.MjSpec, child: mujoco.MjSpec, *, prefix: str, what: str, *
     try:
         with _quiet_attach_notices():
             s.attach(child, prefix=prefix, **mount)
+        # MuJoCo finds some clashes only when compiling, where it cannot say whose they are.
+        msg = _repeated_name(s)
     except ValueError as err:
         msg = str(err).strip()
-        if "repeated name" in msg:
-            raise BuildError(
-                f"{what}: names clash with the scene ({msg}); give it a distinct prefix "
-                f"(prefix is {prefix!r})"
-            ) from None
-        raise BuildError(f"{what}: MuJoCo cannot attach it: {msg}") from None
+        if "repeated name" not in msg:
+            raise BuildError(f"{what}: MuJoCo cannot attach it: {msg}") from None
+    if msg:
+        raise BuildError(
+            f"{what}: names clash with the scene ({msg}); give it a distinct prefix "
+            f"(prefix is {prefix!r})"
+        )
+
+
+def _repeated_name(s: mujoco.MjSpec) -> str:
+    """The first name two elements of one kind share, as MuJoCo would report it, or ""."""
+    for group in _NAMESPACES:
+        seen: set[str] = set()
+        for element in getattr(s, group):
+            name = element.name
+            if name and name in seen:
+                return f"repeated name {name!r} in {group}"
+            seen.add(name)
+    return ""
 
 
 def _exclude_welded_parent_contacts(s: mujoco.MjSpec, body: mujoco.MjsBody) -> None:

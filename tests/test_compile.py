@@ -12,7 +12,17 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import ASSETS, HOME, ROOT, base_spec, gripper, menagerie, table_object, tutorial_spec
+from conftest import (
+    ASSETS,
+    HOME,
+    ROOT,
+    base_spec,
+    gripper,
+    menagerie,
+    table_object,
+    tutorial_spec,
+    two_link_arm,
+)
 
 import mjkdl as mjk
 from mjkdl.compile import build_mjspec
@@ -920,3 +930,12 @@ def test_fifo_asset_is_refused_without_hanging(tmp_path, case):
 def test_model_path_that_is_a_directory_is_named(tmp_path):
     with pytest.raises(mjk.ModelFileError, match=r"robots\[0\]\.path: model file .* not a regular"):
         _build(base_spec(robots=[mjk.RobotSpec(path=str(tmp_path))]))
+
+
+def test_two_small_robots_without_prefixes_name_the_second(tmp_path):
+    """MuJoCo's attach lets this clash through to compile, which cannot say whose it is."""
+    path = tmp_path / "arm.xml"
+    path.write_text(two_link_arm())
+    robots = [mjk.RobotSpec(path=str(path)), mjk.RobotSpec(path=str(path), pos=[0, 1, 0])]
+    with pytest.raises(mjk.BuildError, match=r"robots\[1\]\.path .*repeated name 'base'.*prefix"):
+        _build(base_spec(robots=robots))
