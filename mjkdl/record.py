@@ -458,9 +458,9 @@ class VideoRecorder(Closable):
             self._renderer.close()
         self._verify()
 
-    def __exit__(self, exc_type: object, *exc: object) -> None:
+    def __exit__(self, *exc: object) -> None:
         """Close; while an exception propagates a bad file is a warning, not a new error."""
-        if exc_type is None:
+        if exc[0] is None:
             self.close()
             return
         try:

@@ -80,7 +80,14 @@ _FAULTS = tuple(
 if sorted(_FAULTS) != [1, 2, 3, 4, 5, 6]:  # `Scene._check_faults` indexes them directly
     raise ImportError(f"mjkdl does not know this MuJoCo's warning numbering: {_FAULTS}")
 _AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-_NO_WARNINGS = memoryview(np.zeros(len(_FAULTS) + 1, dtype=np.int32))
+_NO_WARNINGS = np.zeros(len(_FAULTS) + 1, dtype=np.int32).data
+
+
+def _compiled_options(model: mujoco.MjModel) -> mujoco.MjOption:
+    """Switch MuJoCo's auto-reset off (see `Scene.auto_reset`); a copy of the options as
+    compiled, against which `_transfer_model` finds the user's run-time edits."""
+    model.opt.disableflags |= _AUTORESET
+    return copy.copy(model.opt)
 
 
 class Scene(Closable):
@@ -92,9 +99,8 @@ class Scene(Closable):
         self._data: mujoco.MjData | None = mujoco.MjData(model)
         self._robots: list[Robot] = []
         self._authored_actuators = AuthoredActuators.of(model)
-        model.opt.disableflags |= _AUTORESET  # a divergence raises; see `auto_reset`
-        self._compiled_opt = copy.copy(model.opt)
-        self._warn = memoryview(self._data.warning.number)
+        self._compiled_opt = _compiled_options(model)
+        self._warn = self._data.warning.number.data
         mujoco.mj_forward(model, self._data)
 
     @classmethod
@@ -195,7 +201,7 @@ class Scene(Closable):
             self._raise_faults()
 
     def _raise_faults(self) -> None:
-        model, data = self._model, self._data
+        model, data = self.model, self.data
         if not model.opt.disableflags & _AUTORESET:  # the user chose MuJoCo's silent reset
             return
         found, text = {}, []
@@ -362,14 +368,14 @@ class Scene(Closable):
         model = compile_scene(spec)
         data = mujoco.MjData(model)
         authored = AuthoredActuators.of(model)
-        compiled_opt = copy.copy(model.opt)
+        compiled_opt = _compiled_options(model)
         _transfer_model(self._model, self._compiled_opt, model)
         _transfer_state(self._model, self._data, model, data)
         mujoco.mj_forward(model, data)
         old = (self._spec, self._model, self._data, self._authored_actuators, self._compiled_opt)
         self._spec, self._model, self._data = spec, model, data
         self._authored_actuators, self._compiled_opt = authored, compiled_opt
-        self._warn = memoryview(data.warning.number)
+        self._warn = data.warning.number.data
         try:
             for robot in self._robots:
                 robot._bind(model, data)
@@ -377,7 +383,7 @@ class Scene(Closable):
             # A handle that cannot live on the new model (its chain was removed): put every
             # handle and the scene back on the previous model, which they were bound to.
             self._spec, self._model, self._data, self._authored_actuators, self._compiled_opt = old
-            self._warn = memoryview(self._data.warning.number)
+            self._warn = self.data.warning.number.data
             for robot in self._robots:
                 robot._bind(self._model, self._data)
             raise

@@ -353,3 +353,22 @@ def test_mujoco_log_goes_to_the_documented_place_not_the_working_directory(tmp_p
     default = mjk.mujoco_log_path()  # this process: no MJKDL_MUJOCO_LOG set by the tests
     assert os.path.isabs(default) and Path(default).parent.is_dir()
     assert Path(default).parent != Path.cwd()
+
+
+def test_auto_reset_choice_survives_a_rebuild():
+    crate = mjk.SceneObject(
+        name="crate", shape=mjk.Shape.BOX, size=[0.1] * 3, mass=1, pos=[1, 0, 1]
+    )
+    with _ball_env() as env:
+        env.add_object(crate)
+        assert env.auto_reset is False
+        env.data.qvel[2] = np.nan
+        with pytest.raises(mjk.SimulationError, match="mjWARN_BADQVEL"):
+            env.step()
+        env.reset()
+        env.auto_reset = True
+        env.remove_object("crate")
+        assert env.auto_reset is True
+        env.data.qvel[2] = np.nan
+        env.step()  # MuJoCo's silent reset, as chosen
+        assert env.time() == pytest.approx(0.01, abs=1e-12)
