@@ -7,6 +7,7 @@ from .errors import (
     ModelFileError,
     SimulationError,
     SpecError,
+    SpecTypeError,
     UnknownNameError,
 )
 from .ik import IKResult
@@ -69,6 +70,7 @@ __all__ = [
     "SimulateViewer",
     "SimulationError",
     "SpecError",
+    "SpecTypeError",
     "ToolFrameSpec",
     "UnknownNameError",
     "VideoRecorder",

@@ -14,6 +14,10 @@ class SpecError(MjkdlError, ValueError):
     """A scene description field holds a value that cannot be built."""
 
 
+class SpecTypeError(SpecError, TypeError):
+    """A scene description field holds a value of the wrong type (never coerced)."""
+
+
 class UnknownNameError(MjkdlError, KeyError):
     """A body, site, joint, actuator, camera, keyframe or object name that does not exist."""
 

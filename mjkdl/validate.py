@@ -1,9 +1,10 @@
 """Check a whole `SceneSpec` before MuJoCo sees it: types, finiteness, ranges and names.
 
 No silent coercion: flags must be `bool`, numbers real numbers (not `bool`, not text), names
-and paths text without NUL bytes. Every failure is a `SpecError` (a `ValueError`) that names
-the field path, e.g. ``robots[0].attachments[1].pos`` or ``objects[2] ('cube').size``.
-Files are checked later, when `compile.py` opens them.
+and paths text without NUL bytes. Every failure is a `SpecError` (a `ValueError`; a wrong
+type is a `SpecTypeError`, also a `TypeError`) naming the field path, e.g.
+``robots[0].attachments[1].pos`` or ``objects[2] ('cube').size``. Files are checked later,
+when `compile.py` opens them.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .errors import SpecError
+from .errors import SpecError, SpecTypeError
 from .spec import (
     AttachKind,
     AttachmentSpec,
@@ -53,7 +54,7 @@ SIZE_COUNT = {
 def validate_scene_spec(spec: SceneSpec) -> None:
     """Raise `SpecError` naming the first field of `spec` that cannot be built."""
     if not isinstance(spec, SceneSpec):
-        raise SpecError(f"expected a SceneSpec, got {type(spec).__name__}")
+        raise SpecTypeError(f"expected a SceneSpec, got {type(spec).__name__}")
     for name in ("timestep", "add_floor", "add_skybox"):
         if getattr(spec, name) is None:
             raise SpecError(f"SceneSpec.{name} is required and has no default: set it")
@@ -81,7 +82,7 @@ def validate_scene_spec(spec: SceneSpec) -> None:
 def real(value: object, field: str) -> float:
     """`value` as a finite float; it must be a real number (an int or float, not a bool)."""
     if not _is_real(value):
-        raise SpecError(f"{field} must be a number, got {value!r}")
+        raise SpecTypeError(f"{field} must be a number, got {value!r}")
     out = float(value)  # type: ignore[arg-type]
     if not math.isfinite(out):
         raise SpecError(f"{field} must be finite, got {value!r}")
@@ -91,14 +92,14 @@ def real(value: object, field: str) -> float:
 def flag(value: object, field: str) -> bool:
     """`value` as a bool; only `True`/`False` (or NumPy's) are accepted, never truthiness."""
     if not isinstance(value, (bool, np.bool_)):
-        raise SpecError(f"{field} must be True or False, got {value!r}")
+        raise SpecTypeError(f"{field} must be True or False, got {value!r}")
     return bool(value)
 
 
 def text(value: object, field: str) -> str:
     """`value` as a string without NUL bytes (MuJoCo would cut the name there)."""
     if not isinstance(value, str):
-        raise SpecError(f"{field} must be a string, got {value!r}")
+        raise SpecTypeError(f"{field} must be a string, got {value!r}")
     if "\x00" in value:
         raise SpecError(f"{field} contains a NUL byte: {value!r}")
     return value
@@ -107,7 +108,7 @@ def text(value: object, field: str) -> str:
 def path_text(value: object, field: str) -> str:
     """A file path given as `str` or `os.PathLike`, as text without NUL bytes."""
     if not isinstance(value, (str, os.PathLike)):
-        raise SpecError(f"{field} must be a path (str or Path), got {value!r}")
+        raise SpecTypeError(f"{field} must be a path (str or Path), got {value!r}")
     return text(os.fspath(value), field)
 
 
@@ -120,18 +121,18 @@ def vector(value: object, n: int | Sequence[int], field: str, positive: bool = F
     want = " or ".join(str(k) for k in lengths)
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "iuf":
-            raise SpecError(f"{field} must hold real numbers, got dtype {value.dtype}")
+            raise SpecTypeError(f"{field} must hold real numbers, got dtype {value.dtype}")
         if value.ndim != 1:
-            raise SpecError(f"{field} must be a flat list of {want} numbers, got {value!r}")
+            raise SpecTypeError(f"{field} must be a flat list of {want} numbers, got {value!r}")
         arr = value.astype(float)
     elif isinstance(value, (list, tuple)):
         if any(isinstance(v, (list, tuple, np.ndarray)) for v in value):
-            raise SpecError(f"{field} must be a flat list of {want} numbers, got {value!r}")
+            raise SpecTypeError(f"{field} must be a flat list of {want} numbers, got {value!r}")
         if not all(_is_real(v) for v in value):
-            raise SpecError(f"{field} must be a list of numbers, got {value!r}")
+            raise SpecTypeError(f"{field} must be a list of numbers, got {value!r}")
         arr = np.array(value, dtype=float)
     else:
-        raise SpecError(f"{field} must be a list of numbers, got {value!r}")
+        raise SpecTypeError(f"{field} must be a list of numbers, got {value!r}")
     if arr.size not in lengths:
         raise SpecError(f"{field} must have {want} values, got {arr.size}: {value!r}")
     if not np.all(np.isfinite(arr)):
@@ -166,10 +167,10 @@ def _pose(pos: object, euler: object, field: str) -> None:
 
 def _entries(items: object, cls: type, field: str) -> None:
     if not isinstance(items, list):
-        raise SpecError(f"{field} must be a list of {cls.__name__}, got {items!r}")
+        raise SpecTypeError(f"{field} must be a list of {cls.__name__}, got {items!r}")
     for i, item in enumerate(items):
         if not isinstance(item, cls):
-            raise SpecError(f"{field}[{i}] must be a {cls.__name__}, got {item!r}")
+            raise SpecTypeError(f"{field}[{i}] must be a {cls.__name__}, got {item!r}")
 
 
 def _unique_names(items: list, field: str, kind: str, floor: bool) -> None:
@@ -201,7 +202,7 @@ def reserved_prefix(name: str, field: str) -> None:
 def _target(target: object, field: str, kinds: tuple[AttachKind, ...]) -> None:
     if not isinstance(target, AttachTarget) or target.kind not in kinds:
         allowed = ", ".join(k.name for k in kinds)
-        raise SpecError(
+        raise SpecTypeError(
             f"{field} must be an AttachTarget(AttachKind, name) of kind {allowed}, got {target!r}"
         )
     if not text(target.name, f"{field}.name"):
@@ -224,7 +225,7 @@ def _check_object(obj: SceneObject, field: str) -> None:
     if obj.shape is None:
         raise SpecError(f"{field}.shape is unset: a primitive object needs a Shape")
     if not isinstance(obj.shape, Shape):
-        raise SpecError(f"{field}.shape must be a Shape, got {obj.shape!r}")
+        raise SpecTypeError(f"{field}.shape must be a Shape, got {obj.shape!r}")
     where = f"{field}.size ({obj.shape.name})"
     size = vector(obj.size, SIZE_COUNT[obj.shape], where, positive=True)
     if np.any(size < SIZE_RANGE[0]) or np.any(size > SIZE_RANGE[1]):

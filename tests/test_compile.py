@@ -939,3 +939,13 @@ def test_two_small_robots_without_prefixes_name_the_second(tmp_path):
     robots = [mjk.RobotSpec(path=str(path)), mjk.RobotSpec(path=str(path), pos=[0, 1, 0])]
     with pytest.raises(mjk.BuildError, match=r"robots\[1\]\.path .*repeated name 'base'.*prefix"):
         _build(base_spec(robots=robots))
+
+
+@pytest.mark.parametrize(
+    "spec_kw",
+    [{"add_floor": "no"}, {"objects": [_prim(mass="1")]}, {"cameras": [_cam(pos="0 0 1")]}],
+)
+def test_wrong_types_are_also_type_errors(spec_kw):
+    with pytest.raises(TypeError) as err:
+        _build(base_spec(**spec_kw))
+    assert isinstance(err.value, mjk.SpecError) and isinstance(err.value, ValueError)
