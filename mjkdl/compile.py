@@ -51,7 +51,17 @@ _PLURAL = {AttachKind.Body: "bodies", AttachKind.Site: "sites", AttachKind.Frame
 _QUIET = ("Attach conflict when attaching", "Attaching a spec with an empty prefix")
 
 # Element kinds whose names must be unique (MuJoCo checks them only when compiling).
-_NAMESPACES = ("bodies", "joints", "geoms", "sites", "cameras", "actuators", "sensors", "tendons")
+_NAMESPACES = (
+    "bodies",
+    "joints",
+    "geoms",
+    "sites",
+    "cameras",
+    "lights",
+    "actuators",
+    "sensors",
+    "tendons",
+)
 
 # A resource-provider URI ("http://...", "mem://..."): not a file on disk.
 _SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")

@@ -299,7 +299,8 @@ class VideoRecorder(Closable):
         reflections: bool = True,
     ) -> Self:
         """Start an MP4 of `width`x`height` (even numbers, within the model's offscreen buffer)
-        at `fps` frames per simulated second. The folder must exist and be writable."""
+        at `fps` (at most `MAX_FPS`) frames per simulated second. The folder must exist and
+        be writable: the file is created here."""
         from .scene import Scene
 
         if not isinstance(scene, Scene):

@@ -248,6 +248,7 @@ def test_frames_per_capture_are_bounded(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+@pytest.mark.filterwarnings("ignore:video .* cannot be read back:RuntimeWarning")  # on exit
 def test_full_disk_is_a_recording_error_not_success(tmp_path: Path) -> None:
     path = tmp_path / "full.mp4"
     path.symlink_to("/dev/full")  # every write fails with ENOSPC, as on a full disk
