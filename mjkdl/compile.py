@@ -120,18 +120,19 @@ def euler_quat(euler_deg: object, field: str) -> np.ndarray:
 
 def _model_file(path: str | Path, field: str) -> Path:
     p = Path(path).expanduser()
-    if not p.exists():
-        raise ModelFileError(f"{field}: model file not found: {p}")
     regular_file(p, field, "model file")
     return p
 
 
 def regular_file(path: Path, field: str, what: str) -> None:
-    """Refuse a FIFO, device or directory: MuJoCo would block reading a FIFO forever."""
+    """`ModelFileError` naming `field` unless `path` is an existing regular file: a FIFO,
+    device or directory is refused too (MuJoCo would block reading a FIFO forever)."""
     try:
         mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise ModelFileError(f"{field}: {what} not found: {path}") from None
     except OSError as err:
-        raise ModelFileError(f"{field}: {what} not found: {path} ({err.strerror})") from None
+        raise ModelFileError(f"{field}: {what} {path} cannot be read: {err.strerror}") from None
     if not stat.S_ISREG(mode):
         raise ModelFileError(f"{field}: {what} {path} is not a regular file")
 
@@ -169,8 +170,6 @@ def _check_includes(xml: Path, root: Path, field: str, seen: set[Path]) -> None:
         if not name:
             continue
         included = (root / name).expanduser()
-        if not included.exists():
-            raise ModelFileError(f"{field}: file {name!r} included by {xml} not found: {included}")
         regular_file(included, field, f"file {name!r} included by {xml}")
         if included not in seen:
             _check_includes(included, root, field, seen)
@@ -195,8 +194,6 @@ def _check_asset_files(child: mujoco.MjSpec, model: Path, field: str) -> None:
                     continue
                 file = base / folder / name  # an absolute folder or name replaces the base
                 what = f"{kind} file of {element.name or 'an unnamed ' + kind} in {model}"
-                if not file.exists():
-                    raise ModelFileError(f"{field}: {what} not found: {file}")
                 regular_file(file, field, what)
 
 
