@@ -166,12 +166,18 @@ class Scene(Closable):
             if robot._pending:
                 robot._apply()
         if n == 1:
-            mujoco.mj_step(self._model, self._data)
+            try:
+                mujoco.mj_step(self._model, self._data)
+            except mujoco.FatalError as err:
+                raise self._fatal(err) from None
             self._check_faults()
             return
         if not isinstance(n, (int, np.integer)) or n < 0:
             raise SpecError(f"step(n): n must be a non-negative integer, got {n!r}")
-        mujoco.mj_step(self._model, self._data, int(n))
+        try:
+            mujoco.mj_step(self._model, self._data, int(n))
+        except mujoco.FatalError as err:
+            raise self._fatal(err) from None
         self._check_faults()
 
     @property
@@ -199,6 +205,17 @@ class Scene(Closable):
         w = self._warn
         if w[3] or w[4] or w[6] or w[5] or w[1] or w[2]:  # the `_FAULTS` indices
             self._raise_faults()
+
+    def _fatal(self, err: mujoco.FatalError) -> SimulationError:
+        """MuJoCo's own fatal error inside a step (its memory arena overflowed)."""
+        t = float(self.data.time)
+        first = str(err).strip().splitlines()[0] if str(err).strip() else "fatal error"
+        return SimulationError(
+            f"MuJoCo stopped the simulation at t = {t:.6g} s: {first}. The data is left "
+            "half-computed; Env.reset() starts over (a model's <size memory=...> sets the arena)",
+            t,
+            {},
+        )
 
     def _raise_faults(self) -> None:
         model, data = self.model, self.data

@@ -372,3 +372,28 @@ def test_auto_reset_choice_survives_a_rebuild():
         env.data.qvel[2] = np.nan
         env.step()  # MuJoCo's silent reset, as chosen
         assert env.time() == pytest.approx(0.01, abs=1e-12)
+
+
+def _crowded_scene(memory: str) -> mjk.Scene:
+    """30 boxes on a plane, compiled with a `<size memory>` too small for their contacts."""
+    boxes = "".join(
+        f'<body pos="{0.05 * i} 0 {0.05 + 0.001 * i}"><freejoint/>'
+        '<geom type="box" size=".03 .03 .03"/></body>'
+        for i in range(30)
+    )
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><size memory="{memory}"/><worldbody><geom type="plane" size="1 1 .1"/>'
+        f"{boxes}</worldbody></mujoco>"
+    )
+    return mjk.Scene(base_spec(), model)
+
+
+def test_contact_overflow_and_arena_exhaustion_are_simulation_errors():
+    with _crowded_scene("20K") as scene:
+        with pytest.raises(mjk.SimulationError, match=r"Too many contacts.*mjWARN_CONTACTFULL"):
+            scene.step()  # MuJoCo would drop contacts and carry on
+        scene.data.qpos[2::7] += 1.0  # off the floor: the boxes' own overlaps exhaust the stack
+        with pytest.raises(mjk.SimulationError, match=r"MuJoCo stopped .*mj_stackAlloc") as err:
+            scene.step(3)  # MuJoCo raises its own FatalError here
+        assert not isinstance(err.value, mujoco.FatalError)
+        assert err.value.time == pytest.approx(0.002, abs=1e-12)  # after the first step
