@@ -107,9 +107,8 @@ def scene_objects(draw, files: dict[str, str], i: int) -> mjk.SceneObject:
 
 
 def targets(kinds: list[mjk.AttachKind], known: list[str]) -> st.SearchStrategy:
-    return usually(
-        st.builds(mjk.AttachTarget, st.sampled_from(kinds), usually(st.sampled_from(known)))
-    )
+    kind = usually(st.sampled_from(kinds))
+    return usually(st.builds(mjk.AttachTarget, kind, usually(st.sampled_from(known))))
 
 
 @st.composite
