@@ -221,7 +221,8 @@ class Scene(Closable):
         model, data = self.model, self.data
         if not model.opt.disableflags & _AUTORESET:  # the user chose MuJoCo's silent reset
             return
-        found, text = {}, []
+        found: dict[str, tuple[int, int]] = {}
+        text: list[str] = []
         for w in _FAULTS:
             stat = data.warning[w]
             if stat.number:

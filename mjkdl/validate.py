@@ -200,7 +200,11 @@ def reserved_prefix(name: str, field: str) -> None:
 
 
 def _target(target: object, field: str, kinds: tuple[AttachKind, ...]) -> None:
-    if not isinstance(target, AttachTarget) or target.kind not in kinds:
+    if (
+        not isinstance(target, AttachTarget)
+        or not isinstance(target.kind, AttachKind)
+        or (target.kind not in kinds)
+    ):
         allowed = ", ".join(k.name for k in kinds)
         raise SpecTypeError(
             f"{field} must be an AttachTarget(AttachKind, name) of kind {allowed}, got {target!r}"
@@ -217,7 +221,8 @@ def _check_object(obj: SceneObject, field: str) -> None:
     flag(obj.fixed, f"{field}.fixed")
     path = path_text(obj.mjcf_path, f"{field}.mjcf_path")
     if path:
-        if obj.shape is not None or not isinstance(obj.size, list) or obj.size or obj.mass != 0:
+        primitive = not isinstance(obj.size, list) or obj.size or not _is_real(obj.mass)
+        if obj.shape is not None or primitive or obj.mass != 0:
             raise SpecError(
                 f"{field}: give either mjcf_path or a primitive (shape, size, mass), not both"
             )

@@ -949,3 +949,13 @@ def test_wrong_types_are_also_type_errors(spec_kw):
     with pytest.raises(TypeError) as err:
         _build(base_spec(**spec_kw))
     assert isinstance(err.value, mjk.SpecError) and isinstance(err.value, ValueError)
+
+
+def test_array_where_an_enum_or_mass_belongs_is_named():
+    """Found by the fuzz test: NumPy arrays compared with `in`/`!=` have no truth value."""
+    target = mjk.AttachTarget(np.array(["1", "2"]), "s")
+    with pytest.raises(mjk.SpecTypeError, match=r"robots\[0\]\.attach_to must be an AttachTarget"):
+        _build(base_spec(robots=[_arm(attach_to=target)]))
+    part = mjk.SceneObject(name="o", mjcf_path="part.xml", mass=np.array([1.0, 2.0]))
+    with pytest.raises(mjk.SpecError, match=r"objects\[0\] \('o'\): give either mjcf_path or"):
+        _build(base_spec(objects=[part]))
