@@ -42,6 +42,7 @@ import numpy as np
 
 from .closable import Closable
 from .errors import MjkdlError, SpecError, unknown_name
+from .validate import path_text
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -155,7 +156,7 @@ def _new_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
 
 def _output_path(path: str | os.PathLike[str]) -> tuple[Path, bool]:
     """The checked output path and whether this call created the (empty) file."""
-    p = Path(path).expanduser()
+    p = Path(path_text(path, "video path")).expanduser()
     if p.suffix.lower() != ".mp4":
         raise SpecError(f"video path must end in .mp4, got {str(path)!r}")
     folder = p.parent.resolve()

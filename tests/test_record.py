@@ -128,6 +128,10 @@ def test_bad_output_paths_are_named(tmp_path: Path) -> None:
             mjk.VideoRecorder.open(scene, locked / "out.mp4", 320, 240, 30)
         with pytest.raises(mjk.SpecError, match=r"\.mp4"):
             mjk.VideoRecorder.open(scene, tmp_path / "out.avi", 320, 240, 30)
+        with pytest.raises(mjk.SpecError, match="video path contains a NUL byte"):
+            mjk.VideoRecorder.open(scene, f"{tmp_path}/a\x00b.mp4", 320, 240, 30)
+        with pytest.raises(mjk.SpecTypeError, match=r"video path must be a path .* got None"):
+            mjk.VideoRecorder.open(scene, None, 320, 240, 30)
 
 
 def test_unknown_camera_lists_close_matches(tmp_path: Path) -> None:
