@@ -162,7 +162,10 @@ def _check_includes(xml: Path, root: Path, field: str, seen: set[Path]) -> None:
     """Every `<include file=...>` (relative to the top model's folder) is a regular file."""
     seen.add(xml)
     try:
-        tree = ElementTree.parse(xml)
+        text = xml.read_bytes()
+        if b"<include" not in text:  # parse only the files that can include
+            return
+        tree = ElementTree.fromstring(text)
     except (ElementTree.ParseError, OSError):
         return  # MuJoCo's own parser reports the syntax error with its line
     for element in tree.iter("include"):

@@ -613,6 +613,8 @@ def _transfer_model(
                 va, vb = new_m.jnt_dofadr[j], old_m.jnt_dofadr[k]
                 for field in _DOF_FIELDS:
                     getattr(new_m, field)[va : va + nv] = getattr(old_m, field)[vb : vb + nv]
+    if old_m.opt == compiled_opt:  # MjOption compares its contents
+        return
     for name in _OPTION_FIELDS:
         value = getattr(old_m.opt, name)
         if not np.array_equal(value, getattr(compiled_opt, name)):

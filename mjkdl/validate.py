@@ -143,6 +143,9 @@ def vector(value: object, n: int | Sequence[int], field: str, positive: bool = F
 
 
 def _is_real(value: object) -> bool:
+    kind = type(value)
+    if kind is float or kind is int:  # the common case, without the slower ABC check
+        return True
     return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
 
 
