@@ -10,8 +10,10 @@ the field at fault, within a per-example time limit. CI runs `FAST_EXAMPLES` exa
 from __future__ import annotations
 
 import math
+import os
 import re
 import signal
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import timedelta
@@ -22,6 +24,7 @@ import pytest
 from conftest import two_link_arm
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
+from hypothesis.configuration import set_hypothesis_home_dir
 
 import mjkdl as mjk
 
@@ -31,6 +34,9 @@ EXAMPLE_SECONDS = 20  # a hang (a FIFO, an XML bomb) fails the example instead o
 
 # Every error must name where it comes from: a SceneSpec field or an entry's path.
 FIELD = re.compile(r"SceneSpec\.\w+|(objects|robots|cameras)\[\d+\]")
+
+# Hypothesis caches in ./.hypothesis by default: keep the repository clean.
+set_hypothesis_home_dir(Path(tempfile.gettempdir()) / f"mjkdl-hypothesis-{os.getuid()}")
 
 COMMON = {
     "deadline": timedelta(seconds=EXAMPLE_SECONDS),
