@@ -2,11 +2,25 @@
 
 from . import assets, menagerie
 from .control import CartesianVelocityController, Gripper, SolveStatus
-from .errors import BuildError, MjkdlError, ModelFileError, SpecError, UnknownNameError
+from .errors import (
+    BuildError,
+    MjkdlError,
+    ModelFileError,
+    SimulationError,
+    SpecError,
+    SpecTypeError,
+    UnknownNameError,
+)
 from .ik import IKResult
-from .record import OffscreenRenderError, VideoRecorder, VideoResolution, VideoWriteError
+from .record import (
+    OffscreenRenderError,
+    RecordingError,
+    VideoRecorder,
+    VideoResolution,
+    VideoWriteError,
+)
 from .robot import Robot
-from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_version
+from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_log_path, mujoco_version
 from .spec import (
     AttachKind,
     AttachmentSpec,
@@ -45,6 +59,7 @@ __all__ = [
     "ModelFileError",
     "NoDisplayError",
     "OffscreenRenderError",
+    "RecordingError",
     "ResetContext",
     "ResetHookError",
     "ResetInfo",
@@ -56,8 +71,10 @@ __all__ = [
     "SceneSpec",
     "Shape",
     "SimulateViewer",
+    "SimulationError",
     "SolveStatus",
     "SpecError",
+    "SpecTypeError",
     "ToolFrameSpec",
     "UnknownNameError",
     "VideoRecorder",
@@ -65,6 +82,7 @@ __all__ = [
     "VideoWriteError",
     "assets",
     "menagerie",
+    "mujoco_log_path",
     "mujoco_version",
     "scene_object_site_name",
 ]

@@ -1,16 +1,18 @@
 """Compile a `SceneSpec` into a MuJoCo model with `mujoco.MjSpec`.
 
 Order: environment (floor, skybox, lights), objects in declaration order, robots with their
-attachments in order, then cameras. Each step validates its description first so bad input
-fails with the field at fault named, never inside MuJoCo without context.
+attachments in order, then cameras. `validate.validate_scene_spec` checks the whole description
+first and the files are checked as they are opened, so bad input fails with the field at fault
+named, never inside MuJoCo without context.
 """
 
 from __future__ import annotations
 
-import math
+import re
+import stat
 import warnings
-from collections.abc import Sequence
 from pathlib import Path
+from xml.etree import ElementTree
 
 import mujoco
 import numpy as np
@@ -27,6 +29,7 @@ from .spec import (
     SceneSpec,
     Shape,
 )
+from .validate import validate_scene_spec, vector
 
 # Offscreen framebuffer large enough for 1080p recording (MuJoCo's default is 640x480).
 OFFSCREEN_WIDTH = 1920
@@ -47,6 +50,22 @@ _PLURAL = {AttachKind.Body: "bodies", AttachKind.Site: "sites", AttachKind.Frame
 # empty-prefix save caveat. Real conflicts still raise (see `_attach`).
 _QUIET = ("Attach conflict when attaching", "Attaching a spec with an empty prefix")
 
+# Element kinds whose names must be unique (MuJoCo checks them only when compiling).
+_NAMESPACES = (
+    "bodies",
+    "joints",
+    "geoms",
+    "sites",
+    "cameras",
+    "lights",
+    "actuators",
+    "sensors",
+    "tendons",
+)
+
+# A resource-provider URI ("http://...", "mem://..."): not a file on disk.
+_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
+
 
 def compile_scene(spec: SceneSpec) -> mujoco.MjModel:
     """Build the `MjSpec` for `spec` and compile it; raises a clear error on bad input."""
@@ -54,25 +73,19 @@ def compile_scene(spec: SceneSpec) -> mujoco.MjModel:
 
 
 def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
-    """The `MjSpec` that `spec` describes, not yet compiled."""
-    _check_required(spec)
+    """The `MjSpec` that `spec` describes, not yet compiled (the spec is validated first)."""
+    validate_scene_spec(spec)
     s = mujoco.MjSpec()
     s.modelname = "mjkdl_scene"
     s.compiler.degree = False
     # Under the merge policy a child's non-default <option> (the 2F-85's elliptic cone and
     # impratio, Gen3's implicitfast integrator) is adopted; two children that disagree raise.
     s.compiler.conflict = mujoco.mjtConflict.mjCONFLICT_MERGE
-    s.option.timestep = _number(spec.timestep, "SceneSpec.timestep")
-    s.option.gravity = [0.0, 0.0, _number(spec.gravity_z, "SceneSpec.gravity_z")]
+    s.option.timestep = float(spec.timestep)  # type: ignore[arg-type]
+    s.option.gravity = [0.0, 0.0, float(spec.gravity_z)]
     s.visual.global_.offwidth = OFFSCREEN_WIDTH
     s.visual.global_.offheight = OFFSCREEN_HEIGHT
     _add_environment(s, floor=bool(spec.add_floor), skybox=bool(spec.add_skybox))
-
-    _check_entries(spec.objects, SceneObject, "SceneSpec.objects")
-    _check_entries(spec.robots, RobotSpec, "SceneSpec.robots")
-    _check_entries(spec.cameras, CameraSpec, "SceneSpec.cameras")
-    _check_unique([o.name for o in spec.objects], "SceneSpec.objects", "object")
-    _check_unique([c.name for c in spec.cameras], "SceneSpec.cameras", "camera")
     for i, obj in enumerate(spec.objects):
         _add_object(s, obj, f"objects[{i}] ({obj.name!r})")
     for i, robot in enumerate(spec.robots):
@@ -95,44 +108,7 @@ def compile_mjspec(s: mujoco.MjSpec) -> mujoco.MjModel:
         raise BuildError(f"MuJoCo could not compile the scene: {msg}") from None
 
 
-# ----------------------------------------------------------------------------- validation
-
-
-def _check_required(spec: SceneSpec) -> None:
-    for field in ("timestep", "add_floor", "add_skybox"):
-        if getattr(spec, field) is None:
-            raise SpecError(f"SceneSpec.{field} is required and has no default: set it")
-    if not _number(spec.timestep, "SceneSpec.timestep") > 0:
-        raise SpecError(f"SceneSpec.timestep must be a positive number, got {spec.timestep!r}")
-
-
-def _number(value: object, field: str) -> float:
-    try:
-        out = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise SpecError(f"{field} must be a number, got {value!r}") from None
-    if not math.isfinite(out):
-        raise SpecError(f"{field} must be finite, got {value!r}")
-    return out
-
-
-def vector(value: object, n: int | Sequence[int], field: str, positive: bool = False) -> np.ndarray:
-    """`value` as a finite float vector of length `n` (or one of the lengths in `n`)."""
-    lengths = (n,) if isinstance(n, int) else tuple(n)
-    try:
-        arr = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise SpecError(f"{field} must be a list of numbers, got {value!r}") from None
-    want = " or ".join(str(k) for k in lengths)
-    if np.ndim(value) != 1:
-        raise SpecError(f"{field} must be a flat list of {want} numbers, got {value!r}")
-    if arr.size not in lengths:
-        raise SpecError(f"{field} must have {want} values, got {len(arr)}: {value!r}")
-    if not np.all(np.isfinite(arr)):
-        raise SpecError(f"{field} must be finite, got {value!r}")
-    if positive and np.any(arr <= 0):
-        raise SpecError(f"{field} must be positive, got {value!r}")
-    return arr
+# ----------------------------------------------------------------------------- files
 
 
 def euler_quat(euler_deg: object, field: str) -> np.ndarray:
@@ -142,45 +118,34 @@ def euler_quat(euler_deg: object, field: str) -> np.ndarray:
     return quat
 
 
-def _check_entries(items: object, cls: type, field: str) -> None:
-    if not isinstance(items, list):
-        raise SpecError(f"{field} must be a list of {cls.__name__}, got {items!r}")
-    for i, item in enumerate(items):
-        if not isinstance(item, cls):
-            raise SpecError(f"{field}[{i}] must be a {cls.__name__}, got {item!r}")
-
-
-def _text(value: object, field: str) -> str:
-    if not isinstance(value, str):
-        raise SpecError(f"{field} must be a string, got {value!r}")
-    return value
-
-
-def _check_unique(names: list[str], field: str, kind: str) -> None:
-    seen: set[str] = set()
-    for i, name in enumerate(names):
-        if not _text(name, f"{field}[{i}].name"):
-            raise SpecError(f"{field}[{i}].name is empty: every {kind} needs a name")
-        if name in seen:
-            raise SpecError(f"{field}: duplicate {kind} name {name!r}")
-        seen.add(name)
-
-
 def _model_file(path: str | Path, field: str) -> Path:
-    if not str(path):
-        raise SpecError(f"{field} is empty: give an MJCF or URDF file")
     p = Path(path).expanduser()
-    if not p.is_file():
-        raise ModelFileError(f"{field}: model file not found: {p}")
+    regular_file(p, field, "model file")
     return p
+
+
+def regular_file(path: Path, field: str, what: str) -> None:
+    """`ModelFileError` naming `field` unless `path` is an existing regular file: a FIFO,
+    device or directory is refused too (MuJoCo would block reading a FIFO forever)."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise ModelFileError(f"{field}: {what} not found: {path}") from None
+    except OSError as err:
+        raise ModelFileError(f"{field}: {what} {path} cannot be read: {err.strerror}") from None
+    if not stat.S_ISREG(mode):
+        raise ModelFileError(f"{field}: {what} {path} is not a regular file")
 
 
 def load_model_file(
     path: str | Path, field: str, srdf: str | Path = "", floating: bool = False
 ) -> mujoco.MjSpec:
-    """Parse an MJCF or URDF file into an `MjSpec`, naming the file on failure.
+    """Parse an MJCF or URDF file into an `MjSpec`, naming the file (and `field`) on failure.
 
-    `srdf` and `floating` apply to URDF files only (see `urdf.load_urdf`).
+    `srdf` and `floating` apply to URDF files only (see `urdf.load_urdf`). Included files and
+    the mesh, texture, height-field and skin files the model names are checked before MuJoCo
+    opens them: missing ones raise `ModelFileError`, and so do FIFOs and other non-regular
+    files, which would block MuJoCo's reader forever.
     """
     p = _model_file(path, field)
     if p.suffix.lower() == ".urdf":
@@ -188,12 +153,56 @@ def load_model_file(
     elif str(srdf) or floating:
         raise SpecError(f"{field}: srdf and floating apply to URDF files only, not {p.name}")
     else:
+        _check_includes(p, p.parent, field, seen=set())
         try:
             child = mujoco.MjSpec.from_file(str(p))
         except ValueError as err:
             raise BuildError(f"{field}: MuJoCo cannot read {p}: {err}") from None
+    _check_asset_files(child, p, field)
     child.compiler.conflict = mujoco.mjtConflict.mjCONFLICT_MERGE
     return child
+
+
+def _check_includes(xml: Path, root: Path, field: str, seen: set[Path]) -> None:
+    """Every `<include file=...>` (relative to the top model's folder) is a regular file."""
+    seen.add(xml)
+    try:
+        text = xml.read_bytes()
+        if b"<include" not in text:  # parse only the files that can include
+            return
+        tree = ElementTree.fromstring(text)
+    except (ElementTree.ParseError, OSError):
+        return  # MuJoCo's own parser reports the syntax error with its line
+    for element in tree.iter("include"):
+        name = element.get("file")
+        if not name:
+            continue
+        included = (root / name).expanduser()
+        regular_file(included, field, f"file {name!r} included by {xml}")
+        if included not in seen:
+            _check_includes(included, root, field, seen)
+
+
+def _check_asset_files(child: mujoco.MjSpec, model: Path, field: str) -> None:
+    """Mesh, skin, texture and height-field files exist and are regular files."""
+    base = Path(child.modelfiledir or model.parent)
+    groups = (
+        ("mesh", child.meshes, child.compiler.meshdir),
+        ("skin", child.skins, child.compiler.meshdir),
+        ("texture", child.textures, child.compiler.texturedir),
+        ("height field", child.hfields, child.compiler.meshdir),
+    )
+    for kind, elements, folder in groups:
+        for element in elements:
+            names = [element.file]
+            if kind == "texture":
+                names += list(element.cubefiles)
+            for name in names:
+                if not name or name in child.assets or _SCHEME.match(name):
+                    continue
+                file = base / folder / name  # an absolute folder or name replaces the base
+                what = f"{kind} file of {element.name or 'an unnamed ' + kind} in {model}"
+                regular_file(file, field, what)
 
 
 # ----------------------------------------------------------------------------- environment
@@ -254,25 +263,10 @@ def _add_object(s: mujoco.MjSpec, obj: SceneObject, field: str) -> None:
 def _add_primitive(
     s: mujoco.MjSpec, obj: SceneObject, field: str, pos: np.ndarray, quat: np.ndarray
 ) -> None:
-    if obj.shape is None:
-        raise SpecError(f"{field}.shape is unset: a primitive object needs a Shape")
-    if not isinstance(obj.shape, Shape):
-        raise SpecError(f"{field}.shape must be a Shape, got {obj.shape!r}")
+    assert obj.shape is not None  # validate_scene_spec checked the primitive's fields
     geom_type, nsize = _GEOM_TYPES[obj.shape]
-    size = vector(obj.size, nsize, f"{field}.size ({obj.shape.name})", positive=True)
-    rgba = vector(obj.rgba, 4, f"{field}.rgba")
-    if np.any(rgba < 0) or np.any(rgba > 1):
-        raise SpecError(f"{field}.rgba values must lie in [0, 1], got {obj.rgba!r}")
-    friction = vector(obj.friction, (1, 2, 3), f"{field}.friction")
-    if np.any(friction < 0):
-        raise SpecError(f"{field}.friction must be non-negative, got {obj.friction!r}")
-    mass = _number(obj.mass, f"{field}.mass")
-    if mass < 0 or (mass == 0 and not obj.fixed):
-        raise SpecError(f"{field}.mass must be positive for a free object, got {obj.mass!r}")
-    condim = int(obj.condim) if isinstance(obj.condim, (int, np.integer)) else None
-    if condim not in (1, 3, 4, 6):
-        raise SpecError(f"{field}.condim must be 1, 3, 4 or 6, got {obj.condim!r}")
-
+    size = np.asarray(obj.size, dtype=float)
+    friction = np.asarray(obj.friction, dtype=float)
     body = s.worldbody.add_body(name=obj.name, pos=pos, quat=quat)
     if not obj.fixed:
         body.add_freejoint(name=obj.name)
@@ -282,21 +276,17 @@ def _add_primitive(
         name=obj.name,
         type=geom_type,
         size=np.pad(size, (0, 3 - nsize)),
-        rgba=rgba,
+        rgba=np.asarray(obj.rgba, dtype=float),
         friction=full_friction,
-        condim=condim,
+        condim=int(obj.condim),
     )
-    if mass > 0:
-        geom.mass = mass
+    if obj.mass > 0:
+        geom.mass = float(obj.mass)
 
 
 def _add_mjcf_object(
     s: mujoco.MjSpec, obj: SceneObject, field: str, pos: np.ndarray, quat: np.ndarray
 ) -> None:
-    if obj.shape is not None or len(obj.size) or obj.mass:
-        raise SpecError(
-            f"{field}: give either mjcf_path or a primitive (shape, size, mass), not both"
-        )
     child = load_model_file(obj.mjcf_path, f"{field}.mjcf_path")
     free = [j.name or "(unnamed)" for j in child.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
     if free:
@@ -314,11 +304,9 @@ def _add_mjcf_object(
 
 
 def _add_robot(s: mujoco.MjSpec, robot: RobotSpec, field: str) -> None:
-    _text(robot.prefix, f"{field}.prefix")
-    _check_entries(robot.attachments, AttachmentSpec, f"{field}.attachments")
     if robot.floating and robot.attach_to is not None:
         raise SpecError(f"{field}: a floating robot stands in the world; leave attach_to unset")
-    child = load_model_file(robot.path, f"{field}.path", robot.srdf, bool(robot.floating))
+    child = load_model_file(robot.path, f"{field}.path", robot.srdf, robot.floating)
     roots = [b.name for b in child.worldbody.bodies]
     for j, att in enumerate(robot.attachments):
         _add_attachment(child, att, f"{field}.attachments[{j}]")
@@ -332,9 +320,6 @@ def _add_robot(s: mujoco.MjSpec, robot: RobotSpec, field: str) -> None:
 
 
 def _add_attachment(robot: mujoco.MjSpec, att: AttachmentSpec, field: str) -> None:
-    if att.attach_to is None:
-        raise SpecError(f"{field}.attach_to is unset: name the site, body or frame to mount on")
-    _text(att.prefix, f"{field}.prefix")
     child = load_model_file(att.mjcf_path, f"{field}.mjcf_path")
     _offset(child, att.pos, att.euler, field)
     mount = _mount(robot, att.attach_to, f"{field}.attach_to", within="the robot")
@@ -359,10 +344,6 @@ def _mount(s: mujoco.MjSpec, target: AttachTarget | None, field: str, within: st
     """The `attach` keyword (site= or frame=) for a mount target; None is the world."""
     if target is None:
         return {"frame": s.worldbody.add_frame()}
-    if not isinstance(target, AttachTarget) or not isinstance(target.kind, AttachKind):
-        raise SpecError(f"{field} must be an AttachTarget(AttachKind, name), got {target!r}")
-    if not _text(target.name, f"{field}.name"):
-        raise SpecError(f"{field}.name is empty: name the {target.kind.value} to mount on")
     kind = target.kind.value
     element = getattr(s, kind)(target.name)
     if element is None:
@@ -379,14 +360,29 @@ def _attach(s: mujoco.MjSpec, child: mujoco.MjSpec, *, prefix: str, what: str, *
     try:
         with _quiet_attach_notices():
             s.attach(child, prefix=prefix, **mount)
+        # MuJoCo finds some clashes only when compiling, where it cannot say whose they are.
+        msg = _repeated_name(s)
     except ValueError as err:
         msg = str(err).strip()
-        if "repeated name" in msg:
-            raise BuildError(
-                f"{what}: names clash with the scene ({msg}); give it a distinct prefix "
-                f"(prefix is {prefix!r})"
-            ) from None
-        raise BuildError(f"{what}: MuJoCo cannot attach it: {msg}") from None
+        if "repeated name" not in msg:
+            raise BuildError(f"{what}: MuJoCo cannot attach it: {msg}") from None
+    if msg:
+        raise BuildError(
+            f"{what}: names clash with the scene ({msg}); give it a distinct prefix "
+            f"(prefix is {prefix!r})"
+        )
+
+
+def _repeated_name(s: mujoco.MjSpec) -> str:
+    """The first name two elements of one kind share, as MuJoCo would report it, or ""."""
+    for group in _NAMESPACES:
+        seen: set[str] = set()
+        for element in getattr(s, group):
+            name = element.name
+            if name and name in seen:
+                return f"repeated name {name!r} in {group}"
+            seen.add(name)
+    return ""
 
 
 def _exclude_welded_parent_contacts(s: mujoco.MjSpec, body: mujoco.MjsBody) -> None:
@@ -416,20 +412,13 @@ def _is_static(body: mujoco.MjsBody) -> bool:
 
 
 def _add_camera(s: mujoco.MjSpec, cam: CameraSpec, field: str) -> None:
-    if cam.pos is None:
-        raise SpecError(f"{field}.pos is required")
-    if cam.fovy is None:
-        raise SpecError(f"{field}.fovy is required (vertical field of view, degrees)")
-    fovy = _number(cam.fovy, f"{field}.fovy")
-    if not 0 < fovy < 180:
-        raise SpecError(f"{field}.fovy must lie in (0, 180) degrees, got {cam.fovy!r}")
     if s.camera(cam.name) is not None:
         raise BuildError(f"{field}: a camera named {cam.name!r} already exists in the scene")
     _camera_host(s, cam.attach_to, f"{field}.attach_to").add_camera(
         name=cam.name,
         pos=vector(cam.pos, 3, f"{field}.pos"),
         quat=euler_quat(cam.euler, f"{field}.euler"),
-        fovy=fovy,
+        fovy=float(cam.fovy),  # type: ignore[arg-type]
     )
 
 
@@ -439,15 +428,8 @@ def _camera_host(
     """The body, or a frame at the site, that a camera rides on (the world when None)."""
     if target is None:
         return s.worldbody
-    if not isinstance(target, AttachTarget) or target.kind not in (
-        AttachKind.Body,
-        AttachKind.Site,
-    ):
-        raise SpecError(
-            f"{field} must be an AttachTarget of kind Body or Site (or None), got {target!r}"
-        )
     kind = target.kind.value
-    element = getattr(s, kind)(_text(target.name, f"{field}.name"))
+    element = getattr(s, kind)(target.name)
     if element is None:
         known = [e.name for e in getattr(s, _PLURAL[target.kind])]
         raise unknown_name(kind, target.name, known, where=f"the scene ({field})")

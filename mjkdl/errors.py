@@ -14,6 +14,10 @@ class SpecError(MjkdlError, ValueError):
     """A scene description field holds a value that cannot be built."""
 
 
+class SpecTypeError(SpecError, TypeError):
+    """A scene description field holds a value of the wrong type (never coerced)."""
+
+
 class UnknownNameError(MjkdlError, KeyError):
     """A body, site, joint, actuator, camera, keyframe or object name that does not exist."""
 
@@ -27,6 +31,16 @@ class ModelFileError(MjkdlError, FileNotFoundError):
 
 class BuildError(MjkdlError, ValueError):
     """MuJoCo refused to compile or attach what the spec describes."""
+
+
+class SimulationError(MjkdlError, RuntimeError):
+    """The simulation diverged (NaN, Inf or huge qpos/qvel/qacc/ctrl) or overflowed its
+    contact or constraint buffers; `warnings` maps MuJoCo's warning name to (count, info)."""
+
+    def __init__(self, message: str, time: float, warnings: dict[str, tuple[int, int]]) -> None:
+        super().__init__(message)
+        self.time = time
+        self.warnings = warnings
 
 
 def unknown_name(kind: str, name: str, known: Iterable[str], where: str = "") -> UnknownNameError:

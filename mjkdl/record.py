@@ -9,6 +9,13 @@ Headless machines: set ``MUJOCO_GL=egl`` before importing mujoco (or mjkdl). On 
 recorder renders through EGL also when MuJoCo picked GLFW because MUJOCO_GL was unset; set
 ``MUJOCO_GL=glfw`` to insist on GLFW.
 
+Nothing is lost silently: `open` creates the output file to prove it is writable, `close`
+reads the finished MP4 back with imageio-ffmpeg's ffmpeg and raises `RecordingError` naming the
+path when it is unreadable or holds another frame count than was recorded (a full disk, a
+killed encoder). Frames per call are bounded: `fps` is at most `MAX_FPS`, and a jump of more
+than one simulated second between two captures (editing ``data.time``) is treated like a
+reset, one frame and a new segment, so one `record_frame()` writes at most ``ceil(fps) + 1``.
+
 Quality vs speed: shadows and reflections (MuJoCo's ``mjRND_SHADOW``/``mjRND_REFLECTION`` scene
 flags) are on by default and cost most of the render time on software OpenGL (Mesa llvmpipe):
 at 1280x720 about 5-6 frames/s with both on against 18-19 with both off
@@ -23,6 +30,7 @@ import os
 import queue
 import sys
 import threading
+import warnings
 import weakref
 from collections.abc import Callable
 from pathlib import Path
@@ -34,6 +42,7 @@ import numpy as np
 
 from .closable import Closable
 from .errors import MjkdlError, SpecError, unknown_name
+from .validate import path_text
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -44,9 +53,14 @@ if TYPE_CHECKING:
 _X264_PARAMS = ["-preset", "ultrafast", "-crf", "23"]
 _QUEUE_FRAMES = 4
 _EPS = 1e-6
+MAX_FPS = 240.0  # frames per simulated second; beyond it a video only repeats frames
 
 
-class VideoWriteError(MjkdlError, OSError):
+class RecordingError(MjkdlError, OSError):
+    """The finished video is not what was recorded: unreadable, or frames are missing."""
+
+
+class VideoWriteError(RecordingError):
     """The video cannot be written: missing folder, no permission, or the encoder failed."""
 
 
@@ -140,8 +154,9 @@ def _new_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
     return mujoco.Renderer(model, height=height, width=width)
 
 
-def _output_path(path: str | os.PathLike[str]) -> Path:
-    p = Path(path).expanduser()
+def _output_path(path: str | os.PathLike[str]) -> tuple[Path, bool]:
+    """The checked output path and whether this call created the (empty) file."""
+    p = Path(path_text(path, "video path")).expanduser()
     if p.suffix.lower() != ".mp4":
         raise SpecError(f"video path must end in .mp4, got {str(path)!r}")
     folder = p.parent.resolve()
@@ -151,13 +166,20 @@ def _output_path(path: str | os.PathLike[str]) -> Path:
         )
     if not os.access(folder, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise VideoWriteError(f"cannot write video {str(p)!r}: permission denied")
-    return p
+    existed = p.exists()
+    try:  # what the permission bits do not tell: a read-only mount, a directory; no truncation
+        with open(p, "ab"):
+            pass
+    except OSError as err:
+        raise VideoWriteError(f"cannot write video {str(p)!r}: {err.strerror}") from None
+    return p, not existed
 
 
 class _FrameClock:
     """How many frames are due at a simulation time: one per 1/fps simulated seconds.
 
-    The first call is always due; a jump back in time (a reset) starts a new segment.
+    The first call is always due; a jump back in time (a reset) or more than one second
+    forward starts a new segment, so a call is never due more than ``ceil(fps) + 1`` frames.
     """
 
     def __init__(self, fps: float) -> None:
@@ -167,7 +189,7 @@ class _FrameClock:
         self._last = 0.0
 
     def due(self, t: float, written: int) -> int:
-        if self._t0 is None or t < self._last:
+        if self._t0 is None or t < self._last or t - self._last > 1.0 + _EPS:
             self._t0, self._n0 = t, written
         self._last = t
         target = self._n0 + math.floor((t - self._t0) * self._fps + _EPS) + 1
@@ -178,6 +200,7 @@ class _Encoder:
     """H.264 writer (imageio-ffmpeg) fed by a daemon thread from a bounded frame queue."""
 
     def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
+        self._path = path
         self._writer = imageio_ffmpeg.write_frames(
             str(path),
             (width, height),
@@ -220,7 +243,10 @@ class _Encoder:
     def _raise_error(self) -> None:
         if self._error is not None:
             err, self._error = self._error, None
-            raise VideoWriteError(f"video encoder failed: {err}") from err
+            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            raise VideoWriteError(
+                f"video encoder failed writing {str(self._path)!r}: {first}"
+            ) from err
 
 
 class VideoRecorder(Closable):
@@ -274,7 +300,8 @@ class VideoRecorder(Closable):
         reflections: bool = True,
     ) -> Self:
         """Start an MP4 of `width`x`height` (even numbers, within the model's offscreen buffer)
-        at `fps` frames per simulated second. The folder must exist and be writable."""
+        at `fps` (at most `MAX_FPS`) frames per simulated second. The folder must exist and
+        be writable: the file is created here."""
         from .scene import Scene
 
         if not isinstance(scene, Scene):
@@ -288,10 +315,15 @@ class VideoRecorder(Closable):
             rate = float(fps)
         except (TypeError, ValueError):
             rate = float("nan")
-        if not (math.isfinite(rate) and rate > 0):
-            raise SpecError(f"fps must be a positive number, got {fps!r}")
-        out = _output_path(path)
-        return cls(scene, out, width, height, rate, bool(shadows), bool(reflections))
+        if isinstance(fps, bool) or not (math.isfinite(rate) and 0 < rate <= MAX_FPS):
+            raise SpecError(f"fps must be a positive number up to {MAX_FPS:g}, got {fps!r}")
+        out, created = _output_path(path)
+        try:
+            return cls(scene, out, width, height, rate, bool(shadows), bool(reflections))
+        except BaseException:
+            if created:
+                out.unlink(missing_ok=True)
+            raise
 
     @classmethod
     def open_preset(
@@ -414,7 +446,11 @@ class VideoRecorder(Closable):
     # ------------------------------------------------------------------ lifecycle
 
     def close(self) -> None:
-        """Finalise the MP4 (waits for the encoder) and free the renderer; idempotent."""
+        """Finalise the MP4 (waits for the encoder), free the renderer and check the file.
+
+        Raises `RecordingError` naming the path when the file cannot be read back or holds
+        another number of frames than `frames_written`. Idempotent.
+        """
         if self._encoder is None:
             return
         self._encoder = None
@@ -422,4 +458,28 @@ class VideoRecorder(Closable):
             self._finalizer()
         finally:
             self._renderer.close()
+        self._verify()
 
+    def __exit__(self, *exc: object) -> None:
+        """Close; while an exception propagates a bad file is a warning, not a new error."""
+        if exc[0] is None:
+            self.close()
+            return
+        try:
+            self.close()
+        except RecordingError as err:
+            warnings.warn(str(err), RuntimeWarning, stacklevel=2)
+
+    def _verify(self) -> None:
+        path = self._path
+        if self._frames == 0:
+            raise RecordingError(f"no frame was recorded: {str(path)!r} holds no video")
+        try:
+            frames, _ = imageio_ffmpeg.count_frames_and_secs(str(path))
+        except (RuntimeError, OSError) as err:
+            detail = str(err).strip().splitlines()[-1] if str(err).strip() else type(err).__name__
+            raise RecordingError(f"video {str(path)!r} cannot be read back: {detail}") from None
+        if frames != self._frames:
+            raise RecordingError(
+                f"video {str(path)!r} holds {frames} frames, {self._frames} were recorded"
+            )

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import copy
 import inspect
-from collections.abc import Callable, Sequence
+import os
+import tempfile
+from collections import defaultdict
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -15,7 +18,7 @@ import pinocchio as pin
 from .closable import Closable
 from .compile import compile_scene, vector
 from .describe import describe, summary, tree_for
-from .errors import MjkdlError, SpecError, UnknownNameError, unknown_name
+from .errors import MjkdlError, SimulationError, SpecError, UnknownNameError, unknown_name
 from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
 
 if TYPE_CHECKING:
@@ -88,6 +91,65 @@ def mujoco_version() -> str:
     return mujoco.__version__
 
 
+# ----------------------------------------------------------------------------- MuJoCo's log
+
+MUJOCO_LOG_ENV = "MJKDL_MUJOCO_LOG"
+
+
+def mujoco_log_path() -> str:
+    """Where MuJoCo's default handler appends its warnings (MuJoCo's MUJOCO_LOG.TXT).
+
+    Importing mjkdl moves it out of the working directory: to ``$MJKDL_MUJOCO_LOG`` when set,
+    else ``<tempdir>/mjkdl-<uid>/MUJOCO_LOG.TXT``. A file the user configured through
+    `mujoco.MjLogConfig` before importing mjkdl is kept.
+    """
+    return str(mujoco.MjLogConfig.get().logfile)
+
+
+def _route_mujoco_log() -> None:
+    config = mujoco.MjLogConfig.get()
+    if config.logfile != "MUJOCO_LOG.TXT":  # not MuJoCo's default: the user chose a file
+        return
+    user = f"-{os.getuid()}" if hasattr(os, "getuid") else ""
+    default = os.path.join(tempfile.gettempdir(), f"mjkdl{user}", "MUJOCO_LOG.TXT")
+    path = os.path.abspath(os.environ.get(MUJOCO_LOG_ENV) or default)
+    try:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+    except OSError:  # nowhere to write: keep MuJoCo's console output only
+        config.logto_file = False
+    config.logfile = path
+    config.set()
+
+
+_route_mujoco_log()
+
+# MuJoCo warnings that mean the simulation is no longer trustworthy (mjWARN_INERTIA, a
+# compile-time notice, is not one). Checked after every step through a memoryview of
+# mjData.warning[:].number: no Python object is created while all counts are zero.
+_FAULTS = tuple(
+    int(w)
+    for w in (
+        mujoco.mjtWarning.mjWARN_BADQPOS,  # causes first: a bad qpos or qvel makes a bad qacc
+        mujoco.mjtWarning.mjWARN_BADQVEL,
+        mujoco.mjtWarning.mjWARN_BADCTRL,
+        mujoco.mjtWarning.mjWARN_BADQACC,
+        mujoco.mjtWarning.mjWARN_CONTACTFULL,
+        mujoco.mjtWarning.mjWARN_CNSTRFULL,
+    )
+)
+if sorted(_FAULTS) != [1, 2, 3, 4, 5, 6]:  # `Scene._check_faults` indexes them directly
+    raise ImportError(f"mjkdl does not know this MuJoCo's warning numbering: {_FAULTS}")
+_AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+_NO_WARNINGS = np.zeros(len(_FAULTS) + 1, dtype=np.int32).data
+
+
+def _compiled_options(model: mujoco.MjModel) -> mujoco.MjOption:
+    """Switch MuJoCo's auto-reset off (see `Scene.auto_reset`); a copy of the options as
+    compiled, against which `_transfer_model` finds the user's run-time edits."""
+    model.opt.disableflags |= _AUTORESET
+    return copy.copy(model.opt)
+
+
 class Scene(Closable):
     """A compiled scene: MuJoCo's `MjModel`/`MjData` plus name-based helpers."""
 
@@ -97,6 +159,8 @@ class Scene(Closable):
         self._data: mujoco.MjData | None = mujoco.MjData(model)
         self._robots: list[RobotHandle] = []
         self._authored_actuators = AuthoredActuators.of(model)
+        self._compiled_opt = _compiled_options(model)
+        self._warn = self._data.warning.number.data
         mujoco.mj_forward(model, self._data)
 
     @classmethod
@@ -140,8 +204,8 @@ class Scene(Closable):
             robot._release()
         self._model = None
         self._data = None
+        self._warn = _NO_WARNINGS  # no view into freed memory
         self._robots = []
-
 
     def _check_open(self) -> None:  # the same check as Closable's, without a property call
         if self._model is None:
@@ -164,11 +228,77 @@ class Scene(Closable):
             if robot._pending:
                 robot._apply()
         if n == 1:
-            mujoco.mj_step(self._model, self._data)
+            try:
+                mujoco.mj_step(self._model, self._data)
+            except mujoco.FatalError as err:
+                raise self._fatal(err) from None
+            self._check_faults()
             return
         if not isinstance(n, (int, np.integer)) or n < 0:
             raise SpecError(f"step(n): n must be a non-negative integer, got {n!r}")
-        mujoco.mj_step(self._model, self._data, int(n))
+        try:
+            mujoco.mj_step(self._model, self._data, int(n))
+        except mujoco.FatalError as err:
+            raise self._fatal(err) from None
+        self._check_faults()
+
+    @property
+    def auto_reset(self) -> bool:
+        """Whether MuJoCo silently resets a diverging simulation (its own default behaviour).
+
+        False (mjkdl's default): MuJoCo's auto-reset is disabled (``mjDSBL_AUTORESET``), the
+        diverged state is kept for inspection and `step()` raises `SimulationError`. True:
+        MuJoCo resets the data to the model defaults and carries on; `step()` does not raise
+        and `data.warning` counts what happened. Stored in ``model.opt.disableflags``.
+        """
+        return not self.model.opt.disableflags & _AUTORESET
+
+    @auto_reset.setter
+    def auto_reset(self, value: bool) -> None:
+        if not isinstance(value, (bool, np.bool_)):
+            raise SpecError(f"auto_reset must be True or False, got {value!r}")
+        if value:
+            self.model.opt.disableflags &= ~_AUTORESET
+        else:
+            self.model.opt.disableflags |= _AUTORESET
+
+    def _check_faults(self) -> None:
+        """Raise `SimulationError` if MuJoCo counted a divergence or a buffer overflow."""
+        w = self._warn
+        if w[3] or w[4] or w[6] or w[5] or w[1] or w[2]:  # the `_FAULTS` indices
+            self._raise_faults()
+
+    def _fatal(self, err: mujoco.FatalError) -> SimulationError:
+        """MuJoCo's own fatal error inside a step (its memory arena overflowed)."""
+        t = float(self.data.time)
+        first = str(err).strip().splitlines()[0] if str(err).strip() else "fatal error"
+        return SimulationError(
+            f"MuJoCo stopped the simulation at t = {t:.6g} s: {first}. The data is left "
+            "half-computed; Env.reset() starts over (a model's <size memory=...> sets the arena)",
+            t,
+            {},
+        )
+
+    def _raise_faults(self) -> None:
+        model, data = self.model, self.data
+        if not model.opt.disableflags & _AUTORESET:  # the user chose MuJoCo's silent reset
+            return
+        found: dict[str, tuple[int, int]] = {}
+        text: list[str] = []
+        for w in _FAULTS:
+            stat = data.warning[w]
+            if stat.number:
+                name = mujoco.mjtWarning(w).name
+                found[name] = (int(stat.number), int(stat.lastinfo))
+                text.append(f"{mujoco.mju_warningText(w, stat.lastinfo)} ({name} x{stat.number})")
+                stat.number = 0  # reported: a later step raises again if it persists
+        raise SimulationError(
+            f"the simulation failed by t = {data.time:.6g} s: {'; '.join(text)}. The state is "
+            "kept as it was for inspection; Env.reset() starts over (set scene.auto_reset = "
+            "True for MuJoCo's silent reset instead).",
+            float(data.time),
+            found,
+        )
 
     def forward(self) -> None:
         """Recompute derived quantities (poses, forces) from the current state."""
@@ -346,18 +476,23 @@ class Scene(Closable):
         """Compile `spec`, carry the state over by name, rebind robots; on error keep all."""
         model = compile_scene(spec)
         data = mujoco.MjData(model)
+        authored = AuthoredActuators.of(model)
+        compiled_opt = _compiled_options(model)
+        _transfer_model(self._model, self._compiled_opt, model)
         _transfer_state(self._model, self._data, model, data)
         mujoco.mj_forward(model, data)
-        old = (self._spec, self._model, self._data, self._authored_actuators)
+        old = (self._spec, self._model, self._data, self._authored_actuators, self._compiled_opt)
         self._spec, self._model, self._data = spec, model, data
-        self._authored_actuators = AuthoredActuators.of(model)
+        self._authored_actuators, self._compiled_opt = authored, compiled_opt
+        self._warn = data.warning.number.data
         try:
             for robot in self._robots:
                 robot._bind(model, data)
         except Exception:
             # A handle that cannot live on the new model (its chain was removed): put every
             # handle and the scene back on the previous model, which they were bound to.
-            self._spec, self._model, self._data, self._authored_actuators = old
+            self._spec, self._model, self._data, self._authored_actuators, self._compiled_opt = old
+            self._warn = self.data.warning.number.data
             for robot in self._robots:
                 robot._bind(self._model, self._data)
             raise
@@ -434,9 +569,7 @@ class Env(Scene):
             where = getattr(hook, "__qualname__", repr(hook))
             module = inspect.getmodule(hook)
             origin = f"{module.__name__}.{where}" if module else where
-            raise ResetHookError(
-                f"reset hook {origin} raised {type(err).__name__}: {err}"
-            ) from err
+            raise ResetHookError(f"reset hook {origin} raised {type(err).__name__}: {err}") from err
 
     def close(self) -> None:
         """Release MuJoCo's model and data and drop the reset hook."""
@@ -478,3 +611,129 @@ def _transfer_state(
         if mocap >= 0 and old_mocap >= 0:
             new_d.mocap_pos[mocap] = old_d.mocap_pos[old_mocap]
             new_d.mocap_quat[mocap] = old_d.mocap_quat[old_mocap]
+    old_eq = _element_keys(old_m, mujoco.mjtObj.mjOBJ_EQUALITY)
+    for key, e in _element_keys(new_m, mujoco.mjtObj.mjOBJ_EQUALITY).items():
+        if key in old_eq:
+            new_d.eq_active[e] = old_d.eq_active[old_eq[key]]
+
+
+# Model fields a user may edit at run time, carried over by element (see `_transfer_model`).
+_MODEL_FIELDS = {
+    mujoco.mjtObj.mjOBJ_BODY: (
+        "body_pos",
+        "body_quat",
+        "body_ipos",
+        "body_iquat",
+        "body_mass",
+        "body_inertia",
+        "body_gravcomp",
+    ),
+    mujoco.mjtObj.mjOBJ_JOINT: (
+        "jnt_range",
+        "jnt_stiffness",
+        "jnt_margin",
+        "jnt_solref",
+        "jnt_solimp",
+    ),
+    mujoco.mjtObj.mjOBJ_GEOM: (
+        "geom_pos",
+        "geom_quat",
+        "geom_rgba",
+        "geom_friction",
+        "geom_solref",
+        "geom_solimp",
+        "geom_solmix",
+        "geom_margin",
+        "geom_gap",
+        "geom_condim",
+        "geom_contype",
+        "geom_conaffinity",
+        "geom_priority",
+    ),
+    mujoco.mjtObj.mjOBJ_SITE: ("site_pos", "site_quat", "site_rgba"),
+    mujoco.mjtObj.mjOBJ_CAMERA: ("cam_pos", "cam_quat", "cam_fovy"),
+    mujoco.mjtObj.mjOBJ_LIGHT: ("light_pos", "light_dir", "light_active"),
+    mujoco.mjtObj.mjOBJ_EQUALITY: ("eq_data", "eq_solref", "eq_solimp", "eq_active0"),
+}
+_DOF_FIELDS = ("dof_damping", "dof_armature", "dof_frictionloss")
+_OPTION_FIELDS = tuple(
+    name
+    for name in dir(mujoco.MjOption)
+    if not name.startswith("_") and isinstance(getattr(mujoco.MjOption, name), property)
+)
+# The element an unnamed element hangs on, to key it by (parent body, ordinal).
+_PARENT_FIELD = {
+    mujoco.mjtObj.mjOBJ_BODY: "body_parentid",
+    mujoco.mjtObj.mjOBJ_JOINT: "jnt_bodyid",
+    mujoco.mjtObj.mjOBJ_GEOM: "geom_bodyid",
+    mujoco.mjtObj.mjOBJ_SITE: "site_bodyid",
+    mujoco.mjtObj.mjOBJ_CAMERA: "cam_bodyid",
+    mujoco.mjtObj.mjOBJ_LIGHT: "light_bodyid",
+}
+_COUNT_FIELD = {
+    mujoco.mjtObj.mjOBJ_BODY: "nbody",
+    mujoco.mjtObj.mjOBJ_JOINT: "njnt",
+    mujoco.mjtObj.mjOBJ_GEOM: "ngeom",
+    mujoco.mjtObj.mjOBJ_SITE: "nsite",
+    mujoco.mjtObj.mjOBJ_CAMERA: "ncam",
+    mujoco.mjtObj.mjOBJ_LIGHT: "nlight",
+    mujoco.mjtObj.mjOBJ_EQUALITY: "neq",
+}
+
+
+def _transfer_model(
+    old_m: mujoco.MjModel, compiled_opt: mujoco.MjOption, new_m: mujoco.MjModel
+) -> None:
+    """Carry run-time edits of the old model into the new one, element by element.
+
+    Copies `_MODEL_FIELDS` and `_DOF_FIELDS` of every element that survives (matched by name;
+    unnamed ones by their body and order within it), and every `opt` field that differs from
+    what the old model was compiled with. Actuator parameters are the Robot handles' to set.
+    """
+    for obj, fields in _MODEL_FIELDS.items():
+        old_keys = _element_keys(old_m, obj)
+        pairs = [(i, old_keys[k]) for k, i in _element_keys(new_m, obj).items() if k in old_keys]
+        if not pairs:
+            continue
+        new_ids = np.array([i for i, _ in pairs])
+        old_ids = np.array([k for _, k in pairs])
+        for field in fields:
+            getattr(new_m, field)[new_ids] = getattr(old_m, field)[old_ids]
+        if obj == mujoco.mjtObj.mjOBJ_JOINT:
+            for j, k in pairs:
+                nv = joint_sizes(int(new_m.jnt_type[j]))[1]
+                va, vb = new_m.jnt_dofadr[j], old_m.jnt_dofadr[k]
+                for field in _DOF_FIELDS:
+                    getattr(new_m, field)[va : va + nv] = getattr(old_m, field)[vb : vb + nv]
+    if old_m.opt == compiled_opt:  # MjOption compares its contents
+        return
+    for name in _OPTION_FIELDS:
+        value = getattr(old_m.opt, name)
+        if not np.array_equal(value, getattr(compiled_opt, name)):
+            setattr(new_m.opt, name, value)
+
+
+def _element_keys(m: mujoco.MjModel, obj: mujoco.mjtObj) -> dict[Hashable, int]:
+    """Element id by a key that survives recompiling: its name, else (body, ordinal) or, for
+    an unnamed equality, (type, names of the two elements it ties)."""
+    keys: dict[Hashable, int] = {}
+    ordinal: defaultdict[int, int] = defaultdict(int)
+    parent_field = _PARENT_FIELD.get(obj)
+    for i in range(getattr(m, _COUNT_FIELD[obj])):
+        name = mujoco.mj_id2name(m, obj, i)
+        key: Hashable = name
+        if parent_field is not None:
+            parent = int(getattr(m, parent_field)[i])
+            rank = ordinal[parent]
+            ordinal[parent] += 1
+            if not name:
+                key = (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, parent), rank)
+        elif not name:
+            kind = mujoco.mjtObj(int(m.eq_objtype[i]))
+            key = (
+                int(m.eq_type[i]),
+                mujoco.mj_id2name(m, kind, int(m.eq_obj1id[i])),
+                mujoco.mj_id2name(m, kind, int(m.eq_obj2id[i])),
+            )
+        keys[key] = i
+    return keys

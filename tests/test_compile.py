@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -9,7 +12,17 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import ASSETS, HOME, base_spec, gripper, menagerie, table_object, tutorial_spec
+from conftest import (
+    ASSETS,
+    HOME,
+    ROOT,
+    base_spec,
+    gripper,
+    menagerie,
+    table_object,
+    tutorial_spec,
+    two_link_arm,
+)
 
 import mjkdl as mjk
 from mjkdl.compile import build_mjspec
@@ -479,9 +492,14 @@ def test_bad_timestep_named(value):
         _build(base_spec(timestep=value))
 
 
-def test_timestep_given_as_text_is_read_as_a_number():
-    with _build(base_spec(timestep="0.004")) as scene:
-        assert scene.timestep() == 0.004
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("timestep", "0.004"), ("timestep", True), ("gravity_z", "-9.81"), ("add_floor", "no")],
+)
+def test_no_silent_coercion(field, value):
+    """Text is not read as a number and "no" is not a true floor flag (issue #13)."""
+    with pytest.raises(mjk.SpecError, match=rf"SceneSpec\.{field} must be"):
+        _build(base_spec(**{field: value}))
 
 
 def test_missing_object_file(tmp_path):
@@ -521,7 +539,10 @@ def test_missing_mesh_named(tmp_path, as_robot):
         spec = base_spec(robots=[mjk.RobotSpec(path=str(path))])
     else:
         spec = base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path), fixed=True)])
-    with pytest.raises(FileNotFoundError, match=r"nope\.stl"):
+    at_fault = r"robots\[0\]\.path" if as_robot else r"objects\[0\] \('o'\)\.mjcf_path"
+    with pytest.raises(mjk.ModelFileError, match=rf"{at_fault}: mesh file of m in .*meshy\.xml"):
+        _build(spec)
+    with pytest.raises(FileNotFoundError, match=r"not found: .*nope\.stl"):
         _build(spec)
 
 
@@ -645,7 +666,7 @@ def test_duplicate_camera_names():
         mjk.CameraSpec(name="c", pos=[0, 0, 1], fovy=45),
         mjk.CameraSpec(name="c", pos=[1, 0, 1], fovy=45),
     ]
-    with pytest.raises(ValueError, match="duplicate camera name 'c'"):
+    with pytest.raises(mjk.SpecError, match=r"cameras\[1\]\.name: duplicate camera name 'c'"):
         _build(base_spec(cameras=cams))
 
 
@@ -803,3 +824,212 @@ def test_camera_on_unknown_mount_is_named(kind, name, pattern):
     spec.cameras[0].attach_to = mjk.AttachTarget(mjk.AttachKind.Frame, "bracelet_link")
     with pytest.raises(mjk.SpecError, match=r"cameras\[0\].*must be an AttachTarget of kind Body"):
         _build(spec)
+# ----------------------------------------------------------------------------- spec validation
+# validate_scene_spec runs before any file is opened, so robots may name files that don't exist.
+
+
+def _arm(**kw) -> mjk.RobotSpec:
+    return mjk.RobotSpec(path="arm.xml", **kw)
+
+
+def _att(**kw) -> mjk.AttachmentSpec:
+    fields = {"mjcf_path": "tool.xml", "attach_to": mjk.AttachTarget(mjk.AttachKind.Site, "s")}
+    fields.update(kw)
+    return mjk.AttachmentSpec(**fields)
+
+
+def _cam(**kw) -> mjk.CameraSpec:
+    fields = {"name": "c", "pos": [0.0, 0.0, 1.0], "fovy": 45.0}
+    fields.update(kw)
+    return mjk.CameraSpec(**fields)
+
+
+BAD_SPECS = {
+    "floor-flag-text": ({"add_skybox": "no"}, r"SceneSpec\.add_skybox must be True or False"),
+    "floor-flag-int": ({"add_floor": 1}, r"SceneSpec\.add_floor must be True or False"),
+    "timestep-huge": ({"timestep": 2.0}, r"SceneSpec\.timestep must lie in \[1e-06, 1\]"),
+    "gravity-huge": ({"gravity_z": -1e300}, r"SceneSpec\.gravity_z \(magnitude\) must lie"),
+    "size-1e300": ({"objects": [_prim(size=[1e300, 0.1, 0.1])]}, r"\('p'\)\.size \(BOX\).*lie in"),
+    "size-tiny": ({"objects": [_prim(size=[1e-9, 0.1, 0.1])]}, r"\('p'\)\.size \(BOX\).*lie in"),
+    "size-text": ({"objects": [_prim(size=["0.1", 0.1, 0.1])]}, r"\.size.*list of numbers"),
+    "pos-bool": ({"objects": [_prim(pos=[True, 0, 0])]}, r"\('p'\)\.pos must be a list of numbers"),
+    "pos-huge": ({"objects": [_prim(pos=[0, 0, 1e300])]}, r"\('p'\)\.pos values must lie within"),
+    "euler-huge": ({"objects": [_prim(euler=[1e300, 0, 0])]}, r"\('p'\)\.euler values"),
+    "pos-none": ({"objects": [_prim(pos=None)]}, r"\('p'\)\.pos must be a list of numbers"),
+    "pos-text-array": ({"objects": [_prim(pos=np.array(["1", "2", "3"]))]}, r"\.pos must hold"),
+    "mass-1e300": ({"objects": [_prim(mass=1e300)]}, r"\('p'\)\.mass must lie in"),
+    "mass-bool": ({"objects": [_prim(mass=True)]}, r"\('p'\)\.mass must be a number"),
+    "friction-huge": ({"objects": [_prim(friction=[1e300])]}, r"\('p'\)\.friction values"),
+    "condim-bool": ({"objects": [_prim(condim=True)]}, r"\('p'\)\.condim must be 1, 3, 4 or 6"),
+    "fixed-text": ({"objects": [_prim(fixed="yes")]}, r"\('p'\)\.fixed must be True or False"),
+    "shape-text": ({"objects": [_prim(shape="box")]}, r"\('p'\)\.shape must be a Shape"),
+    "object-floor": ({"objects": [_prim(name="floor")]}, r"objects\[0\]\.name: 'floor' is"),
+    "object-reserved": ({"objects": [_prim(name="mjkdl_sun")]}, r"objects\[0\]\.name: .*reserved"),
+    "object-nul": ({"objects": [_prim(name="a\x00b")]}, r"objects\[0\]\.name contains a NUL"),
+    "object-empty": ({"objects": [_prim(name="")]}, r"objects\[0\]\.name is empty"),
+    "object-path-nul": (
+        {"objects": [mjk.SceneObject(name="o", mjcf_path="a\x00.xml")]},
+        r"objects\[0\] \('o'\)\.mjcf_path contains a NUL",
+    ),
+    "object-path-int": (
+        {"objects": [mjk.SceneObject(name="o", mjcf_path=3)]},
+        r"objects\[0\] \('o'\)\.mjcf_path must be a path",
+    ),
+    "duplicate-object": (
+        {"objects": [_prim(), _prim(name="q"), _prim()]},
+        r"objects\[2\]\.name: duplicate object name 'p' \(objects\[0\] has it too\)",
+    ),
+    "robot-path-none": ({"robots": [mjk.RobotSpec(path=None)]}, r"robots\[0\]\.path must be"),
+    "robot-prefix-reserved": ({"robots": [_arm(prefix="mjkdl_")]}, r"robots\[0\]\.prefix: .*res"),
+    "robot-srdf-int": ({"robots": [_arm(srdf=5)]}, r"robots\[0\]\.srdf must be a path"),
+    "robot-floating-text": ({"robots": [_arm(floating="no")]}, r"robots\[0\]\.floating must be"),
+    "robot-euler-nan": ({"robots": [_arm(euler=[0, np.nan, 0])]}, r"robots\[0\]\.euler.*finite"),
+    "robot-target-kind": (
+        {"robots": [_arm(attach_to=mjk.AttachTarget("site", "s"))]},
+        r"robots\[0\]\.attach_to must be an AttachTarget",
+    ),
+    "attachment-pos": (
+        {"robots": [_arm(attachments=[_att(), _att(pos=[0, 0, "1"])])]},
+        r"robots\[0\]\.attachments\[1\]\.pos must be a list of numbers",
+    ),
+    "attachment-target-nul": (
+        {"robots": [_arm(attachments=[_att(attach_to=mjk.AttachTarget(name="s\x00"))])]},
+        r"robots\[0\]\.attachments\[0\]\.attach_to\.name contains a NUL",
+    ),
+    "attachment-empty-path": (
+        {"robots": [_arm(attachments=[_att(mjcf_path="")])]},
+        r"robots\[0\]\.attachments\[0\]\.mjcf_path is empty",
+    ),
+    "attachments-not-list": (
+        {"robots": [_arm(attachments=_att())]},
+        r"robots\[0\]\.attachments must be a list of AttachmentSpec",
+    ),
+    "camera-fovy-bool": ({"cameras": [_cam(fovy=True)]}, r"cameras\[0\] \('c'\)\.fovy must be a"),
+    "camera-target-name": (
+        {"cameras": [_cam(attach_to=mjk.AttachTarget(mjk.AttachKind.Body, None))]},
+        r"cameras\[0\] \('c'\)\.attach_to\.name must be a string",
+    ),
+    "camera-on-frame": (
+        {"cameras": [_cam(attach_to=mjk.AttachTarget(mjk.AttachKind.Frame, "f"))]},
+        r"cameras\[0\] \('c'\)\.attach_to must be .* of kind Body, Site",
+    ),
+    "camera-reserved": ({"cameras": [_cam(name="mjkdl_cam")]}, r"cameras\[0\]\.name: .*reserved"),
+}
+
+
+@pytest.mark.parametrize(("spec_kw", "pattern"), list(BAD_SPECS.values()), ids=list(BAD_SPECS))
+def test_bad_spec_field_is_named(spec_kw, pattern):
+    with pytest.raises(mjk.SpecError, match=pattern) as err:
+        _build(base_spec(**spec_kw))
+    assert isinstance(err.value, ValueError)
+
+
+def test_floor_name_is_free_without_a_floor():
+    spec = base_spec(add_floor=False, objects=[_prim(name="floor")])
+    with _build(spec) as scene:
+        assert scene.model.body(scene.body_id("floor")).mass[0] == pytest.approx(1.0)
+
+
+def test_numpy_numbers_and_flags_are_accepted():
+    obj = _prim(size=np.full(3, 0.1), pos=(np.float32(0.5), np.int64(0), 1), fixed=np.bool_(False))
+    spec = base_spec(timestep=np.float64(0.004), add_floor=np.bool_(True), objects=[obj])
+    with _build(spec) as scene:
+        assert scene.timestep() == 0.004
+        np.testing.assert_allclose(scene.body_frame("p").translation, [0.5, 0, 1], atol=0)
+
+
+# ----------------------------------------------------------------------------- files
+
+
+def test_missing_include_is_a_file_not_found_naming_it(tmp_path):
+    path = tmp_path / "with_include.xml"
+    path.write_text(
+        '<mujoco><include file="parts/missing.xml"/>'
+        '<worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    spec = base_spec(robots=[mjk.RobotSpec(path=str(path))])
+    with pytest.raises(mjk.ModelFileError, match=r"robots\[0\]\.path: file 'parts/missing\.xml'"):
+        _build(spec)
+    with pytest.raises(FileNotFoundError, match=r"not found: .*parts/missing\.xml"):
+        _build(spec)
+
+
+def test_included_file_is_checked_too(tmp_path):
+    (tmp_path / "part.xml").write_text(
+        '<mujocoinclude><asset><mesh name="m" file="gone.stl"/></asset></mujocoinclude>'
+    )
+    path = tmp_path / "main.xml"
+    path.write_text(
+        '<mujoco><include file="part.xml"/>'
+        '<worldbody><body name="b"><geom type="mesh" mesh="m"/></body></worldbody></mujoco>'
+    )
+    obj = mjk.SceneObject(name="o", mjcf_path=str(path), fixed=True)
+    with pytest.raises(mjk.ModelFileError, match=r"objects\[0\] \('o'\).*gone\.stl"):
+        _build(base_spec(objects=[obj]))
+
+
+FIFO_CASES = {
+    "mesh": ('<asset><mesh name="m" file="pipe.stl"/></asset>', "mesh file of m"),
+    "texture": ('<asset><texture name="t" type="2d" file="pipe.stl"/></asset>', "texture file"),
+    "include": ('<include file="pipe.stl"/>', "file 'pipe.stl' included"),
+}
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+@pytest.mark.parametrize("case", list(FIFO_CASES))
+def test_fifo_asset_is_refused_without_hanging(tmp_path, case):
+    """MuJoCo would block forever reading a FIFO; run in a child so a hang fails the test."""
+    os.mkfifo(tmp_path / "pipe.stl")
+    element, expected = FIFO_CASES[case]
+    model = tmp_path / "fifo.xml"
+    model.write_text(
+        f'<mujoco>{element}<worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    script = (
+        "import mjkdl as mjk\n"
+        f"obj = mjk.SceneObject(name='o', mjcf_path={str(model)!r}, fixed=True)\n"
+        "spec = mjk.SceneSpec(timestep=0.002, add_floor=False, add_skybox=False, objects=[obj])\n"
+        "try:\n    mjk.Scene.build(spec)\n"
+        "except mjk.ModelFileError as err:\n    print(err)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run(
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0, done.stderr
+    assert "objects[0] ('o').mjcf_path" in done.stdout and expected in done.stdout
+    assert "pipe.stl is not a regular file" in done.stdout
+
+
+def test_model_path_that_is_a_directory_is_named(tmp_path):
+    with pytest.raises(mjk.ModelFileError, match=r"robots\[0\]\.path: model file .* not a regular"):
+        _build(base_spec(robots=[mjk.RobotSpec(path=str(tmp_path))]))
+
+
+def test_two_small_robots_without_prefixes_name_the_second(tmp_path):
+    """MuJoCo's attach lets this clash through to compile, which cannot say whose it is."""
+    path = tmp_path / "arm.xml"
+    path.write_text(two_link_arm())
+    robots = [mjk.RobotSpec(path=str(path)), mjk.RobotSpec(path=str(path), pos=[0, 1, 0])]
+    with pytest.raises(mjk.BuildError, match=r"robots\[1\]\.path .*repeated name 'base'.*prefix"):
+        _build(base_spec(robots=robots))
+
+
+@pytest.mark.parametrize(
+    "spec_kw",
+    [{"add_floor": "no"}, {"objects": [_prim(mass="1")]}, {"cameras": [_cam(pos="0 0 1")]}],
+)
+def test_wrong_types_are_also_type_errors(spec_kw):
+    with pytest.raises(TypeError) as err:
+        _build(base_spec(**spec_kw))
+    assert isinstance(err.value, mjk.SpecError) and isinstance(err.value, ValueError)
+
+
+def test_array_where_an_enum_or_mass_belongs_is_named():
+    """Found by the fuzz test: NumPy arrays compared with `in`/`!=` have no truth value."""
+    target = mjk.AttachTarget(np.array(["1", "2"]), "s")
+    with pytest.raises(mjk.SpecTypeError, match=r"robots\[0\]\.attach_to must be an AttachTarget"):
+        _build(base_spec(robots=[_arm(attach_to=target)]))
+    part = mjk.SceneObject(name="o", mjcf_path="part.xml", mass=np.array([1.0, 2.0]))
+    with pytest.raises(mjk.SpecError, match=r"objects\[0\] \('o'\): give either mjcf_path or"):
+        _build(base_spec(objects=[part]))

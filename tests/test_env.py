@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import gc
+import weakref
 
 import mujoco
 import numpy as np
@@ -105,11 +106,29 @@ def test_hook_error_names_hook_and_env_stays_usable(env_robot) -> None:
     env.on_reset = broken_hook
     with pytest.raises(mjk.ResetHookError, match="broken_hook raised ValueError: cube missing"):
         env.reset()
-    env.step(5)
     env.on_reset = None
     assert env.reset().time == 0.0
+    # Usable: stepping the env moves it exactly as MuJoCo alone moves the same state.
+    m = env.model
+    reference = mujoco.MjData(m)
+    mujoco.mj_setState(m, reference, _integration_state(env), _STATE)
+    env.step(20)
+    mujoco.mj_step(m, reference, 20)
+    assert env.time() == pytest.approx(0.04, abs=1e-12)
+    np.testing.assert_array_equal(env.data.qpos, reference.qpos)
     robot.update()
-    assert np.isfinite(robot.fk_frame().translation).all()
+    mujoco.mj_kinematics(m, reference)  # poses of the state reached, not of the last step's start
+    site = reference.site_xpos[env.site_id("g_pinch")]
+    np.testing.assert_allclose(robot.fk_frame().translation, site, rtol=0, atol=1e-9)
+
+
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def _integration_state(env: mjk.Env) -> np.ndarray:
+    state = np.empty(mujoco.mj_stateSize(env.model, _STATE))
+    mujoco.mj_getState(env.model, env.data, state, _STATE)
+    return state
 
 
 # ---------------------------------------------------------------------- rebuild
@@ -281,14 +300,17 @@ def test_context_manager_closes_on_exception(tutorial_scene) -> None:
         env.time()
 
 
-def test_closed_env_touches_no_native_memory(tutorial_scene) -> None:
+def test_closed_env_releases_model_and_data(tutorial_scene) -> None:
     env = tutorial_scene(mjk.Env)
     robot = env.create_robot("base_link", "bracelet_link")
+    env.step(3)
+    model, data = weakref.ref(env.model), weakref.ref(env.data)
     env.close()
-    gc.collect()
-    with pytest.raises(RuntimeError):
+    with pytest.raises(RuntimeError, match="closed"):
         robot.update()
-    assert isinstance(mujoco.__version__, str)  # still alive: nothing crashed
+    del robot  # a live handle still refers to the arrays it was bound to
+    gc.collect()
+    assert data() is None and model() is None, "a closed env still holds MuJoCo's memory"
 
 
 def test_reset_into_torque_mode_reads_no_leftover_servo_force(env_robot) -> None:
@@ -317,3 +339,81 @@ def test_gravity_stays_finite_when_a_hook_reads_before_forward(env_robot) -> Non
     g = robot.gravity_torques()
     assert np.isfinite(g).all()
     assert np.allclose(g, env.data.qfrc_bias[:7], rtol=0, atol=1e-9)
+
+
+# ---------------------------------------------------------------------- rebuild: nothing lost
+
+
+def _edit_model_and_state(env: mjk.Env) -> dict[str, float]:
+    """Run-time edits a user makes, through MuJoCo's own arrays; returns the values set."""
+    m, d = env.model, env.data
+    cube, link = env.body_id("cube"), env.body_id("forearm_link")
+    cube_geom = m.geom("cube").id
+    unnamed = int(np.flatnonzero(m.geom_bodyid == link)[0])  # Gen3's link geoms are unnamed
+    assert m.geom(unnamed).name == ""
+    assert m.neq == 3 and all(m.eq(e).name == "" for e in range(m.neq))  # the 2F-85's
+    edits = {
+        "forearm mass": m.body_mass[link] + 0.7,
+        "cube friction": 0.31,
+        "cube alpha": 0.25,
+        "forearm geom margin": 0.004,
+        "impratio": 3.0,
+        "joint_3 damping": 2.5,
+        "qfrc_applied joint_2": 4.0,
+        "xfrc_applied cube z": 0.6,
+    }
+    m.body_mass[link] = edits["forearm mass"]
+    m.geom_friction[cube_geom, 0] = edits["cube friction"]
+    m.geom_rgba[cube_geom, 3] = edits["cube alpha"]
+    m.geom_margin[unnamed] = edits["forearm geom margin"]
+    m.opt.impratio = edits["impratio"]
+    m.dof_damping[m.joint("joint_3").dofadr[0]] = edits["joint_3 damping"]
+    d.qfrc_applied[m.joint("joint_2").dofadr[0]] = edits["qfrc_applied joint_2"]
+    d.xfrc_applied[cube, 2] = edits["xfrc_applied cube z"]
+    d.eq_active[1] = 0  # one of the gripper's unnamed connect constraints switched off
+    return edits
+
+
+def _read_edits(env: mjk.Env) -> dict[str, float]:
+    m, d = env.model, env.data
+    link = env.body_id("forearm_link")
+    unnamed = int(np.flatnonzero(m.geom_bodyid == link)[0])
+    return {
+        "forearm mass": m.body_mass[link],
+        "cube friction": m.geom_friction[m.geom("cube").id, 0],
+        "cube alpha": m.geom_rgba[m.geom("cube").id, 3],
+        "forearm geom margin": m.geom_margin[unnamed],
+        "impratio": m.opt.impratio,
+        "joint_3 damping": m.dof_damping[m.joint("joint_3").dofadr[0]],
+        "qfrc_applied joint_2": d.qfrc_applied[m.joint("joint_2").dofadr[0]],
+        "xfrc_applied cube z": d.xfrc_applied[env.body_id("cube"), 2],
+    }
+
+
+def test_rebuild_keeps_model_edits_applied_forces_and_eq_active(env_robot) -> None:
+    env, robot = env_robot
+    env.reset(mjk.ResetOptions(keyframe="home", use_keyframe=True))
+    env.step(50)
+    edits = _edit_model_and_state(env)
+    # The reference: MuJoCo alone continuing on the edited model, state copied before rebuild.
+    old_model = env.model
+    reference = mujoco.MjData(old_model)
+    mujoco.mj_copyData(reference, old_model, env.data)
+
+    env.add_object(_obstacle())  # every address after the cube shifts
+    after_add = _read_edits(env)
+    assert np.array_equal(env.data.eq_active, [1, 0, 1])
+    for key, value in edits.items():
+        assert after_add[key] == pytest.approx(value, abs=1e-15), key
+    assert env.model.body_mass[env.body_id("obstacle")] == pytest.approx(0.5)  # authored
+    env.remove_object("obstacle")
+    for key, value in edits.items():
+        assert _read_edits(env)[key] == pytest.approx(value, abs=1e-15), key
+    assert np.array_equal(env.data.eq_active, [1, 0, 1])
+
+    # The rebuilt scene evolves exactly like MuJoCo on the edited old model.
+    env.step(100)
+    mujoco.mj_step(old_model, reference, 100)
+    np.testing.assert_allclose(env.data.qpos, reference.qpos, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(env.data.qvel, reference.qvel, rtol=0, atol=1e-9)
+    robot.update()

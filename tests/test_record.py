@@ -128,6 +128,10 @@ def test_bad_output_paths_are_named(tmp_path: Path) -> None:
             mjk.VideoRecorder.open(scene, locked / "out.mp4", 320, 240, 30)
         with pytest.raises(mjk.SpecError, match=r"\.mp4"):
             mjk.VideoRecorder.open(scene, tmp_path / "out.avi", 320, 240, 30)
+        with pytest.raises(mjk.SpecError, match="video path contains a NUL byte"):
+            mjk.VideoRecorder.open(scene, f"{tmp_path}/a\x00b.mp4", 320, 240, 30)
+        with pytest.raises(mjk.SpecTypeError, match=r"video path must be a path .* got None"):
+            mjk.VideoRecorder.open(scene, None, 320, 240, 30)
 
 
 def test_unknown_camera_lists_close_matches(tmp_path: Path) -> None:
@@ -203,3 +207,88 @@ def test_renders_headless_without_mujoco_gl(tmp_path: Path) -> None:
     assert "frames 2" in done.stdout  # 0.01 s to 0.2 s at 10 fps
     _, _, _, frames = _read_video(tmp_path / "headless.mp4")
     assert len(frames) == 2
+
+
+# ----------------------------------------------------------------------------- nothing lost
+
+
+def _ball_scene(timestep: float) -> mjk.Scene:
+    ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.05], pos=[0, 0, 1], mass=1)
+    return mjk.Scene.build(base_spec(timestep=timestep, objects=[ball]))
+
+
+def test_timestep_longer_than_a_frame_repeats_frames(tmp_path: Path) -> None:
+    """dt = 0.05 s at 30 fps: 1.5 frames per step, so frames must be repeated (issue #15)."""
+    path = tmp_path / "coarse.mp4"
+    with _ball_scene(0.05) as scene:
+        with mjk.VideoRecorder.open(scene, path, 320, 240, 30, **FAST) as rec:
+            for _ in range(20):  # 1.0 s
+                scene.step()
+                rec.record_frame()
+        # the first capture is at t = 0.05, the last at 1.0: floor(0.95 * 30) + 1 frames
+        assert rec.frames_written == 29
+    _, _, fps, frames = _read_video(path)
+    assert fps == pytest.approx(30.0, abs=0.01)
+    assert abs(len(frames) - 30) <= 1  # one simulated second plays for one second
+
+
+def test_frames_per_capture_are_bounded(tmp_path: Path) -> None:
+    with _ball_scene(0.01) as scene:
+        for fps in (1e6, 241, True, float("inf")):
+            with pytest.raises(mjk.SpecError, match="fps must be a positive number up to 240"):
+                mjk.VideoRecorder.open(scene, tmp_path / "fast.mp4", 320, 240, fps)
+        with mjk.VideoRecorder.open(scene, tmp_path / "jump.mp4", 320, 240, 30, **FAST) as rec:
+            rec.record_frame()
+            scene.data.time += 0.5  # a half-second hop is real time: 15 repeated frames
+            rec.record_frame()
+            assert rec.frames_written == 1 + 15
+            scene.data.time += 3600.0  # an hour's jump is a new segment, not 108,000 frames
+            rec.record_frame()
+            assert rec.frames_written == 1 + 15 + 1
+            scene.step()
+            assert rec.record_frame() is False  # 10 ms later: the next frame is not due yet
+    _, _, _, frames = _read_video(tmp_path / "jump.mp4")
+    assert len(frames) == 17
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+@pytest.mark.filterwarnings("ignore:video .* cannot be read back:RuntimeWarning")  # on exit
+def test_full_disk_is_a_recording_error_not_success(tmp_path: Path) -> None:
+    path = tmp_path / "full.mp4"
+    path.symlink_to("/dev/full")  # every write fails with ENOSPC, as on a full disk
+    with (
+        _ball_scene(0.01) as scene,
+        pytest.raises(mjk.RecordingError, match=r"full\.mp4"),
+        mjk.VideoRecorder.open(scene, path, 320, 240, 30, **FAST) as rec,
+    ):
+        for _ in range(100):
+            scene.step()
+            rec.record_frame()
+
+
+def test_lost_frames_are_a_recording_error(tmp_path: Path, monkeypatch) -> None:
+    """An encoder that silently drops frames: close() counts the file's frames."""
+    put = mjk.record._Encoder.put
+    monkeypatch.setattr(mjk.record._Encoder, "put", lambda self, f, n: put(self, f, n - 1 or 1))
+    path = tmp_path / "lossy.mp4"
+    with _ball_scene(0.05) as scene:
+        rec = mjk.VideoRecorder.open(scene, path, 320, 240, 30, **FAST)
+        for _ in range(10):
+            scene.step()
+            rec.record_frame()
+        with pytest.raises(mjk.RecordingError, match=r"lossy\.mp4' holds 10 frames, 14 were"):
+            rec.close()
+    assert len(_read_video(path)[3]) == 10  # the file read back by OpenCV agrees
+
+
+def test_empty_recording_is_an_error_but_never_hides_the_real_one(tmp_path: Path) -> None:
+    with _ball_scene(0.01) as scene:
+        rec = mjk.VideoRecorder.open(scene, tmp_path / "empty.mp4", 320, 240, 30, **FAST)
+        with pytest.raises(mjk.RecordingError, match=r"no frame was recorded: .*empty\.mp4"):
+            rec.close()
+        with (
+            pytest.raises(KeyError, match="boom"),
+            pytest.warns(RuntimeWarning, match="no frame"),
+            mjk.VideoRecorder.open(scene, tmp_path / "e2.mp4", 320, 240, 30, **FAST),
+        ):
+            raise KeyError("boom")

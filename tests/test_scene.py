@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import base_spec
+from conftest import ROOT, base_spec
 
 import mjkdl as mjk
 
@@ -202,6 +207,8 @@ CLOSED_CALLS = {
     ),
     "remove_object": lambda s: s.remove_object("cube"),
     "enter": lambda s: s.__enter__(),
+    "auto_reset": lambda s: s.auto_reset,
+    "auto_reset=": lambda s: setattr(s, "auto_reset", True),
 }
 
 
@@ -248,3 +255,147 @@ def test_build_keeps_a_private_copy_of_the_spec():
         assert scene.spec.objects[0].name == "b"
         assert scene.spec.timestep == 0.002
         assert scene.timestep() == 0.002
+
+
+# ---------------------------------------------------------------------- divergence
+
+
+def _ball_env() -> mjk.Env:
+    ball = mjk.SceneObject(
+        name="ball", shape=mjk.Shape.SPHERE, size=[0.05], mass=0.2, pos=[0, 0, 0.5]
+    )
+    return mjk.Env.build(base_spec(timestep=0.01, objects=[ball]))
+
+
+def test_divergence_raises_naming_the_warning_and_the_time():
+    with _ball_env() as env:
+        env.step(7)
+        env.data.qvel[2] = np.nan
+        pattern = r"by t = 0\.08 s: Nan, Inf or huge value in QVEL at DOF 2"
+        with pytest.raises(mjk.SimulationError, match=pattern) as err:
+            env.step()
+        assert isinstance(err.value, RuntimeError) and isinstance(err.value, mjk.MjkdlError)
+        assert err.value.time == pytest.approx(0.08, abs=1e-12)  # 8 steps of 10 ms
+        assert err.value.warnings["mjWARN_BADQVEL"] == (1, 2)  # once, at DOF 2
+        assert np.isnan(env.data.qvel[2])  # kept for inspection, not silently reset
+        with pytest.raises(mjk.SimulationError, match=r"by t = 0\.09 s.*mjWARN_BADQVEL x1"):
+            env.step()  # still NaN: raises again
+        env.reset()
+        env.step(3)
+        assert env.time() == pytest.approx(0.03, abs=1e-12)
+
+
+def test_divergence_inside_step_n_and_bad_ctrl_are_reported(tutorial_scene):
+    scene = tutorial_scene()
+    scene.data.ctrl[0] = np.inf
+    with pytest.raises(mjk.SimulationError, match=r"CTRL.*mjWARN_BADCTRL"):
+        scene.step(5)
+    with _ball_env() as env:
+        env.data.qpos[0] = 1e300
+        with pytest.raises(mjk.SimulationError, match=r"QPOS.*mjWARN_BADQPOS") as err:
+            env.step(4)
+        assert err.value.time == pytest.approx(0.04, abs=1e-12)
+
+
+def test_auto_reset_is_mujocos_own_silent_reset():
+    with _ball_env() as env:
+        assert env.auto_reset is False
+        assert env.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET
+        env.auto_reset = True
+        env.step(5)
+        env.data.qvel[2] = np.nan
+        m = env.model
+        reference = mujoco.MjData(m)  # MuJoCo alone on the same model and state
+        mujoco.mj_setState(m, reference, _full_state(m, env.data), _STATE)
+        env.step()
+        mujoco.mj_step(m, reference)
+        assert env.time() == reference.time == pytest.approx(0.01, abs=1e-12)  # reset, 1 step
+        np.testing.assert_array_equal(env.data.qpos, reference.qpos)
+        assert env.data.warning[mujoco.mjtWarning.mjWARN_BADQVEL].number == 1
+        env.step(3)  # keeps going without raising
+        with pytest.raises(ValueError, match="auto_reset must be True or False"):
+            env.auto_reset = 1
+
+
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def _full_state(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
+    state = np.empty(mujoco.mj_stateSize(m, _STATE))
+    mujoco.mj_getState(m, d, state, _STATE)
+    return state
+
+
+def test_mujoco_log_goes_to_the_documented_place_not_the_working_directory(tmp_path):
+    """MuJoCo's default handler appends warnings to ./MUJOCO_LOG.TXT; mjkdl moves the file."""
+    work, log = tmp_path / "work", tmp_path / "logs" / "mujoco.txt"
+    work.mkdir()
+    script = (
+        "import numpy as np, mujoco, mjkdl as mjk\n"
+        "print(mjk.mujoco_log_path())\n"
+        "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><freejoint/>"
+        '<geom size="0.1"/></body></worldbody></mujoco>\')\n'
+        "d = mujoco.MjData(m)\n"
+        "d.qvel[0] = np.nan\n"
+        "mujoco.mj_step(m, d)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MJKDL_MUJOCO_LOG": str(log)}
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[0] == str(log)
+    assert "Nan, Inf or huge value in QVEL" in log.read_text()
+    assert list(work.iterdir()) == []
+    default = mjk.mujoco_log_path()  # this process: no MJKDL_MUJOCO_LOG set by the tests
+    assert os.path.isabs(default) and Path(default).parent.is_dir()
+    assert Path(default).parent != Path.cwd()
+
+
+def test_auto_reset_choice_survives_a_rebuild():
+    crate = mjk.SceneObject(
+        name="crate", shape=mjk.Shape.BOX, size=[0.1] * 3, mass=1, pos=[1, 0, 1]
+    )
+    with _ball_env() as env:
+        env.add_object(crate)
+        assert env.auto_reset is False
+        env.data.qvel[2] = np.nan
+        with pytest.raises(mjk.SimulationError, match="mjWARN_BADQVEL"):
+            env.step()
+        env.reset()
+        env.auto_reset = True
+        env.remove_object("crate")
+        assert env.auto_reset is True
+        env.data.qvel[2] = np.nan
+        env.step()  # MuJoCo's silent reset, as chosen
+        assert env.time() == pytest.approx(0.01, abs=1e-12)
+
+
+def _crowded_scene(memory: str) -> mjk.Scene:
+    """30 boxes on a plane, compiled with a `<size memory>` too small for their contacts."""
+    boxes = "".join(
+        f'<body pos="{0.05 * i} 0 {0.05 + 0.001 * i}"><freejoint/>'
+        '<geom type="box" size=".03 .03 .03"/></body>'
+        for i in range(30)
+    )
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><size memory="{memory}"/><worldbody><geom type="plane" size="1 1 .1"/>'
+        f"{boxes}</worldbody></mujoco>"
+    )
+    return mjk.Scene(base_spec(), model)
+
+
+def test_contact_overflow_and_arena_exhaustion_are_simulation_errors():
+    with _crowded_scene("20K") as scene:
+        with pytest.raises(mjk.SimulationError, match=r"Too many contacts.*mjWARN_CONTACTFULL"):
+            scene.step()  # MuJoCo would drop contacts and carry on
+        scene.data.qpos[2::7] += 1.0  # off the floor: the boxes' own overlaps exhaust the stack
+        with pytest.raises(mjk.SimulationError, match=r"MuJoCo stopped .*mj_stackAlloc") as err:
+            scene.step(3)  # MuJoCo raises its own FatalError here
+        assert not isinstance(err.value, mujoco.FatalError)
+        assert err.value.time == pytest.approx(0.002, abs=1e-12)  # after the first step
