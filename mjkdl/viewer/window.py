@@ -12,14 +12,16 @@ from typing import TYPE_CHECKING
 import mujoco
 
 from .display import no_display, require_display
+from .overlays import Text
 
 if TYPE_CHECKING:
     from mujoco.viewer import Handle
 
 _OPEN_TIMEOUT = 60.0
+# MuJoCo's side panels (Tab, Shift+Tab) start hidden: the scene gets the whole window.
+_PANELS_HIDDEN = {"show_left_ui": False, "show_right_ui": False}
 _PUSHER_JOIN = 2.0
 
-Text = tuple[int, int, str, str]
 Figure = tuple[mujoco.MjrRect, mujoco.MjvFigure]
 
 
@@ -54,7 +56,7 @@ class Window:
             raise no_display(f"mujoco.viewer needs GLFW: {err}") from None
         if sys.platform == "darwin":
             try:
-                handle = mjviewer.launch_passive(model, data, key_callback=on_key)
+                handle = mjviewer.launch_passive(model, data, key_callback=on_key, **_PANELS_HIDDEN)
             except RuntimeError as err:
                 raise no_display(f"{err}; on macOS run the script with `mjpython`") from None
             return cls(handle, None)
@@ -145,7 +147,9 @@ def _launch_watched(
 
     def launch() -> None:
         try:
-            result["handle"] = mjviewer.launch_passive(model, data, key_callback=on_key)
+            result["handle"] = mjviewer.launch_passive(
+                model, data, key_callback=on_key, **_PANELS_HIDDEN
+            )
         except Exception as err:
             result["error"] = err
 
