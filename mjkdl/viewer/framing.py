@@ -35,19 +35,30 @@ def robots_box(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, 
     return (centres - radii).min(axis=0), (centres + radii).max(axis=0)
 
 
-def frame(cam: mujoco.MjvCamera, model: mujoco.MjModel, data: mujoco.MjData) -> bool:
+def frame(
+    cam: mujoco.MjvCamera,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    aspect: float,
+    covered_right: float = 0.0,
+) -> bool:
     """Point the free camera `cam` at the robots' box from the model's default azimuth and
-    elevation, close enough for the box to fill the view; False (camera untouched) when the
-    scene has no robot."""
+    elevation, close enough for the box to fill the view; with `covered_right` (a fraction of
+    the width, the figure column) the robots are centred in the part left free. `aspect` is
+    the view's width over its height. False (camera untouched) when the scene has no robot."""
     box = robots_box(model, data)
     if box is None:
         return False
     low, high = box
     radius = 0.5 * float(np.linalg.norm(high - low))
     half_fovy = math.radians(model.vis.global_.fovy) / 2.0
+    distance = radius / (_FILL * math.sin(half_fovy))
+    azimuth = math.radians(model.vis.global_.azimuth)
+    right = np.array([math.sin(azimuth), -math.cos(azimuth), 0.0])  # the view's right, level
+    half_width = distance * math.tan(half_fovy) * aspect  # at the look-at point
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-    cam.lookat[:] = 0.5 * (low + high)
-    cam.distance = radius / (_FILL * math.sin(half_fovy))
+    cam.lookat[:] = 0.5 * (low + high) + covered_right * half_width * right
+    cam.distance = distance
     cam.azimuth = model.vis.global_.azimuth
     cam.elevation = model.vis.global_.elevation
     return True

@@ -16,6 +16,7 @@ from ..errors import SpecError, unknown_name
 Signal = Callable[[], ArrayLike]
 
 MAX_SHOWN = 4  # figures on screen at once; F11 pages through the rest
+COLUMN_SHARE = 0.3  # of the window's width taken by the figure column (within 260-480 px)
 MIN_HEIGHT = 100  # px: shorter figures have no room for a plot between title and tick labels
 _CHROME_PX = 60  # px of a figure taken by its title, tick labels and margins
 _LEGEND_ROW_PX = 17
@@ -137,7 +138,7 @@ def column(viewport: mujoco.MjrRect, top: int, count: int) -> list[mujoco.MjrRec
     """Rectangles for up to `count` figures (at most `MAX_SHOWN`) stacked down the right edge
     of `viewport`, below its top `top` pixels (the overlay text); fewer when they would be
     shorter than `MIN_HEIGHT`. Each is 30 % of the window wide (within 260-480 px)."""
-    width = min(max(viewport.width * 3 // 10, 260), 480, viewport.width // 2)
+    width = min(max(round(viewport.width * COLUMN_SHARE), 260), 480, viewport.width // 2)
     free = viewport.height - top - _MARGIN
     fits = max(1, free // MIN_HEIGHT)
     count = min(count, MAX_SHOWN, fits)

@@ -26,7 +26,7 @@ from ..scene import Env, Scene
 from . import overlays as ov
 from .framing import frame
 from .pacing import Pacer
-from .plots import Signal, SignalPlots, column
+from .plots import COLUMN_SHARE, Signal, SignalPlots, column
 from .trace import Trace
 from .window import Window
 
@@ -92,7 +92,10 @@ class SimulateViewer(Closable):
         self._window = Window.launch(self._model, scene.data, self._on_key)
         atexit.register(self.close)
         self._sigint = self._catch_ctrl_c()
-        frame(self._window.handle.cam, self._model, scene.data)
+        viewport = self._window.handle.viewport
+        aspect = viewport.width / viewport.height if viewport and viewport.height else 4 / 3
+        covered = COLUMN_SHARE if self._plots.names else 0.0
+        frame(self._window.handle.cam, self._model, scene.data, aspect, covered)
         self._trace = Trace(self._window.handle.user_scn, _scene_reserve(self._model))
         self._push_overlays()
 
