@@ -1,5 +1,5 @@
-"""The docs run: the ```python blocks of docs/tutorial.md and docs/getting-started.md, in order,
-in one namespace per page, print what the pages say.
+"""The docs run: the ```python blocks of the pages in `PAGES` (the tutorial, getting started
+and the layer pages), in order, in one namespace per page, print what the pages say.
 
 A ```text block that directly follows a ```python block is the output that block must print.
 `...` matches any text within it. Numbers are checked as numbers: a decimal number (``0.700``)
@@ -30,7 +30,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "docs" / "tutorial.md"
-PAGES = [TUTORIAL, ROOT / "docs" / "getting-started.md"]
+PAGES = [TUTORIAL] + [
+    ROOT / "docs" / f"{name}.md" for name in ("getting-started", "scene", "robot", "viewer")
+]
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```\s*$", re.MULTILINE | re.DOTALL)
 # A decimal or e-notation number standing alone (not part of a name such as joint_1).
 CHECKED_NUMBER = re.compile(
@@ -117,6 +119,9 @@ class HeadlessViewer:
 
     def use_camera(self, name: str) -> None:
         pass
+
+    def add_signal(self, name: str, fn, labels=None) -> None:
+        fn()  # as the real viewer does, so a broken signal fails here too
 
     def clear_trace(self) -> None:
         pass

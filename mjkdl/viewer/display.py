@@ -63,9 +63,8 @@ def _x_display_probe(name: str) -> tuple[bool, bool]:
     x11.XOpenDisplay.restype = ctypes.c_void_p
     x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
     x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
-    x11.XQueryExtension.argtypes = [ctypes.c_void_p, ctypes.c_char_p] + [
-        ctypes.POINTER(ctypes.c_int)
-    ] * 3
+    int_out = ctypes.POINTER(ctypes.c_int)
+    x11.XQueryExtension.argtypes = [ctypes.c_void_p, ctypes.c_char_p, int_out, int_out, int_out]
     handle = x11.XOpenDisplay(name.encode())
     if not handle:
         return False, False

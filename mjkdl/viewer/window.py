@@ -121,7 +121,7 @@ class Window:
             with self._cv:
                 while self._pending is None and not self._stopping:
                     self._cv.wait()
-                if self._stopping:
+                if self._stopping or self._pending is None:
                     return
                 texts, figures = self._pending
                 self._pending = None
@@ -142,16 +142,17 @@ def _launch_watched(
 ) -> tuple[Handle, threading.Thread | None]:
     """`launch_passive` from a helper thread, watched: it waits forever for a handle when the
     window thread dies before creating one."""
-    result: dict[str, object] = {}
+    handles: list[Handle] = []
+    errors: list[Exception] = []
     before = set(threading.enumerate())
 
     def launch() -> None:
         try:
-            result["handle"] = mjviewer.launch_passive(
-                model, data, key_callback=on_key, **_PANELS_HIDDEN
+            handles.append(
+                mjviewer.launch_passive(model, data, key_callback=on_key, **_PANELS_HIDDEN)
             )
         except Exception as err:
-            result["error"] = err
+            errors.append(err)
 
     helper = threading.Thread(target=launch, name="mjkdl-viewer-launch", daemon=True)
     helper.start()
@@ -165,10 +166,10 @@ def _launch_watched(
             raise no_display("the viewer thread ended before the window opened")
         if time.monotonic() > deadline:
             raise no_display(f"no window within {_OPEN_TIMEOUT:.0f} s")
-    if "error" in result:
-        err = result["error"]
+    if errors:
+        (err,) = errors
         raise no_display(f"{type(err).__name__}: {err}") from err
-    return result["handle"], window or _window_thread(before)
+    return handles[0], window or _window_thread(before)
 
 
 def _window_thread(before: set[threading.Thread]) -> threading.Thread | None:
