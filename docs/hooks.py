@@ -57,9 +57,6 @@ def on_config(config: Any) -> Any:
 
 def on_files(files: Files, config: Any) -> Files:
     for package in _present_packages():
-        files.append(
-            File.generated(
-                config, f"reference/{package.split('.')[-1]}.md", content=f"# {package}\n\n::: {package}\n"
-            )
-        )
+        page = f"reference/{package.split('.')[-1]}.md"
+        files.append(File.generated(config, page, content=f"# {package}\n\n::: {package}\n"))
     return files

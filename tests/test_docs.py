@@ -179,6 +179,26 @@ def test_numbers_are_checked_as_numbers() -> None:
     assert matches("lifted 0.15 m, ... left", "lifted 0.16 m, anything left")
 
 
+def test_docs_show_the_version_the_package_has() -> None:
+    """One source: mjkdl.__version__; pyproject.toml and the docs' header read it, and the
+    changelog has a section for it."""
+    import importlib.util
+
+    import mjkdl
+
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
+
+    spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs" / "hooks.py")
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    assert hooks.version() == mjkdl.__version__
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "version" in project["project"]["dynamic"] and "version" not in project["project"]
+    assert project["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "mjkdl.__version__"}
+    changelog = (ROOT / "CHANGELOG.md").read_text()
+    assert re.search(rf"^## {re.escape(mjkdl.__version__)} - \d{{4}}-\d\d-\d\d$", changelog, re.M)
+
+
 def run_page(page: Path) -> list[dict]:
     """Run `page`'s blocks in a fresh interpreter (see the module docstring); the results."""
     env = dict(os.environ, MUJOCO_GL="egl")
