@@ -19,7 +19,6 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -87,14 +86,15 @@ def viewer_picture() -> np.ndarray | None:
     script = ROOT / "docs" / "_viewer_shot.py"
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "viewer.png"
-        server = subprocess.Popen(
-            [xvfb, ":87", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-            stdout=subprocess.DEVNULL,
+        server = subprocess.Popen(  # -displayfd: Xvfb picks a free display and prints it
+            [xvfb, "-displayfd", "1", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+            stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
+            text=True,
         )
         try:
-            time.sleep(1.0)
-            env = dict(os.environ, DISPLAY=":87")
+            assert server.stdout is not None
+            env = dict(os.environ, DISPLAY=f":{server.stdout.readline().strip()}")
             subprocess.run([sys.executable, str(script), str(out)], env=env, check=True)
             return cv2.imread(str(out))
         finally:

@@ -61,8 +61,9 @@ class SimulateViewer(Closable):
     window's while it is open.
 
     Ctrl+C (SIGINT, when opened on the main thread) ends the session like closing the window:
-    the recording is finalised, the window closes and `step()` returns False, so the loop
-    ends without a traceback; a second Ctrl+C interrupts as usual.
+    at the next `step()` or `is_running()` the recording is finalised, the window closes and
+    both return False, so the loop ends without a traceback; a second Ctrl+C interrupts as
+    usual.
 
     Needs a display (Linux: X11 or Xvfb); without one `open` raises `NoDisplayError`. On
     macOS run the script with ``mjpython`` (MuJoCo's launcher), as `launch_passive` requires.
@@ -138,18 +139,17 @@ class SimulateViewer(Closable):
         return self._pacer.measured
 
     def is_running(self) -> bool:
-        """Whether the window is open (False after Ctrl+C)."""
-        return not self._closed and not self._interrupted and self._window.is_running()
+        """Whether the window is open (False after Ctrl+C, which it then closes)."""
+        if self._interrupted and not self._closed:
+            self._end_session()
+        return not self._closed and self._window.is_running()
 
     def step(self) -> bool:
         """Advance one timestep (through the robot when opened on one), refresh the window,
         pace to `realtime_factor`; False, without stepping, once the window is closed or
         Ctrl+C was pressed."""
         self._check_open()
-        if self._interrupted:
-            self._end_session()
-            return False
-        if not self._window.is_running():
+        if not self.is_running():
             return False
         if self._scene.model is not self._model:
             self._relaunch()
@@ -425,7 +425,7 @@ class SimulateViewer(Closable):
         if previous is not signal.default_int_handler:
             return None
 
-        def on_sigint(signum: int, frame: FrameType | None) -> None:
+        def on_sigint(signum: int, stack: FrameType | None) -> None:
             self._interrupted = True
             signal.signal(signal.SIGINT, previous)  # a second Ctrl+C interrupts as usual
 
@@ -445,7 +445,8 @@ class SimulateViewer(Closable):
         try:
             self.stop_recording()
         finally:
-            self._window.close(_CLOSE_TIMEOUT)
+            if self._window.is_running():
+                self._window.close(_CLOSE_TIMEOUT)
 
     def close(self) -> None:
         """Finalise a recording, close the window and wait (at most 5 s) for its thread."""
