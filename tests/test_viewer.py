@@ -530,6 +530,26 @@ def test_each_overlay_key_toggles_its_overlay(arm: Arm) -> None:
     viewer.use_camera("")
 
 
+def test_f11_pages_through_six_signals_four_at_a_time(arm: Arm) -> None:
+    _env, robot, viewer = arm
+    extra = [f"extra {k} [m]" for k in range(4)]
+    for name in extra:
+        viewer.add_signal(name, lambda: [0.0])
+    try:
+        pages = []
+        for _ in range(4):
+            _run(viewer, robot, 1)
+            viewer._push_overlays()
+            texts, rects = viewer._shown
+            label = re.search(r"plots: (.*)", texts[0][3]).group(1)
+            pages.append((label, len(rects)))
+            viewer._on_key(keys.KEY_PLOTS)
+        assert pages == [("1-4 of 6", 4), ("5-6 of 6", 2), ("off", 0), ("1-4 of 6", 4)]
+    finally:
+        for name in extra:
+            viewer.remove_signal(name)
+
+
 def test_reset_key_runs_the_env_reset_hook_on_the_users_thread(arm: Arm) -> None:
     env, robot, viewer = arm
     calls = []
