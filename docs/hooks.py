@@ -1,5 +1,5 @@
-"""MkDocs hooks: the package version in the site's name, and the pages of layers that land
-later (control, task) added to the navigation as soon as their files exist.
+"""MkDocs hooks: the package version in the site's name, and the pages that land from other
+branches (control, task, reliability) added to the navigation as soon as their files exist.
 
 The version is read from ``mjkdl/__init__.py`` without importing the package (which would need
 MuJoCo and Pinocchio at docs build time); pyproject.toml reads the same line.
@@ -14,8 +14,10 @@ from typing import Any
 from mkdocs.structure.files import File, Files
 
 ROOT = Path(__file__).resolve().parents[1]
-# (nav section, title, page under docs/) for layer pages written on other branches
+# (title, page under docs/) of pages written on other branches: layers go under "Layers",
+# the others before "Testing"
 LAYER_PAGES = [("Control", "control.md"), ("Task", "task.md")]
+OTHER_PAGES = [("Reliability", "reliability.md")]
 # packages with an API reference page of their own, generated when the package exists
 REFERENCE_PACKAGES = ["mjkdl.control", "mjkdl.task"]
 
@@ -42,13 +44,21 @@ def _section(nav: list[Any], title: str) -> list[Any]:
     raise KeyError(f"mkdocs.yml has no nav section {title!r}")
 
 
+def _listed(nav: list[Any], page: str) -> bool:
+    return any(isinstance(e, dict) and page in e.values() for e in nav)
+
+
 def on_config(config: Any) -> Any:
     config.site_name = f"mjkdl {version()}"
     config.extra["version"] = version()
     layers = _section(config.nav, "Layers")
     for title, page in LAYER_PAGES:
-        if (ROOT / "docs" / page).is_file() and not any(page in e.values() for e in layers):
+        if (ROOT / "docs" / page).is_file() and not _listed(layers, page):
             layers.insert(len(layers) - 1, {title: page})  # before "Viewer and recording"
+    for title, page in OTHER_PAGES:
+        if (ROOT / "docs" / page).is_file() and not _listed(config.nav, page):
+            at = next(i for i, e in enumerate(config.nav) if isinstance(e, dict) and "Testing" in e)
+            config.nav.insert(at, {title: page})
     reference = _section(config.nav, "API reference")
     for package in _present_packages():
         reference.append({package: f"reference/{package.split('.')[-1]}.md"})

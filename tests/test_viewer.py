@@ -362,6 +362,11 @@ def test_y_axis_fits_the_data_and_shows_its_unit() -> None:
     assert fig.yformat == "%.0f Nm" and fig.yformat % hi == "22 Nm"
     assert list(fig.linedata[1, 1:20:2]) == [-2.0 * k for k in range(10)]
     assert fig.flg_legend == 1  # two lines fit in 200 px
+    signals.add("pressure [newton per square millimetre %]", lambda: [1e5])
+    signals.sample(2.0)
+    (_, fig), (_, long_unit) = signals.figures([mujoco.MjrRect(0, 0, 300, 200)] * 2, 0)
+    assert long_unit.yformat == "%.0f newton per squ"  # MuJoCo's field holds 19 characters
+    assert long_unit.title == "pressure [newton per square millimetre %]"
 
 
 def test_ctrl_c_ends_the_loop_and_finalises_the_recording(display: str, tmp_path: Path) -> None:

@@ -20,6 +20,7 @@ COLUMN_SHARE = 0.3  # of the window's width taken by the figure column (within 2
 MIN_HEIGHT = 100  # px: shorter figures have no room for a plot between title and tick labels
 _CHROME_PX = 60  # px of a figure taken by its title, tick labels and margins
 _LEGEND_ROW_PX = 17
+_FORMAT_CHARS = 19  # MuJoCo's mjvFigure text fields (yformat, minwidth) hold this many
 _MARGIN = 4  # px between the overlay text and the first figure
 
 
@@ -125,7 +126,8 @@ class SignalPlots:
         fig.flg_extend = 0
         fig.range[1] = (lo, hi)
         fig.yformat = _y_format(hi - lo, _unit(sig.name))
-        fig.minwidth = (fig.yformat % max(abs(lo), abs(hi))).replace(" ", "X")
+        widest = fig.yformat % max(abs(lo), abs(hi))
+        fig.minwidth = widest.replace(" ", "X")[:_FORMAT_CHARS]
         for j, label in enumerate(sig.labels):
             fig.linename[j] = label.encode()[:99]
             fig.linedata[j, 0 : 2 * sig.count : 2] = x
@@ -169,9 +171,14 @@ def _y_range(values: np.ndarray) -> tuple[float, float]:
 
 
 def _y_format(span: float, unit: str) -> str:
-    """A tick-label format with as many decimals as the axis span needs, then the unit."""
+    """A tick-label format with as many decimals as the axis span needs, then the unit (cut
+    to fit MuJoCo's 19-character format field; the title keeps it whole)."""
     decimals = min(6, max(0, 1 - math.floor(math.log10(span)))) if span > 0 else 2
-    return f"%.{decimals}f" + (f" {unit.replace('%', '%%')}" if unit else "")
+    number = f"%.{decimals}f"
+    if not unit:
+        return number
+    room = _FORMAT_CHARS - len(number) - 1
+    return f"{number} {unit.replace('%', '%%')[:room].rstrip('%')}"
 
 
 def _read(name: str, fn: Signal) -> np.ndarray:
