@@ -367,6 +367,8 @@ def test_y_axis_fits_the_data_and_shows_its_unit() -> None:
     (_, fig), (_, long_unit) = signals.figures([mujoco.MjrRect(0, 0, 300, 200)] * 2, 0)
     assert long_unit.yformat == "%.0f newton per squ"  # MuJoCo's field holds 19 characters
     assert long_unit.title == "pressure [newton per square millimetre %]"
+    with pytest.raises(mjk.SpecError, match="1 to 999 characters"):
+        signals.add("x" * 1000, lambda: [0.0])
 
 
 def test_ctrl_c_ends_the_loop_and_finalises_the_recording(display: str, tmp_path: Path) -> None:

@@ -21,6 +21,7 @@ MIN_HEIGHT = 100  # px: shorter figures have no room for a plot between title an
 _CHROME_PX = 60  # px of a figure taken by its title, tick labels and margins
 _LEGEND_ROW_PX = 17
 _FORMAT_CHARS = 19  # MuJoCo's mjvFigure text fields (yformat, minwidth) hold this many
+_TITLE_CHARS = 999  # and its title this many
 _MARGIN = 4  # px between the overlay text and the first figure
 
 
@@ -58,8 +59,10 @@ class SignalPlots:
 
         `fn` is called once here, so a bad signal fails now rather than mid-run.
         """
-        if not isinstance(name, str) or not name:
-            raise SpecError(f"signal name must be a non-empty string, got {name!r}")
+        if not isinstance(name, str) or not name or len(name) > _TITLE_CHARS:
+            raise SpecError(
+                f"signal name must be a string of 1 to {_TITLE_CHARS} characters, got {name!r}"
+            )
         if name in self._signals:
             raise SpecError(f"a signal named {name!r} is already plotted")
         if not callable(fn):
