@@ -286,7 +286,8 @@ def run(
 
     Headless, the loop stops after ``args.duration`` simulated seconds (counted in steps, so
     an `env.reset()` inside the loop does not extend it) or as soon as `until()` is true.
-    Otherwise it runs in the interactive viewer, in real time, until the window is closed.
+    Otherwise it runs in the interactive viewer, in real time, until the window is closed or
+    Ctrl+C is pressed. A loop that ends before `until()` is true says "stopped after N s".
     """
     if args.headless:
         advance = robot.step if robot is not None else env.step
@@ -298,6 +299,8 @@ def run(
             steps += 1
             if after_step is not None:
                 after_step()
+        if until is not None and not until():
+            print(f"stopped after {steps * env.timestep():.1f} s (--duration), before the end")
         return steps
 
     from mjkdl import SimulateViewer  # only the interactive path needs a display
@@ -316,6 +319,7 @@ def run(
                 after_step()
     finally:
         viewer.close()
+    print(f"stopped after {steps * env.timestep():.1f} s (window closed or Ctrl+C)")
     return steps
 
 

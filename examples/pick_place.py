@@ -222,7 +222,10 @@ def report(task: PickPlace) -> bool:
     )
     print(f"lifted: {task.lift():.3f} m")
     print(f"place error: {error:.4f} m")
-    print(f"result: {'success' if success else 'FAILURE'}")
+    if not task.done:  # stopped early (--duration, window closed, Ctrl+C): not a failure
+        print(f"result: not finished (stopped in state {task.state})")
+    else:
+        print(f"result: {'success' if success else 'FAILURE'}")
     return success
 
 
@@ -255,7 +258,7 @@ def main() -> int:
         )
         print(f"simulated: {env.time():.2f} s since the last reset")
         success = report(task)
-    return 0 if success or not args.headless else 1
+    return 0 if success or not task.done or not args.headless else 1
 
 
 if __name__ == "__main__":

@@ -65,7 +65,7 @@ def main() -> int:
             f"{env.time():.2f} s simulated, {size / 1e6:.2f} MB)"
         )
         success = report(task)
-    return 0 if success else 1
+    return 0 if success or not task.done else 1  # not done: stopped by --duration
 
 
 if __name__ == "__main__":

@@ -22,6 +22,39 @@ import mjkdl as mjk  # noqa: E402  (after MENAGERIE_ROOT is set)
 HOME = [0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708]
 
 
+# ---------------------------------------------------------------------- nothing written here
+
+_NOT_CHECKED = {".git", "__pycache__", ".pytest_cache", ".ruff_cache", ".mypy_cache", "mutants"}
+_files_at_start: set[Path] = set()
+
+
+def _repository_files() -> set[Path]:
+    """Every file in the repository tree, caches and git's own files aside."""
+    found = set()
+    for path in ROOT.rglob("*"):
+        relative = path.relative_to(ROOT)
+        if not _NOT_CHECKED & set(relative.parts) and path.is_file():
+            found.add(relative)
+    return found
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    _files_at_start.update(_repository_files())
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Fail the session when a test left a file in the repository (MUJOCO_LOG.TXT, a video):
+    tests write into tmp_path."""
+    new = sorted(str(p) for p in _repository_files() - _files_at_start)
+    if new:
+        reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+        if reporter is not None:
+            reporter.write_line("")
+            reporter.write_sep("=", "tests left files in the repository", red=True)
+            reporter.write_line(", ".join(new))
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
 def _menagerie_has(name: str) -> bool:
     """True when `name` resolves without a download (MENAGERIE_ROOT or the package cache)."""
     import mujoco_menagerie

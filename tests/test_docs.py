@@ -1,7 +1,11 @@
-"""docs/tutorial.md runs: its ```python blocks, in order, in one namespace, print what it says.
+"""The docs run: the ```python blocks of the pages in `PAGES` (the tutorial, getting started
+and the layer pages), in order, in one namespace per page, print what the pages say.
 
-A ```text block that directly follows a ```python block is the output that block must print
-(`...` matches anything within it). The blocks run in a fresh interpreter with
+A ```text block that directly follows a ```python block is the output that block must print.
+`...` matches any text within it. Numbers are checked as numbers: a decimal number (``0.700``)
+within one unit of its last printed digit, a number in e-notation (``1e-09``, an error or a
+drift) as an upper bound within a factor of 10; integers and other text match exactly. The
+blocks run in a fresh interpreter with
 `MUJOCO_GL=egl` (MuJoCo picks its GL backend at import, and pytest has imported it already)
 and the repository root as the working directory, as the tutorial asks of its readers. There is
 no display here, so `mjk.SimulateViewer` is replaced by a stand-in that steps the simulation a
@@ -22,9 +26,19 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "docs" / "tutorial.md"
+PAGES = [TUTORIAL] + [
+    ROOT / "docs" / f"{name}.md" for name in ("getting-started", "scene", "robot", "viewer")
+]
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```\s*$", re.MULTILINE | re.DOTALL)
+# A decimal or e-notation number standing alone (not part of a name such as joint_1).
+CHECKED_NUMBER = re.compile(
+    r"(?<![\w.])[-+]?(?:\d+\.\d+(?:[eE][-+]?\d+)?|\d+[eE][-+]?\d+)(?![\w.])"
+)
+ANY_NUMBER = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
 
 
 @dataclass
@@ -51,12 +65,33 @@ def blocks(text: str) -> list[Block]:
     return found
 
 
-def matches(expected: str, output: str) -> bool:
-    """Whether `output` is `expected`, with `...` standing for any text (trailing blanks off)."""
+def mismatch(expected: str, output: str) -> str | None:
+    """Why `output` is not what `expected` shows (see the module docstring), or None."""
     clean = "\n".join(line.rstrip() for line in output.strip().splitlines())
     want = "\n".join(line.rstrip() for line in expected.strip().splitlines())
-    pattern = ".*?".join(re.escape(part) for part in want.split("..."))
-    return re.fullmatch(pattern, clean, re.DOTALL) is not None
+    numbers: list[str] = []
+    parts = []
+    for part in want.split("..."):
+        pieces = CHECKED_NUMBER.split(part)
+        numbers += CHECKED_NUMBER.findall(part)
+        parts.append(ANY_NUMBER.join(re.escape(piece) for piece in pieces))
+    found = re.fullmatch(".*?".join(parts), clean, re.DOTALL)
+    if found is None:
+        return "the text differs"
+    for shown, got in zip(numbers, found.groups(), strict=True):
+        if "e" in shown.lower():
+            if abs(float(got)) > 10 * abs(float(shown)):
+                return f"{got} is more than 10 times the {shown} shown"
+        else:
+            unit = 10.0 ** -len(shown.split(".")[1])
+            if abs(float(got) - float(shown)) > unit * (1 + 1e-9):
+                return f"{got} differs from the {shown} shown by more than {unit:g}"
+    return None
+
+
+def matches(expected: str, output: str) -> bool:
+    """Whether `output` is what `expected` shows."""
+    return mismatch(expected, output) is None
 
 
 # ---------------------------------------------------------------------- the runner
@@ -85,6 +120,9 @@ class HeadlessViewer:
     def use_camera(self, name: str) -> None:
         pass
 
+    def add_signal(self, name: str, fn, labels=None) -> None:
+        fn()  # as the real viewer does, so a broken signal fails here too
+
     def clear_trace(self) -> None:
         pass
 
@@ -109,9 +147,6 @@ def run_blocks(path: Path) -> list[dict]:
     namespace: dict = {"__name__": "__tutorial__"}
     results = []
     for block in blocks(path.read_text()):
-        if "VideoRecorder" in block.code and not hasattr(mjk, "VideoRecorder"):
-            results.append({"line": block.line, "status": "skipped", "output": ""})
-            continue
         out = io.StringIO()
         try:
             with contextlib.redirect_stdout(out):
@@ -133,16 +168,43 @@ def test_blocks_are_found() -> None:
     assert sum(b.expected is not None for b in found) >= 8
 
 
-def test_tutorial_runs_and_prints_what_it_says() -> None:
-    import pytest
-    from conftest import menagerie
+def test_numbers_are_checked_as_numbers() -> None:
+    assert matches("TCP drift after 1 s: 1e-09 m", "TCP drift after 1 s: 8e-09 m")
+    assert mismatch("TCP drift after 1 s: 1e-09 m", "TCP drift after 1 s: 2e-03 m") == (
+        "2e-03 is more than 10 times the 1e-09 shown"
+    )
+    assert matches("z = 0.700 m", "z = 0.701 m") and not matches("z = 0.700 m", "z = 0.702 m")
+    assert not matches("7 joint_1 ... joint_7", "6 joint_1 ... joint_6")  # integers: exact
+    assert matches("[0.7071 0.     0.7071]", "[0.7071 0.     0.7071]")
+    assert matches("lifted 0.15 m, ... left", "lifted 0.16 m, anything left")
 
-    menagerie("kinova_gen3")  # skips when the Menagerie models are not on this machine
-    menagerie("robotiq_2f85")
+
+def test_docs_show_the_version_the_package_has() -> None:
+    """One source: mjkdl.__version__; pyproject.toml and the docs' header read it, and the
+    changelog has a section for it."""
+    import importlib.util
+
+    import mjkdl
+
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
+
+    spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs" / "hooks.py")
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    assert hooks.version() == mjkdl.__version__
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "version" in project["project"]["dynamic"] and "version" not in project["project"]
+    assert project["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "mjkdl.__version__"}
+    changelog = (ROOT / "CHANGELOG.md").read_text()
+    assert re.search(rf"^## {re.escape(mjkdl.__version__)} - \d{{4}}-\d\d-\d\d$", changelog, re.M)
+
+
+def run_page(page: Path) -> list[dict]:
+    """Run `page`'s blocks in a fresh interpreter (see the module docstring); the results."""
     env = dict(os.environ, MUJOCO_GL="egl")
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     proc = subprocess.run(
-        [sys.executable, __file__, str(TUTORIAL)],
+        [sys.executable, __file__, str(page)],
         cwd=ROOT,
         env=env,
         capture_output=True,
@@ -150,20 +212,27 @@ def test_tutorial_runs_and_prints_what_it_says() -> None:
         timeout=300,
     )
     assert proc.returncode == 0, proc.stderr
-    results = json.loads(proc.stdout.splitlines()[-1])
-    by_line = {b.line: b for b in blocks(TUTORIAL.read_text())}
+    return json.loads(proc.stdout.splitlines()[-1])
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_page_runs_and_prints_what_it_says(page: Path) -> None:
+    from conftest import menagerie
+
+    menagerie("kinova_gen3")  # skips when the Menagerie models are not on this machine
+    menagerie("robotiq_2f85")
+    results = run_page(page)
+    by_line = {b.line: b for b in blocks(page.read_text())}
     for result in results:
-        where = f"docs/tutorial.md, block at line {result['line']}"
-        assert result["status"] != "error", f"{where} raised:\n{result['traceback']}"
+        where = f"docs/{page.name}, block at line {result['line']}"
+        assert result["status"] == "ok", f"{where} raised:\n{result['traceback']}"
         expected = by_line[result["line"]].expected
-        if result["status"] == "ok" and expected is not None:
-            assert matches(expected, result["output"]), (
-                f"{where} printed:\n{result['output']}\nbut the tutorial shows:\n{expected}"
+        if expected is not None:
+            why = mismatch(expected, result["output"])
+            assert why is None, (
+                f"{where}: {why}; it printed:\n{result['output']}\nbut the page shows:\n{expected}"
             )
     assert len(results) == len(by_line)
-    skipped = [r["line"] for r in results if r["status"] == "skipped"]
-    if skipped:
-        pytest.skip(f"mjk.VideoRecorder is not there yet: blocks at lines {skipped} not run")
 
 
 if __name__ == "__main__":

@@ -109,6 +109,13 @@ def test_pick_place(seed: int) -> None:
     assert "result: success" in out
 
 
+def test_pick_place_stopped_by_duration_says_so_and_succeeds() -> None:
+    out = run_example("pick_place", "--duration", "1")  # exits 0, else run_example fails
+    assert "stopped after 1.0 s" in out and "FAILURE" not in out
+    assert "result: not finished (stopped in state PRE-GRASP)" in out
+    assert number("simulated:", out) == pytest.approx(1.0, abs=1e-9)
+
+
 def test_dual_arm() -> None:
     out = run_example("dual_arm", "--duration", "2")
     assert "r2_joint_1..r2_joint_7" in out and "joint_1..joint_7" in out
@@ -131,8 +138,6 @@ def test_urdf_robot() -> None:
 
 
 def test_record_video(tmp_path: Path) -> None:
-    if not hasattr(mjk, "VideoRecorder"):
-        pytest.skip("mjk.VideoRecorder is not there yet")
     import imageio_ffmpeg
 
     video = tmp_path / "pick_place.mp4"

@@ -1,37 +1,58 @@
-"""SimulateViewer under a virtual display (Xvfb): stepping, overlays, recording, closing."""
+"""SimulateViewer under a virtual display (Xvfb): stepping, overlays, recording, closing.
+
+Without Xvfb (or xdotool, for the tests that press keys or grab the screen) these tests skip;
+with ``MJKDL_REQUIRE_DISPLAY=1`` (set by CI) they fail instead, so a CI box missing them cannot
+pass with the viewer untested.
+"""
 
 from __future__ import annotations
 
+import itertools
 import os
+import re
 import shutil
+import signal
 import subprocess
 import sys
 import textwrap
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import NoReturn
 
 import cv2
 import mujoco
 import numpy as np
 import pytest
 from conftest import HOME, ROOT, base_spec, gripper_tool, table_object, tutorial_spec
+from screen import grab_window
 
 import mjkdl as mjk
 from mjkdl.viewer import overlays as keys
+from mjkdl.viewer import plots
 
 Arm = tuple[mjk.Env, mjk.Robot, mjk.SimulateViewer]
+REQUIRE_DISPLAY = os.environ.get("MJKDL_REQUIRE_DISPLAY") == "1"
 
 
-@pytest.fixture(scope="module")
-def display() -> Iterator[str]:
-    """The running display, or a private Xvfb started for this module."""
-    if os.environ.get("DISPLAY"):
-        yield os.environ["DISPLAY"]
-        return
-    xvfb = shutil.which("Xvfb")
-    if xvfb is None:
-        pytest.skip("no DISPLAY and no Xvfb binary to start one (apt-get install xvfb)")
+def unavailable(reason: str) -> NoReturn:
+    """Skip for `reason`, or fail under MJKDL_REQUIRE_DISPLAY=1."""
+    if REQUIRE_DISPLAY:
+        pytest.fail(f"{reason}, and MJKDL_REQUIRE_DISPLAY=1 asks for every viewer test to run")
+    pytest.skip(reason)
+
+
+def tool(name: str) -> str:
+    """Path of command-line tool `name` (Xvfb, xdotool), or skip/fail without it."""
+    path = shutil.which(name)
+    if path is None:
+        unavailable(f"{name} is not installed (apt-get install xvfb xdotool)")
+    return path
+
+
+def start_xvfb(*options: str) -> tuple[subprocess.Popen, str]:
+    """A private Xvfb server on a free display number, with extra `options`; (server, name)."""
+    xvfb = tool("Xvfb")
     number = next(
         n
         for n in range(99, 199)
@@ -39,7 +60,7 @@ def display() -> Iterator[str]:
     )
     socket = Path(f"/tmp/.X11-unix/X{number}")
     server = subprocess.Popen(
-        [xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+        [xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp", *options],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
@@ -49,9 +70,19 @@ def display() -> Iterator[str]:
             server.kill()
             pytest.fail(f"Xvfb :{number} did not start (exit code {server.poll()})")
         time.sleep(0.05)
-    os.environ["DISPLAY"] = f":{number}"
-    try:
+    return server, f":{number}"
+
+
+@pytest.fixture(scope="module")
+def display() -> Iterator[str]:
+    """The running display, or a private Xvfb started for this module."""
+    if os.environ.get("DISPLAY"):
         yield os.environ["DISPLAY"]
+        return
+    server, name = start_xvfb()
+    os.environ["DISPLAY"] = name
+    try:
+        yield name
     finally:
         import glfw
 
@@ -132,9 +163,7 @@ def test_a_rebuilt_scene_reopens_the_window(display: str) -> None:
 
 def test_quitting_from_the_window_ends_the_users_loop(display: str) -> None:
     """Ctrl+Q (MuJoCo's File > Quit) in the window: step() turns False, close() is quick."""
-    xdotool = shutil.which("xdotool")
-    if xdotool is None:
-        pytest.skip("xdotool is not installed")
+    xdotool = tool("xdotool")
     with mjk.Scene.build(_object_spec()) as scene:
         viewer = mjk.SimulateViewer.open(scene, "quit")
         try:
@@ -191,6 +220,214 @@ def test_exiting_without_close_neither_crashes_nor_hangs(display: str) -> None:
     assert time.perf_counter() - start < 30.0
 
 
+# ---------------------------------------------------------------------- the window as seen
+
+
+def settled_grab(viewer: mjk.SimulateViewer) -> np.ndarray:
+    """A grab once the window has drawn the latest overlays (software GL: ~0.2 s a frame)."""
+    tool("xdotool")
+    viewer._push_overlays()
+    time.sleep(2.0)
+    return grab_window()
+
+
+def robot_mask(env: mjk.Scene, cam: mujoco.MjvCamera, width: int, height: int) -> np.ndarray:
+    """Pixels showing the Gen3 (bodies under `base_link`) or its gripper through `cam`, from
+    MuJoCo's segmentation rendering: the reference for what the overlays must not hide."""
+    model = env.model
+    base = env.body_id("base_link")
+    robot = np.zeros(model.nbody, dtype=bool)
+    for b in range(model.nbody):
+        a = b
+        while a > 0 and a != base:
+            a = model.body_parentid[a]
+        robot[b] = a == base
+    with mujoco.Renderer(model, height, width) as renderer:
+        renderer.enable_segmentation_rendering()
+        renderer.update_scene(env.data, camera=cam)
+        seg = renderer.render()
+    geom = seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)
+    ids = np.where(geom, seg[..., 0], 0)
+    return geom & robot[model.geom_bodyid[ids]]
+
+
+@pytest.fixture
+def layout_arm(display: str) -> Iterator[Arm]:
+    """A fresh tutorial arm at home, in its own window (the grabs need the only window)."""
+    env = mjk.Env.build(tutorial_spec())
+    robot = env.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+    robot.set_joint_pos(np.array(HOME))
+    robot.sync_commands()
+    viewer = mjk.SimulateViewer.open(robot, "layout")
+    viewer.realtime_factor = 0.0
+    try:
+        yield env, robot, viewer
+    finally:
+        viewer.close()
+        env.close()
+
+
+def test_free_camera_opens_framed_on_the_robot(layout_arm: Arm) -> None:
+    env, _robot, viewer = layout_arm
+    w, h = 320, 240
+    framed = robot_mask(env, viewer.handle.cam, w, h)
+    default = mujoco.MjvCamera()
+    mujoco.mjv_defaultFreeCamera(env.model, default)  # MuJoCo's own choice: the whole scene
+    unframed = robot_mask(env, default, w, h)
+    rows, cols = np.nonzero(framed)
+    assert rows.min() > 0 and cols.min() > 0 and rows.max() < h - 1
+    # Centred in the part of the window the figure column (30 % on the right) leaves free.
+    free = (1.0 - plots.COLUMN_SHARE) * w
+    assert abs(cols.mean() - free / 2) < 0.1 * w and abs(rows.mean() / h - 0.5) < 0.2
+    assert rows.max() - rows.min() > 0.4 * h  # the arm fills a good part of the view
+    assert framed.sum() > 3 * unframed.sum(), (framed.sum(), unframed.sum())
+
+
+def test_four_figures_leave_the_robot_and_the_text_uncovered(layout_arm: Arm) -> None:
+    """The real window, grabbed with and without four figures: what the figures change lies
+    in the reported column, below the text box, and hides almost none of the robot."""
+    env, robot, viewer = layout_arm
+    viewer.add_signal("TCP height [m]", lambda: [robot.fk_frame().translation[2]])
+    viewer.add_signal("cube height [m]", lambda: [env.body_frame("cube").translation[2]])
+    viewer._on_key(keys.KEY_STATS)  # no clock in the text box: it must not change between grabs
+    _run(viewer, robot, 50)
+    with_figures = settled_grab(viewer)
+    texts, rects = viewer._shown
+    assert "plots: 1-4 of 4" in texts[0][3] and len(rects) == 4
+    viewer._on_key(keys.KEY_PLOTS)  # one page: F11 turns the figures off
+    _run(viewer, robot, 1)
+    without = settled_grab(viewer)
+    assert viewer._shown[1] == [] and "plots: off" in viewer._shown[0][0][3]
+    height, width = without.shape[:2]
+    viewport = viewer.handle.viewport
+    assert (viewport.width, viewport.height) == (width, height)
+
+    # The text box: its white letters in the top-right corner, measured on the grab.
+    letters = without[: height // 2, width - 150 : width - 4].min(axis=2) > 180
+    text_bottom = int(np.nonzero(letters.any(axis=1))[0].max())
+    changed = np.abs(with_figures.astype(int) - without.astype(int)).max(axis=2) > 40
+    figure_area = np.zeros_like(changed)
+    for k, r in enumerate(rects):
+        top = height - (r.bottom + r.height)  # MjrRect counts from the bottom
+        assert top >= text_bottom, f"figure {k} starts at row {top}, the text ends at {text_bottom}"
+        if k:
+            assert r.bottom + r.height <= rects[k - 1].bottom, "figures overlap"
+        assert r.left + r.width <= width and r.bottom >= 0
+        figure_area[top : top + r.height, r.left : r.left + r.width] = True
+    label_row = changed & ~figure_area  # only the F11 label ("1-4 of 4" -> "off") may differ
+    rows = np.nonzero(label_row.any(axis=1))[0]
+    assert rows.size == 0 or (rows.max() <= text_bottom and np.ptp(rows) < 30), rows
+    assert changed[figure_area].mean() > 0.2  # the figures are really drawn where reported
+
+    robot_pixels = cv2.resize(
+        robot_mask(env, viewer.handle.cam, width // 2, height // 2).astype(np.uint8),
+        (width, height), interpolation=cv2.INTER_NEAREST,
+    ).astype(bool)  # fmt: skip
+    assert robot_pixels.mean() > 0.03
+    hidden = (robot_pixels & changed).sum() / robot_pixels.sum()
+    assert hidden < 0.05, f"the figures cover {hidden:.1%} of the robot"
+    cv2.imwrite(str(Path(os.environ.get("MJKDL_SHOTS", "/tmp")) / "mjkdl-layout.png"), with_figures)
+
+
+def test_figure_column_scales_with_the_window_and_pages_the_rest() -> None:
+    big = plots.column(mujoco.MjrRect(0, 0, 1920, 1080), 250, 6)
+    assert len(big) == plots.MAX_SHOWN == 4
+    assert {r.width for r in big} == {480} and {r.left for r in big} == {1920 - 480}
+    assert big[0].bottom + big[0].height == 1080 - 250
+    assert all(a.bottom == b.bottom + b.height for a, b in itertools.pairwise(big))
+    assert big[-1].bottom >= 0 and big[-1].height == (1080 - 250 - 4) // 4
+    small = plots.column(mujoco.MjrRect(0, 0, 640, 480), 250, 6)
+    assert len(small) == (480 - 250 - 4) // plots.MIN_HEIGHT == 2
+    assert {r.width for r in small} == {260}  # 30 % of 640 px is below the 260 px minimum
+    assert plots.column(mujoco.MjrRect(0, 0, 640, 480), 250, 1)[0].height == 160  # a third
+
+    overlays = keys.Overlays()
+    seen = []
+    for _ in range(4):
+        overlays.next_plot_page(pages=2)
+        seen.append((overlays.plots, overlays.plot_page))
+    assert seen == [(True, 1), (False, 0), (True, 0), (True, 1)]
+
+
+def test_y_axis_fits_the_data_and_shows_its_unit() -> None:
+    signals = plots.SignalPlots(window=1.0, points=10)
+    value = [0.0]
+    signals.add("torque [Nm]", lambda: [value[0], -value[0]])
+    for k in range(10):
+        value[0] = 2.0 * k
+        signals.sample(0.1 * k)
+    ((_, fig),) = signals.figures([mujoco.MjrRect(0, 0, 300, 200)], 0)
+    lo, hi = fig.range[1]
+    assert lo == pytest.approx(-18.0 - 3.6) and hi == pytest.approx(18.0 + 3.6)  # 10 % margin
+    assert fig.yformat == "%.0f Nm" and fig.yformat % hi == "22 Nm"
+    assert list(fig.linedata[1, 1:20:2]) == [-2.0 * k for k in range(10)]
+    assert fig.flg_legend == 1  # two lines fit in 200 px
+    signals.add("pressure [newton per square millimetre %]", lambda: [1e5])
+    signals.sample(2.0)
+    (_, fig), (_, long_unit) = signals.figures([mujoco.MjrRect(0, 0, 300, 200)] * 2, 0)
+    assert long_unit.yformat == "%.0f newton per squ"  # MuJoCo's field holds 19 characters
+    assert long_unit.title == "pressure [newton per square millimetre %]"
+    with pytest.raises(mjk.SpecError, match="1 to 999 characters"):
+        signals.add("x" * 1000, lambda: [0.0])
+
+
+def test_ctrl_c_ends_the_loop_and_finalises_the_recording(display: str, tmp_path: Path) -> None:
+    script = textwrap.dedent(
+        f"""
+        import signal, sys
+        sys.path.insert(0, {str(ROOT)!r})
+        import mjkdl as mjk
+        spec = mjk.SceneSpec(timestep=0.002, add_floor=True, add_skybox=False)
+        scene = mjk.Scene.build(spec)
+        viewer = mjk.SimulateViewer.open(scene, "ctrl c")
+        viewer.start_recording(sys.argv[1], 160, 120, 30, shadows=False, reflections=False)
+        print("looping", flush=True)
+        while viewer.step():
+            pass
+        print(f"stopped after {{scene.time():.3f}} s", flush=True)
+        viewer.close()
+        restored = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        print("default handler back:", restored)
+        """
+    )
+    video = tmp_path / "interrupted.mp4"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script, str(video)], cwd=tmp_path, env=dict(os.environ),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert proc.stdout is not None and proc.stdout.readline() == "looping\n"
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    simulated = float(re.search(r"stopped after ([\d.]+) s", out).group(1))
+    assert simulated > 0.3 and "default handler back: True" in out
+    cap = cv2.VideoCapture(str(video))
+    frames = 0
+    while cap.read()[0]:
+        frames += 1
+    assert abs(frames - (1 + 30 * simulated)) <= 2, (frames, simulated)
+
+
+def test_display_without_glx_raises_instead_of_exiting(monkeypatch) -> None:
+    """Without GLX, MuJoCo's window thread would end the whole process (mju_error)."""
+    server, name = start_xvfb("-extension", "GLX")
+    try:
+        monkeypatch.setenv("DISPLAY", name)
+        with (
+            mjk.Scene.build(base_spec()) as scene,
+            pytest.raises(mjk.NoDisplayError, match=f"display '{name}' has no GLX"),
+        ):
+            mjk.SimulateViewer.open(scene, "no glx")
+    finally:
+        server.terminate()
+        server.wait(5)
+
+
 def test_steps_advance_exactly_one_timestep_each(arm: Arm) -> None:
     env, robot, viewer = arm
     assert viewer.is_running()
@@ -202,7 +439,7 @@ def test_steps_advance_exactly_one_timestep_each(arm: Arm) -> None:
 
 
 def test_trace_is_bounded_by_the_user_scene(arm: Arm) -> None:
-    _env, robot, viewer = arm
+    env, robot, viewer = arm
     viewer.clear_trace()
     drawn = [
         viewer.add_trace_segment([0.0, 0.0, 1e-4 * i], [0.1, 0.0, 1e-4 * i], [1, 0.5, 0.1, 1])
@@ -213,7 +450,10 @@ def test_trace_is_bounded_by_the_user_scene(arm: Arm) -> None:
     total = 10_000
     while viewer.add_trace_segment([0, 0, 0], [0, 0, 0.1], [0, 1, 0, 1]):
         total += 1
-    assert total == viewer.trace_capacity == viewer.handle.user_scn.maxgeom
+    # The window's scene holds the user scene's geoms and the model's: room is left for those.
+    scn = viewer.handle.user_scn
+    assert total == viewer.trace_capacity and scn.ngeom == total
+    assert total <= scn.maxgeom - 4 * (env.model.ngeom + env.model.nbody + env.model.nsite)
     assert viewer.add_trace_segment([0, 0, 0], [0, 0, 0.1], [0, 1, 0, 1]) is False
     _run(viewer, robot, 5)
     viewer.clear_trace()
@@ -284,7 +524,7 @@ def test_each_overlay_key_toggles_its_overlay(arm: Arm) -> None:
         _run(viewer, robot, 1)
         assert getattr(viewer.overlays, flag) is False
     ((_, _, labels, values),) = keys.texts(viewer.overlays, "t", 1.0, 0.5, 1.0, None)
-    assert labels.split("\n") == ["t", "F8", "F9", "F10", "F11", "F12", "Backspace"]
+    assert labels.split("\n") == ["t", "F8", "F9", "F10", "F11", "F12", "Backspace", "Tab"]
     assert "trace: off" in values and "plots: off" in values and "record: off" in values
     for key in (keys.KEY_TRACE, keys.KEY_STATS, keys.KEY_PLOTS):
         viewer._on_key(key)
@@ -295,6 +535,26 @@ def test_each_overlay_key_toggles_its_overlay(arm: Arm) -> None:
     assert "0.50x (target 1x)" in values and "record: v.mp4" in values
     viewer.clear_trace()
     viewer.use_camera("")
+
+
+def test_f11_pages_through_six_signals_four_at_a_time(arm: Arm) -> None:
+    _env, robot, viewer = arm
+    extra = [f"extra {k} [m]" for k in range(4)]
+    for name in extra:
+        viewer.add_signal(name, lambda: [0.0])
+    try:
+        pages = []
+        for _ in range(4):
+            _run(viewer, robot, 1)
+            viewer._push_overlays()
+            texts, rects = viewer._shown
+            label = re.search(r"plots: (.*)", texts[0][3]).group(1)
+            pages.append((label, len(rects)))
+            viewer._on_key(keys.KEY_PLOTS)
+        assert pages == [("1-4 of 6", 4), ("5-6 of 6", 2), ("off", 0), ("1-4 of 6", 4)]
+    finally:
+        for name in extra:
+            viewer.remove_signal(name)
 
 
 def test_reset_key_runs_the_env_reset_hook_on_the_users_thread(arm: Arm) -> None:
@@ -321,9 +581,7 @@ def test_reset_key_runs_the_env_reset_hook_on_the_users_thread(arm: Arm) -> None
 
 def test_backspace_in_the_window_resets_through_env_reset(arm: Arm) -> None:
     """A real key press: MuJoCo resets the data at the next sync, then the Env hook runs."""
-    xdotool = shutil.which("xdotool")
-    if xdotool is None:
-        pytest.skip("xdotool is not installed (the key handling itself is tested above)")
+    xdotool = tool("xdotool")
     env, robot, viewer = arm
     times = []
     env.on_reset = lambda ctx: times.append(ctx.data.time)

@@ -36,8 +36,15 @@ def require_display() -> None:
         raise NoDisplayError(
             f"SimulateViewer needs a display and DISPLAY is not set: {_ALTERNATIVES}"
         )
-    if not _x_display_opens(name):
+    opens, glx = _x_display_probe(name)
+    if not opens:
         raise NoDisplayError(f"SimulateViewer cannot open display {name!r}: {_ALTERNATIVES}")
+    if not glx:
+        raise NoDisplayError(
+            f"display {name!r} has no GLX extension, so OpenGL windows cannot open on it "
+            f"(an Xvfb started with -extension GLX, or a remote X server without it): "
+            f"{_ALTERNATIVES}"
+        )
 
 
 def no_display(reason: str) -> NoDisplayError:
@@ -45,17 +52,25 @@ def no_display(reason: str) -> NoDisplayError:
     return NoDisplayError(f"SimulateViewer could not open a window ({reason}): {_ALTERNATIVES}")
 
 
-def _x_display_opens(name: str) -> bool:
-    """Open and close X display `name` through libX11 (True when libX11 is not found)."""
+def _x_display_probe(name: str) -> tuple[bool, bool]:
+    """Whether X display `name` opens and whether its server has the GLX extension, asked
+    through libX11 (both True when libX11 is not found). GLFW without GLX makes MuJoCo's
+    window thread end the process instead of raising."""
     lib = ctypes.util.find_library("X11")
     if lib is None:
-        return True
+        return True, True
     x11 = ctypes.CDLL(lib)
     x11.XOpenDisplay.restype = ctypes.c_void_p
     x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
     x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    int_out = ctypes.POINTER(ctypes.c_int)
+    x11.XQueryExtension.argtypes = [ctypes.c_void_p, ctypes.c_char_p, int_out, int_out, int_out]
     handle = x11.XOpenDisplay(name.encode())
     if not handle:
-        return False
-    x11.XCloseDisplay(handle)
-    return True
+        return False, False
+    try:
+        codes = [ctypes.c_int() for _ in range(3)]
+        glx = bool(x11.XQueryExtension(handle, b"GLX", *(ctypes.byref(c) for c in codes)))
+    finally:
+        x11.XCloseDisplay(handle)
+    return True, glx

@@ -25,7 +25,13 @@ _FRAME_NAMES = {
     int(mujoco.mjtFrame.mjFRAME_BODY): "body",
     int(mujoco.mjtFrame.mjFRAME_SITE): "site",
 }
+Text = tuple[int, int, str, str]  # (font scale, grid position, left column, right column)
+
 _FONT = int(mujoco.mjtFontScale.mjFONTSCALE_150)
+# Height of one text row at that font scale, and the box's margin, in pixels (measured on a
+# screenshot of the window: 23.6 px a row); `text_height` reserves this much for the box.
+_ROW_PX = 24
+_BOX_PAD_PX = 8
 
 
 @dataclass
@@ -36,6 +42,17 @@ class Overlays:
     trace: bool = True
     stats: bool = True
     plots: bool = True
+    plot_page: int = 0  # which page of at most `plots.MAX_SHOWN` figures is shown
+
+    def next_plot_page(self, pages: int) -> None:
+        """F11: the next page of figures; after the last (or with one page), plots off; when
+        off, plots on at the first page."""
+        if not self.plots:
+            self.plots, self.plot_page = True, 0
+        elif self.plot_page + 1 < pages:
+            self.plot_page += 1
+        else:
+            self.plots, self.plot_page = False, 0
 
     def cycle_frames(self) -> int:
         """Next frame mode: none -> body -> site -> none."""
@@ -51,9 +68,11 @@ def texts(
     measured_rtf: float | None,
     target_rtf: float,
     recording: str | None,
-) -> list[tuple[int, int, str, str]]:
+    plots: str = "",
+) -> list[Text]:
     """The overlay text for `Handle.set_texts`: one top-right box with the title, time and
-    real-time factor (when `stats` is on), and every key with the state it toggles."""
+    real-time factor (when `stats` is on), and every key with the state it toggles (`plots`
+    says which figures are shown, e.g. "1-4 of 6")."""
     rows = [(title, "")]
     if overlays.stats:
         rtf = "-" if measured_rtf is None else f"{measured_rtf:.2f}x"
@@ -63,12 +82,19 @@ def texts(
         ("F8", f"frames: {_FRAME_NAMES.get(overlays.frames, 'off')}"),
         ("F9", f"trace: {_on(overlays.trace)}"),
         ("F10", f"time, real-time: {_on(overlays.stats)}"),
-        ("F11", f"plots: {_on(overlays.plots)}"),
+        ("F11", f"plots: {(plots or 'on') if overlays.plots else 'off'}"),
         ("F12", f"record: {recording or 'off'}"),
         ("Backspace", "reset"),
+        ("Tab", "MuJoCo's panels; F1 its keys"),
     ]
     labels, values = zip(*rows, strict=True)
     return [(_FONT, int(mujoco.mjtGridPos.mjGRID_TOPRIGHT), "\n".join(labels), "\n".join(values))]
+
+
+def text_height(texts: list[Text]) -> int:
+    """Pixels the top-right box of `texts` takes from the top of the window."""
+    rows = max((t[2].count("\n") + 1 for t in texts), default=0)
+    return rows * _ROW_PX + 2 * _BOX_PAD_PX
 
 
 def _on(flag: bool) -> str:

@@ -16,16 +16,21 @@ _EYE9 = np.eye(3).ravel()
 
 
 class Trace:
-    """Line segments in the viewer's `user_scn`, silently bounded by its `maxgeom`.
+    """Line segments in the viewer's `user_scn`, bounded by its `maxgeom` less `reserve`.
+
+    The window copies the user scene into its own scene, which has the same `maxgeom` and
+    holds the model's geoms and decorations too; a full user scene would overflow it (MuJoCo
+    then warns into ``MUJOCO_LOG.TXT`` in the working folder and drops geoms), hence the reserve.
 
     Segments are kept as an array too (a, b, rgba per row), so offscreen renders (recordings,
     screenshots) and a relaunched window draw the same trace.
     """
 
-    def __init__(self, scene: mujoco.MjvScene, width_px: float = 3.0) -> None:
+    def __init__(self, scene: mujoco.MjvScene, reserve: int, width_px: float = 3.0) -> None:
         self._scene = scene
+        self._reserve = int(reserve)
         self._width = float(width_px)
-        self._segments = np.empty((scene.maxgeom, 10))
+        self._segments = np.empty((self.capacity, 10))
         self._count = 0
         scene.ngeom = 0
 
@@ -36,8 +41,8 @@ class Trace:
 
     @property
     def capacity(self) -> int:
-        """Most segments the user scene holds (its `maxgeom`)."""
-        return self._scene.maxgeom
+        """Most segments drawn at once."""
+        return max(0, self._scene.maxgeom - self._reserve)
 
     def clear(self) -> None:
         """Remove every segment."""
@@ -50,7 +55,7 @@ class Trace:
         Returns False, drawing nothing, once the user scene is full.
         """
         n = self._count
-        if n >= self._scene.maxgeom:
+        if n >= self.capacity:
             return False
         row = self._segments[n]
         try:
@@ -77,12 +82,12 @@ class Trace:
             _line(scene.geoms[start + i], self._segments[i], self._width)
         scene.ngeom = start + n
 
-    def rebind(self, scene: mujoco.MjvScene) -> None:
+    def rebind(self, scene: mujoco.MjvScene, reserve: int) -> None:
         """Move the trace to a new user scene (a relaunched window), redrawing what fits."""
-        if scene.maxgeom != len(self._segments):
-            self._segments = np.resize(self._segments, (scene.maxgeom, 10))
-        self._count = min(self._count, scene.maxgeom)
-        self._scene = scene
+        self._scene, self._reserve = scene, int(reserve)
+        if self.capacity != len(self._segments):
+            self._segments = np.resize(self._segments, (self.capacity, 10))
+        self._count = min(self._count, self.capacity)
         scene.ngeom = 0
         self.draw_into(scene)
 

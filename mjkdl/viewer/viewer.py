@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import atexit
+import math
 import re
+import signal
+import threading
 import time
 import warnings
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import FrameType
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -20,8 +24,9 @@ from ..record import VideoRecorder, offscreen_renderer
 from ..robot import Robot
 from ..scene import Env, Scene
 from . import overlays as ov
+from .framing import frame
 from .pacing import Pacer
-from .plots import Signal, SignalPlots
+from .plots import COLUMN_SHARE, Signal, SignalPlots, column
 from .trace import Trace
 from .window import Window
 
@@ -47,11 +52,18 @@ class SimulateViewer(Closable):
     refreshed 60 times per wall second and per simulated second; `realtime_factor` paces the
     loop.
 
-    Keys (besides MuJoCo's own; F1 lists those): F8 body/site frames, F9 trace, F10
-    real-time factor and time, F11 plots, F12 start/stop an MP4 of the view, Backspace reset
-    (`Env.reset()` with its hook, on your thread at the next `step()`). Mouse perturbation
-    (double-click a body, Ctrl+drag) is MuJoCo's: the window writes the spring force into
-    ``data.xfrc_applied`` at each refresh, so that field is the window's while it is open.
+    The free camera opens framed on the robots. Keys (besides MuJoCo's own; F1 lists those,
+    Tab and Shift+Tab show its panels): F8 body/site frames, F9 trace, F10 real-time factor
+    and time, F11 plots (the next page of at most four figures, then off), F12 start/stop an
+    MP4 of the view, Backspace reset (`Env.reset()` with its hook, on your thread at the next
+    `step()`). Mouse perturbation (double-click a body, Ctrl+drag) is MuJoCo's: the window
+    writes the spring force into ``data.xfrc_applied`` at each refresh, so that field is the
+    window's while it is open.
+
+    Ctrl+C (SIGINT, when opened on the main thread) ends the session like closing the window:
+    at the next `step()` or `is_running()` the recording is finalised, the window closes and
+    both return False, so the loop ends without a traceback; a second Ctrl+C interrupts as
+    usual.
 
     Needs a display (Linux: X11 or Xvfb); without one `open` raises `NoDisplayError`. On
     macOS run the script with ``mjpython`` (MuJoCo's launcher), as `launch_passive` requires.
@@ -68,16 +80,24 @@ class SimulateViewer(Closable):
             names = robot.joint_names
             self._plots.add("joint positions [rad]", lambda: robot.jnt_pos_msr, names)
             self._plots.add("joint torques [Nm]", lambda: robot.jnt_trq_msr, names)
+        self._plot_slots = 1  # figures per page, as last laid out
+        self._shown: tuple[list[ov.Text], list[mujoco.MjrRect]] = ([], [])
         self._recorder: VideoRecorder | None = None
         self._record_error: str | None = None
         self._shot: mujoco.Renderer | None = None
         self._sync_due = self._full_sync_due = self._overlay_due = 0.0
         self._synced_time = -np.inf
         self._closed = False
+        self._interrupted = False
         self._model = scene.model
         self._window = Window.launch(self._model, scene.data, self._on_key)
-        atexit.register(self._window.close)
-        self._trace = Trace(self._window.handle.user_scn)
+        atexit.register(self.close)
+        self._sigint = self._catch_ctrl_c()
+        viewport = self._window.handle.viewport
+        aspect = viewport.width / viewport.height if viewport and viewport.height else 4 / 3
+        covered = COLUMN_SHARE if self._plots.names else 0.0
+        frame(self._window.handle.cam, self._model, scene.data, aspect, covered)
+        self._trace = Trace(self._window.handle.user_scn, _scene_reserve(self._model))
         self._push_overlays()
 
     @classmethod
@@ -119,14 +139,17 @@ class SimulateViewer(Closable):
         return self._pacer.measured
 
     def is_running(self) -> bool:
-        """Whether the window is open."""
+        """Whether the window is open (False after Ctrl+C, which it then closes)."""
+        if self._interrupted and not self._closed:
+            self._end_session()
         return not self._closed and self._window.is_running()
 
     def step(self) -> bool:
         """Advance one timestep (through the robot when opened on one), refresh the window,
-        pace to `realtime_factor`; False, without stepping, once the window is closed."""
+        pace to `realtime_factor`; False, without stepping, once the window is closed or
+        Ctrl+C was pressed."""
         self._check_open()
-        if not self._window.is_running():
+        if not self.is_running():
             return False
         if self._scene.model is not self._model:
             self._relaunch()
@@ -171,7 +194,8 @@ class SimulateViewer(Closable):
             elif key == ov.KEY_STATS:
                 self._overlays.stats = not self._overlays.stats
             elif key == ov.KEY_PLOTS:
-                self._overlays.plots = not self._overlays.plots
+                pages = max(1, math.ceil(len(self._plots.names) / self._plot_slots))
+                self._overlays.next_plot_page(pages)
             elif key == ov.KEY_RECORD:
                 self._toggle_recording()
             elif key == ov.KEY_RESET:
@@ -236,14 +260,15 @@ class SimulateViewer(Closable):
     def add_trace_segment(
         self, a: Sequence[float], b: Sequence[float], rgba: Sequence[float]
     ) -> bool:
-        """Draw a world-frame segment `a`-`b`; False (nothing drawn) once the user scene's
-        buffer (`user_scn.maxgeom`) is full, so keep traces bounded."""
+        """Draw a world-frame segment `a`-`b`; False (nothing drawn) once `trace_capacity`
+        segments are drawn, so keep traces bounded."""
         self._check_open()
         return self._trace.add(a, b, rgba)
 
     @property
     def trace_capacity(self) -> int:
-        """Most trace segments the window holds at once."""
+        """Most trace segments the window holds at once (its scene's `maxgeom` less room for
+        the model's own geoms and decorations)."""
         return self._trace.capacity
 
     def add_signal(self, name: str, fn: Signal, labels: Sequence[str] | None = None) -> None:
@@ -265,17 +290,33 @@ class SimulateViewer(Closable):
             recording = f"{self._recorder.path.name}, {self._recorder.frames_written} frames"
         elif self._record_error is not None:
             recording = f"failed: {self._record_error}"
-        texts = ov.texts(
+        viewport = self._window.handle.viewport
+        count = len(self._plots.names)
+        page = self._overlays.plot_page
+        rects: list[mujoco.MjrRect] = []
+        if viewport is not None and count:
+            # The box's height depends on its rows alone, which the page label does not change.
+            probe = self._texts(recording, "")
+            rects = column(viewport, ov.text_height(probe), count)
+        self._plot_slots = max(1, len(rects))
+        page = min(page, max(0, math.ceil(count / self._plot_slots) - 1))  # after a resize
+        first = page * self._plot_slots
+        shown = f"{first + 1}-{min(count, first + self._plot_slots)} of {count}" if count else ""
+        texts = self._texts(recording, shown)
+        figures = self._plots.figures(rects, page) if self._overlays.plots else []
+        self._window.show(texts, figures)
+        self._shown = (texts, [rect for rect, _ in figures])  # what the window was sent
+
+    def _texts(self, recording: str | None, plots: str) -> list[ov.Text]:
+        return ov.texts(
             self._overlays,
             self._title,
             self._scene.time(),
             self._pacer.measured,
             self._pacer.factor,
             recording,
+            plots,
         )
-        viewport = self._window.handle.viewport
-        show_plots = self._overlays.plots and viewport is not None
-        self._window.show(texts, self._plots.figures(viewport) if show_plots else [])
 
     def _draw_trace(self, scene: mujoco.MjvScene) -> None:
         if self._overlays.trace:
@@ -360,29 +401,60 @@ class SimulateViewer(Closable):
         if cam.type == mujoco.mjtCamera.mjCAMERA_FIXED:
             fixed = old_model.camera(cam.fixedcamid).name
         view = (cam.lookat.copy(), cam.distance, cam.azimuth, cam.elevation)
-        atexit.unregister(old.close)
         old.close(_CLOSE_TIMEOUT)
         self._model = self._scene.model
         self._window = Window.launch(self._model, self._scene.data, self._on_key)
-        atexit.register(self._window.close)
         handle = self._window.handle
         new = handle.cam
         new.lookat[:], new.distance, new.azimuth, new.elevation = view
         self.use_camera(fixed if fixed in self._scene.camera_names() else "")
         handle.opt.frame = self._frames_shown = self._overlays.frames
-        self._trace.rebind(handle.user_scn)
+        self._trace.rebind(handle.user_scn, _scene_reserve(self._model))
         if self._recorder is not None:
             self._recorder.follow_view(handle.cam, handle.opt, self._draw_trace)
         self._sync_due = self._full_sync_due = self._overlay_due = 0.0
 
     # ------------------------------------------------------------------ lifecycle
 
+    def _catch_ctrl_c(self) -> Callable[[int, FrameType | None], None] | None:
+        """Turn the first SIGINT into the end of the session (see the class docstring); only
+        on the main thread, and only over Python's default handler, never over the user's."""
+        if threading.current_thread() is not threading.main_thread():
+            return None
+        previous = signal.getsignal(signal.SIGINT)
+        if previous is not signal.default_int_handler:
+            return None
+
+        def on_sigint(signum: int, stack: FrameType | None) -> None:
+            self._interrupted = True
+            signal.signal(signal.SIGINT, previous)  # a second Ctrl+C interrupts as usual
+
+        signal.signal(signal.SIGINT, on_sigint)
+        return on_sigint
+
+    def _release_ctrl_c(self) -> None:
+        handler, self._sigint = self._sigint, None
+        main = threading.current_thread() is threading.main_thread()
+        if handler is not None and main and signal.getsignal(signal.SIGINT) is handler:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    def _end_session(self) -> None:
+        """After Ctrl+C: finalise the recording and close the window, as the user closing it
+        would (`step()` then returns False; `close()` is still the caller's to call)."""
+        self._release_ctrl_c()
+        try:
+            self.stop_recording()
+        finally:
+            if self._window.is_running():
+                self._window.close(_CLOSE_TIMEOUT)
+
     def close(self) -> None:
         """Finalise a recording, close the window and wait (at most 5 s) for its thread."""
         if self._closed:
             return
         self._closed = True
-        atexit.unregister(self._window.close)
+        atexit.unregister(self.close)
+        self._release_ctrl_c()
         try:
             self.stop_recording()
         finally:
@@ -395,8 +467,13 @@ class SimulateViewer(Closable):
                     stacklevel=2,
                 )
 
-
     @property
     def closed(self) -> bool:
         """Whether `close()` was called."""
         return self._closed
+
+
+def _scene_reserve(model: mujoco.MjModel) -> int:
+    """Geoms the window's scene needs besides the trace: the model's, with room for frames
+    (three arrows per body and site), contacts and labels."""
+    return 4 * (model.ngeom + model.nbody + model.nsite) + 2000

@@ -12,14 +12,16 @@ from typing import TYPE_CHECKING
 import mujoco
 
 from .display import no_display, require_display
+from .overlays import Text
 
 if TYPE_CHECKING:
     from mujoco.viewer import Handle
 
 _OPEN_TIMEOUT = 60.0
+# MuJoCo's side panels (Tab, Shift+Tab) start hidden: the scene gets the whole window.
+_PANELS_HIDDEN = {"show_left_ui": False, "show_right_ui": False}
 _PUSHER_JOIN = 2.0
 
-Text = tuple[int, int, str, str]
 Figure = tuple[mujoco.MjrRect, mujoco.MjvFigure]
 
 
@@ -54,7 +56,7 @@ class Window:
             raise no_display(f"mujoco.viewer needs GLFW: {err}") from None
         if sys.platform == "darwin":
             try:
-                handle = mjviewer.launch_passive(model, data, key_callback=on_key)
+                handle = mjviewer.launch_passive(model, data, key_callback=on_key, **_PANELS_HIDDEN)
             except RuntimeError as err:
                 raise no_display(f"{err}; on macOS run the script with `mjpython`") from None
             return cls(handle, None)
@@ -119,7 +121,7 @@ class Window:
             with self._cv:
                 while self._pending is None and not self._stopping:
                     self._cv.wait()
-                if self._stopping:
+                if self._stopping or self._pending is None:
                     return
                 texts, figures = self._pending
                 self._pending = None
@@ -140,14 +142,17 @@ def _launch_watched(
 ) -> tuple[Handle, threading.Thread | None]:
     """`launch_passive` from a helper thread, watched: it waits forever for a handle when the
     window thread dies before creating one."""
-    result: dict[str, object] = {}
+    handles: list[Handle] = []
+    errors: list[Exception] = []
     before = set(threading.enumerate())
 
     def launch() -> None:
         try:
-            result["handle"] = mjviewer.launch_passive(model, data, key_callback=on_key)
+            handles.append(
+                mjviewer.launch_passive(model, data, key_callback=on_key, **_PANELS_HIDDEN)
+            )
         except Exception as err:
-            result["error"] = err
+            errors.append(err)
 
     helper = threading.Thread(target=launch, name="mjkdl-viewer-launch", daemon=True)
     helper.start()
@@ -161,10 +166,10 @@ def _launch_watched(
             raise no_display("the viewer thread ended before the window opened")
         if time.monotonic() > deadline:
             raise no_display(f"no window within {_OPEN_TIMEOUT:.0f} s")
-    if "error" in result:
-        err = result["error"]
+    if errors:
+        (err,) = errors
         raise no_display(f"{type(err).__name__}: {err}") from err
-    return result["handle"], window or _window_thread(before)
+    return handles[0], window or _window_thread(before)
 
 
 def _window_thread(before: set[threading.Thread]) -> threading.Thread | None:

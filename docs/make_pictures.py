@@ -1,0 +1,131 @@
+"""Render the pictures of the README and the docs with mjkdl itself.
+
+    MUJOCO_GL=egl python docs/make_pictures.py
+
+* ``tabletop.png`` (README): the tutorial scene through its `task` camera, from an MP4 that
+  `mjk.VideoRecorder` wrote and that is read back;
+* ``scene.png``, ``robot.png`` (docs): offscreen renders of the same scene, the second with the
+  chain's body frames drawn;
+* ``viewer.png`` (docs): the real `SimulateViewer` window with four live figures, grabbed from
+  a virtual display (needs Xvfb and ffmpeg's x11grab, which imageio-ffmpeg ships).
+
+The docs pictures are kept under 200 kB each.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import cv2
+import mujoco
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+sys.path.insert(0, str(ROOT / "examples"))
+from common import HOME, create_arm, tutorial_spec  # noqa: E402
+
+import mjkdl as mjk  # noqa: E402
+from mjkdl.record import offscreen_renderer  # noqa: E402
+
+MAX_BYTES = 200_000
+
+
+def readme_picture(env: mjk.Env, robot: mjk.Robot) -> np.ndarray:
+    """The last frame of a short MP4 of the scene through the `task` camera."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "tabletop.mp4"
+        with mjk.VideoRecorder.open(env, path, 960, 540, fps=10) as recorder:
+            recorder.use_camera("task")
+            for _ in range(100):
+                robot.update()
+                robot.step()
+                recorder.record_frame()
+        video = cv2.VideoCapture(str(path))
+        frame = None
+        while True:
+            ok, image = video.read()
+            if not ok:
+                break
+            frame = image
+        video.release()
+    if frame is None:
+        raise RuntimeError(f"no frame could be read back from {path}")
+    return frame
+
+
+def render(env: mjk.Env, camera: mujoco.MjvCamera, frames: int = 0) -> np.ndarray:
+    """An offscreen picture (BGR) through `camera`; `frames` is MuJoCo's `mjtFrame`."""
+    option = mujoco.MjvOption()
+    option.frame = frames
+    with offscreen_renderer(env.model, 640, 400) as renderer:
+        renderer.update_scene(env.data, camera=camera, scene_option=option)
+        return renderer.render()[..., ::-1]
+
+
+def orbit(lookat: list[float], distance: float, azimuth: float, elevation: float):
+    camera = mujoco.MjvCamera()
+    camera.lookat[:], camera.distance = lookat, distance
+    camera.azimuth, camera.elevation = azimuth, elevation
+    return camera
+
+
+def viewer_picture() -> np.ndarray | None:
+    """The viewer window with four figures, grabbed from a private Xvfb (None without one)."""
+    xvfb = shutil.which("Xvfb")
+    if xvfb is None or shutil.which("xdotool") is None:
+        print("viewer.png skipped: needs Xvfb and xdotool")
+        return None
+    script = ROOT / "docs" / "_viewer_shot.py"
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "viewer.png"
+        server = subprocess.Popen(  # -displayfd: Xvfb picks a free display and prints it
+            [xvfb, "-displayfd", "1", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
+        try:
+            assert server.stdout is not None
+            env = dict(os.environ, DISPLAY=f":{server.stdout.readline().strip()}")
+            subprocess.run([sys.executable, str(script), str(out)], env=env, check=True)
+            return cv2.imread(str(out))
+        finally:
+            server.terminate()
+            server.wait(5)
+
+
+def save(name: str, image: np.ndarray, limit: int | None = MAX_BYTES) -> None:
+    out = DOCS / name
+    cv2.imwrite(str(out), image, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    size = out.stat().st_size
+    while limit is not None and size > limit:  # halve the colours' precision until it fits
+        image = (image // 8) * 8 + 4
+        cv2.imwrite(str(out), image, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+        size = out.stat().st_size
+    print(f"wrote {out} ({image.shape[1]}x{image.shape[0]}, {size / 1000:.0f} kB)")
+
+
+def main() -> None:
+    with mjk.Env.build(tutorial_spec()) as env:
+        robot = create_arm(env)
+        env.on_reset = lambda ctx: robot.set_joint_pos(HOME, call_forward=False)
+        env.reset()
+        save("tabletop.png", readme_picture(env, robot), limit=None)
+        save("scene.png", render(env, orbit([0.15, 0.0, 0.75], 2.6, 135.0, -28.0)))
+        body = int(mujoco.mjtFrame.mjFRAME_BODY)
+        save("robot.png", render(env, orbit([0.1, 0.0, 1.0], 1.3, 120.0, -18.0), body))
+    shot = viewer_picture()
+    if shot is not None:
+        save("viewer.png", shot)
+
+
+if __name__ == "__main__":
+    main()
