@@ -12,6 +12,7 @@ import re
 import stat
 import warnings
 from pathlib import Path
+from typing import Any
 from xml.etree import ElementTree
 
 import mujoco
@@ -356,7 +357,9 @@ def _mount(s: mujoco.MjSpec, target: AttachTarget | None, field: str, within: st
     return {"frame": element}
 
 
-def _attach(s: mujoco.MjSpec, child: mujoco.MjSpec, *, prefix: str, what: str, **mount) -> None:
+def _attach(
+    s: mujoco.MjSpec, child: mujoco.MjSpec, *, prefix: str, what: str, **mount: Any
+) -> None:
     try:
         with _quiet_attach_notices():
             s.attach(child, prefix=prefix, **mount)
@@ -461,7 +464,7 @@ class _quiet_attach_notices(warnings.catch_warnings):
         self._handler = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(self._notices.append)
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, *exc: Any) -> None:
         mujoco.set_mju_user_warning(self._handler)
         super().__exit__(*exc)
         for notice in self._notices:

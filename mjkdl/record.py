@@ -422,6 +422,8 @@ class VideoRecorder(Closable):
         if self._scene.closed:
             raise RuntimeError("VideoRecorder.record_frame: the scene is closed")
         data = self._scene.data
+        encoder = self._encoder
+        assert encoder is not None  # open: _check_open passed
         copies = self._clock.due(float(data.time), self._frames)
         if copies == 0:
             return False
@@ -431,7 +433,7 @@ class VideoRecorder(Closable):
         renderer.update_scene(data, camera=self._camera, scene_option=self._option)
         if self._overlay is not None:
             self._overlay(renderer.scene)
-        self._encoder.put(renderer.render(), copies)
+        encoder.put(renderer.render(), copies)
         self._frames += copies
         return True
 

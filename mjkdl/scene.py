@@ -540,7 +540,7 @@ class Env(Scene):
         opts = ResetOptions() if opts is None else opts
         if not isinstance(opts, ResetOptions):
             raise SpecError(f"reset() takes ResetOptions, got {type(opts).__name__}")
-        model, data = self._model, self._data
+        model, data = self.model, self.data
         key = self.keyframe_id(opts.keyframe) if opts.use_keyframe else None
         if key is None:
             mujoco.mj_resetData(model, data)
@@ -550,19 +550,20 @@ class Env(Scene):
             if self.on_reset is not None:
                 self._run_hook(opts)
         finally:
-            mujoco.mj_forward(self._model, self._data)
+            mujoco.mj_forward(self.model, self.data)  # a hook may have rebuilt the scene
             for robot in self._robots:
                 robot._after_reset()  # the model's parameters may have been edited
                 robot.sync_commands()
             if self._robots:  # measured torques under the synced commands
-                mujoco.mj_forward(self._model, self._data)
+                mujoco.mj_forward(self.model, self.data)
                 for robot in self._robots:
                     robot._read_state()
         name = model.key(key).name if key is not None else None
-        return ResetInfo(float(self._data.time), key, name or None)
+        return ResetInfo(float(self.data.time), key, name or None)
 
     def _run_hook(self, opts: ResetOptions) -> None:
         hook = self.on_reset
+        assert hook is not None
         try:
             hook(ResetContext(self, self._model, self._data, opts))
         except Exception as err:

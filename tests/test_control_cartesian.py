@@ -565,9 +565,7 @@ def test_acceleration_window_restarts_after_a_reset(panda_env) -> None:
 def test_six_joint_urdf_arm_has_no_posture_task_and_tracks() -> None:
     """A UR5 from its URDF (motor actuators, VELOCITY mode): six joints, no null space."""
     arm = mjk.RobotSpec(path=example_robot_data_path("ur_description/urdf/ur5_robot.urdf"))
-    with pytest.warns(UserWarning, match="dae"):
-        env = mjk.Env.build(base_spec(robots=[arm]))
-    with env:
+    with mjk.Env.build(base_spec(robots=[arm])) as env:
         robot = env.create_robot("base_link", "tool0")
         start_q = [0.3, -1.2, 1.4, -1.5, -1.57, 0.2]
         env.on_reset = lambda ctx: robot.set_joint_pos(start_q, call_forward=False)

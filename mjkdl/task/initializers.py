@@ -20,6 +20,7 @@ from ..compile import euler_quat, vector
 from ..errors import SpecError, unknown_name
 
 if TYPE_CHECKING:
+    from ..robot import Robot
     from .env import TaskEnv
 
 
@@ -30,7 +31,7 @@ def _box(low: object, high: object, n: int, where: str) -> tuple[np.ndarray, np.
     return lo, hi
 
 
-def _robot(env: TaskEnv, arm: str, where: str):
+def _robot(env: TaskEnv, arm: str, where: str) -> Robot:
     if arm not in env.robots:
         raise unknown_name("arm", str(arm), env.robots, where=f"{where}.arm (TaskSpec.arms)")
     return env.robots[arm]

@@ -57,7 +57,9 @@ class Reader(abc.ABC):
         """Copy the current values into `buffers`."""
 
 
-def _box(shape: tuple[int, ...], low: float = -_INF, high: float = _INF, dtype=np.float64):
+def _box(
+    shape: tuple[int, ...], low: float = -_INF, high: float = _INF, dtype: type = np.float64
+) -> spaces.Box:
     return spaces.Box(low=low, high=high, shape=shape, dtype=dtype)
 
 
