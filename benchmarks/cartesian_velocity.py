@@ -176,6 +176,7 @@ def time_pink(problems: list[tuple], robot: mjk.Robot) -> float:
     from pink.limits import ConfigurationLimit, VelocityLimit
     from pink.tasks import FrameTask, PostureTask
 
+    # The robot's model also holds the fingers: pink solves for them too (their posture held).
     model = pin.Model(robot.model)
     model.velocityLimit = np.ones(model.nv)
     data = model.createData()
@@ -184,9 +185,13 @@ def time_pink(problems: list[tuple], robot: mjk.Robot) -> float:
     posture = PostureTask(cost=1e-3)
     limits = [ConfigurationLimit(model), VelocityLimit(model)]
     dt = 0.002
-    config = pink.Configuration(model, data, problems[0][-1])
+    whole = robot.q.copy()
+    whole[robot.arm_q] = problems[0][-1]
+    config = pink.Configuration(model, data, whole)
     times = []
-    for *_, q in problems:
+    for *_, arm_q in problems:
+        q = whole.copy()
+        q[robot.arm_q] = arm_q
         t0 = time.perf_counter()
         config.update(q)  # as in a pink control loop: one Configuration, updated
         here = config.get_transform_frame_to_world(frame)
