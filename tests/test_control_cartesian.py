@@ -494,7 +494,8 @@ def test_any_state_and_twist_give_a_bounded_finite_answer(panda_for_properties, 
     period (at least the limit horizon) at that velocity stays inside the position limits."""
     robot = panda_for_properties
     lower, upper = robot.joint_limits.T
-    robot.set_joint_pos(lower + np.array(q) * (upper - lower))
+    # Clipped: lower + 1.0 * (upper - lower) can round one ulp past the upper limit.
+    robot.set_joint_pos(np.clip(lower + np.array(q) * (upper - lower), lower, upper))
     robot.update()
     ctrl = mjk.CartesianVelocityController(robot, max_joint_acceleration=None)
     qd = ctrl.solve(twist, dt=dt)
