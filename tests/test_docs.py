@@ -139,6 +139,23 @@ class HeadlessViewer:
         self.close()
 
 
+def assert_blocks_run(path: Path, at_least: int) -> dict[str, object]:
+    """Run `path`'s blocks in order in one namespace; each prints what the page says it does."""
+    namespace: dict[str, object] = {}
+    found = blocks(path.read_text())
+    assert len(found) >= at_least
+    for block in found:
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            exec(compile(block.code, f"{path}:{block.line}", "exec"), namespace)
+        if block.expected is not None:
+            assert matches(block.expected, out.getvalue()), (
+                f"{path.name} line {block.line} printed:\n{out.getvalue()}"
+                f"\nexpected:\n{block.expected}"
+            )
+    return namespace
+
+
 def run_blocks(path: Path) -> list[dict]:
     """Execute the blocks of `path` in one namespace; one result per block, stop at a failure."""
     import mjkdl as mjk

@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
-
 import numpy as np
 from conftest import ROOT, menagerie
-from test_docs import blocks, matches
+from test_docs import assert_blocks_run
 
 import mjkdl.task
 
@@ -28,16 +25,5 @@ def test_task_doc_blocks_run_and_print_what_they_say(monkeypatch, tmp_path) -> N
         return 3
 
     monkeypatch.setattr(mjkdl.task, "view", fake_view)
-    namespace: dict[str, object] = {}
-    found = blocks(TASK_DOC.read_text())
-    assert len(found) >= 7
-    for block in found:
-        out = io.StringIO()
-        with contextlib.redirect_stdout(out):
-            exec(compile(block.code, f"{TASK_DOC}:{block.line}", "exec"), namespace)
-        if block.expected is not None:
-            assert matches(block.expected, out.getvalue()), (
-                f"docs/task.md line {block.line} printed:\n{out.getvalue()}"
-                f"\nexpected:\n{block.expected}"
-            )
+    assert_blocks_run(TASK_DOC, at_least=7)
     assert viewed == [(["panda_tcp_pos", "goal_pose"], {})]
