@@ -6,6 +6,9 @@
   `mjk.VideoRecorder` wrote and that is read back;
 * ``scene.png``, ``robot.png`` (docs): offscreen renders of the same scene, the second with the
   chain's body frames drawn;
+* ``control.png`` (docs): the Panda part-way round the figure eight of
+  ``examples/cartesian_velocity.py``, its TCP's path so far drawn in;
+* ``task.png`` (docs): ``mjkdl/PandaReach-v0`` after a reset, through its `front` camera;
 * ``viewer.png`` (docs): the real `SimulateViewer` window with four live figures, grabbed from
   a virtual display (needs Xvfb and ffmpeg's x11grab, which imageio-ffmpeg ships).
 
@@ -14,6 +17,7 @@ The docs pictures are kept under 200 kB each.
 
 from __future__ import annotations
 
+import itertools
 import os
 import shutil
 import subprocess
@@ -24,15 +28,18 @@ from pathlib import Path
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import cv2
+import gymnasium as gym
 import mujoco
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 sys.path.insert(0, str(ROOT / "examples"))
-from common import HOME, create_arm, tutorial_spec  # noqa: E402
+from cartesian_velocity import figure_eight  # noqa: E402
+from common import HOME, create_arm, create_panda, panda, panda_scene, tutorial_spec  # noqa: E402
 
 import mjkdl as mjk  # noqa: E402
+import mjkdl.task  # noqa: E402  (registers the mjkdl/ tasks with Gymnasium)
 from mjkdl.record import offscreen_renderer  # noqa: E402
 
 MAX_BYTES = 200_000
@@ -61,13 +68,32 @@ def readme_picture(env: mjk.Env, robot: mjk.Robot) -> np.ndarray:
     return frame
 
 
-def render(env: mjk.Env, camera: mujoco.MjvCamera, frames: int = 0) -> np.ndarray:
-    """An offscreen picture (BGR) through `camera`; `frames` is MuJoCo's `mjtFrame`."""
+def render(
+    env: mjk.Env, camera: mujoco.MjvCamera, frames: int = 0, path: np.ndarray | None = None
+) -> np.ndarray:
+    """An offscreen picture (BGR) through `camera`; `frames` is MuJoCo's `mjtFrame`, `path`
+    (N x 3 world points) a polyline drawn into the scene."""
     option = mujoco.MjvOption()
     option.frame = frames
     with offscreen_renderer(env.model, 640, 400) as renderer:
         renderer.update_scene(env.data, camera=camera, scene_option=option)
+        if path is not None:
+            draw_path(renderer.scene, path)
         return renderer.render()[..., ::-1]
+
+
+def draw_path(scene: mujoco.MjvScene, points: np.ndarray, radius: float = 0.004) -> None:
+    """Append `points` to `scene` as a chain of thin orange capsules."""
+    rgba = np.array([1.0, 0.5, 0.0, 1.0], dtype=np.float32)
+    for a, b in itertools.pairwise(points):
+        if scene.ngeom >= scene.maxgeom:
+            raise RuntimeError(f"the path needs more than the scene's {scene.maxgeom} geoms")
+        geom = scene.geoms[scene.ngeom]
+        mujoco.mjv_initGeom(
+            geom, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba
+        )
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, radius, a, b)
+        scene.ngeom += 1
 
 
 def orbit(lookat: list[float], distance: float, azimuth: float, elevation: float):
@@ -75,6 +101,35 @@ def orbit(lookat: list[float], distance: float, azimuth: float, elevation: float
     camera.lookat[:], camera.distance = lookat, distance
     camera.azimuth, camera.elevation = azimuth, elevation
     return camera
+
+
+def control_picture(turn: float = 1.5 * np.pi) -> np.ndarray:
+    """The Panda after `turn` s of the figure eight under `CartesianVelocityController`."""
+    with mjk.Env.build(panda_scene([panda()])) as env:
+        robot = create_panda(env)
+        env.reset()
+        robot.update()
+        ctrl = mjk.CartesianVelocityController(robot)
+        path = []
+        for step in range(round(turn / env.model.opt.timestep)):
+            robot.update()
+            if step % 10 == 0:  # every 20 ms
+                path.append(robot.fk_frame().translation.copy())
+            ctrl.command(figure_eight(env.time())[1])
+            robot.step()
+        robot.update()
+        path.append(robot.fk_frame().translation.copy())
+        return render(env, orbit([0.3, 0.0, 0.4], 1.25, 215.0, -38.0), path=np.array(path))
+
+
+def task_picture() -> np.ndarray:
+    """`mjkdl/PandaReach-v0` just after `reset(seed=0)`, as `render()` returns it."""
+    env = gym.make("mjkdl/PandaReach-v0", render_mode="rgb_array", render_height=400)
+    try:
+        env.reset(seed=0)
+        return env.render()[..., ::-1]  # type: ignore[index]
+    finally:
+        env.close()
 
 
 def viewer_picture() -> np.ndarray | None:
@@ -122,6 +177,8 @@ def main() -> None:
         save("scene.png", render(env, orbit([0.15, 0.0, 0.75], 2.6, 135.0, -28.0)))
         body = int(mujoco.mjtFrame.mjFRAME_BODY)
         save("robot.png", render(env, orbit([0.1, 0.0, 1.0], 1.3, 120.0, -18.0), body))
+    save("control.png", control_picture())
+    save("task.png", task_picture())
     shot = viewer_picture()
     if shot is not None:
         save("viewer.png", shot)
