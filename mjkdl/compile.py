@@ -341,15 +341,21 @@ def _offset(child: mujoco.MjSpec, pos: object, euler: object, field: str) -> Non
                 element.set_frame(frame)
 
 
-def _mount(s: mujoco.MjSpec, target: AttachTarget | None, field: str, within: str) -> dict:
-    """The `attach` keyword (site= or frame=) for a mount target; None is the world."""
-    if target is None:
-        return {"frame": s.worldbody.add_frame()}
+def _element(s: mujoco.MjSpec, target: AttachTarget, where: str) -> Any:
+    """The body, site or frame `target` names in `s`, or an error listing close names."""
     kind = target.kind.value
     element = getattr(s, kind)(target.name)
     if element is None:
         known = [e.name for e in getattr(s, _PLURAL[target.kind])]
-        raise unknown_name(kind, target.name, known, where=f"{within} ({field})")
+        raise unknown_name(kind, target.name, known, where=where)
+    return element
+
+
+def _mount(s: mujoco.MjSpec, target: AttachTarget | None, field: str, within: str) -> dict:
+    """The `attach` keyword (site= or frame=) for a mount target; None is the world."""
+    if target is None:
+        return {"frame": s.worldbody.add_frame()}
+    element = _element(s, target, f"{within} ({field})")
     if target.kind is AttachKind.Site:
         return {"site": element}
     if target.kind is AttachKind.Body:
@@ -431,11 +437,7 @@ def _camera_host(
     """The body, or a frame at the site, that a camera rides on (the world when None)."""
     if target is None:
         return s.worldbody
-    kind = target.kind.value
-    element = getattr(s, kind)(target.name)
-    if element is None:
-        known = [e.name for e in getattr(s, _PLURAL[target.kind])]
-        raise unknown_name(kind, target.name, known, where=f"the scene ({field})")
+    element = _element(s, target, f"the scene ({field})")
     if target.kind is AttachKind.Body:
         return element
     # A frame at the site's own placement in its body: the site's orientation may still be
