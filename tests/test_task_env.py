@@ -449,15 +449,13 @@ def test_render_without_a_mode_warns(env: TaskEnv) -> None:
 
 
 def test_a_scene_that_raises_on_divergence_ends_the_episode(env: TaskEnv, monkeypatch) -> None:
-    # The scene layer may raise mjk.SimulationError from Scene.step instead of letting MuJoCo
-    # reset the state: the env reports it the same way.
-    class SimulationError(RuntimeError):
-        pass
-
+    # Scene.step raises mjk.SimulationError (MuJoCo's auto-reset is off): the env ends the
+    # episode with the scene's message.
     def diverge(n: int = 1) -> None:
-        raise SimulationError("the simulation failed by t = 0.05 s: NaN in QACC")
+        raise mjk.SimulationError(
+            "the simulation failed by t = 0.05 s: NaN in QACC", 0.05, {"mjWARN_BADQACC": (1, 0)}
+        )
 
-    monkeypatch.setattr("mjkdl.task.env._SimulationError", (SimulationError,))
     first, _ = env.reset(seed=0)
     monkeypatch.setattr(env.scene, "step", diverge)
     obs, reward, terminated, truncated, info = env.step(np.zeros(7))

@@ -3,12 +3,12 @@
 Importing this package registers `mjkdl/PandaReach-v0` and `mjkdl/PandaPickCube-v0`.
 """
 
-from .env import TaskEnv
+from .env import Sensor, TaskEnv
 from .initializers import JointInitializer, PhysicsRandomizer, PoseInitializer, PropPlacer
 from .registry import register as _register
 from .rewards import Lifted, LiftReward, Reached, ReachReward, distance, height
 from .rollout import Episode, ray_collect, run_episode
-from .sensors import Sensor, intrinsics
+from .sensors import intrinsics
 from .spec import (
     Actuation,
     ArmSpec,

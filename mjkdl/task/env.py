@@ -5,33 +5,23 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from numpy.typing import ArrayLike
 
-from .. import errors
 from ..control import CartesianVelocityController, Gripper
-from ..errors import SpecError, UnknownNameError
+from ..errors import SimulationError, SpecError, UnknownNameError, unknown_name
 from ..record import offscreen_renderer
 from ..robot import Robot
 from ..scene import Env
 from ..spec import CtrlMode, SceneSpec
-from .sensors import ArmReader, CameraReader, PoseReader, Reader, Sensor, UserReader
+from .sensors import ArmReader, CameraReader, PoseReader, Reader
 from .spec import Actuation, ArmSpec, BodyPoseSensor, CameraSensor, GripperSpec, TaskSpec
 
-# Scene.step raises this on divergence where the scene layer provides it; the env also checks
-# MuJoCo's own warnings, since mj_step resets a diverged state instead of keeping NaN.
-_SimulationError: tuple[type[BaseException], ...] = tuple(
-    e for e in (getattr(errors, "SimulationError", None),) if e is not None
-)
-_DIVERGENCE_WARNINGS = (
-    int(mujoco.mjtWarning.mjWARN_BADQPOS),
-    int(mujoco.mjtWarning.mjWARN_BADQVEL),
-    int(mujoco.mjtWarning.mjWARN_BADQACC),
-)
 _CARTESIAN_LABELS = ("vx", "vy", "vz", "wx", "wy", "wz")
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
@@ -41,6 +31,46 @@ _MODES = {
     # arm's servos track: the TCP holds still under gravity and contact at a zero twist.
     Actuation.CARTESIAN_VELOCITY: CtrlMode.POSITION,
 }
+
+
+@runtime_checkable
+class Sensor(Protocol):
+    """A user observation source for `TaskSpec.sensors`.
+
+    `space(env)` is called once, when the env is built: the observations it adds, by name.
+    `read(env)` is called at every reset and step and returns a value for each of them, of the
+    declared shape (it is copied into the observation).
+    """
+
+    def space(self, env: TaskEnv) -> Mapping[str, spaces.Box]: ...
+
+    def read(self, env: TaskEnv) -> Mapping[str, ArrayLike]: ...
+
+
+class UserReader(Reader):
+    """Adapts a `Sensor`: its values are checked and copied into the observation."""
+
+    def __init__(self, sensor: Sensor, env: TaskEnv, where: str) -> None:
+        boxes = sensor.space(env)
+        if not isinstance(boxes, Mapping) or not all(
+            isinstance(k, str) and isinstance(b, spaces.Box) for k, b in boxes.items()
+        ):
+            raise SpecError(f"{where}.space(env) must return a mapping of names to Box spaces")
+        super().__init__(dict(boxes))
+        self._sensor, self._env, self._where = sensor, env, where
+
+    def read(self) -> None:
+        values = self._sensor.read(self._env)
+        for key, buf in self.buffers.items():
+            if key not in values:
+                raise SpecError(f"{self._where}.read(env) returned no {key!r}")
+            value = np.asarray(values[key])
+            if value.shape != buf.shape:
+                raise SpecError(
+                    f"{self._where}.read(env)[{key!r}] has shape {value.shape}, "
+                    f"its space says {buf.shape}"
+                )
+            np.copyto(buf, value, casting="unsafe")
 
 
 class _Effector:
@@ -339,7 +369,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     def _camera_id(self, name: str, where: str) -> int:
         i = mujoco.mj_name2id(self.scene.model, mujoco.mjtObj.mjOBJ_CAMERA, name)
         if i < 0:
-            raise errors.unknown_name("camera", name, self.scene.camera_names(), where=where)
+            raise unknown_name("camera", name, self.scene.camera_names(), where=where)
         return i
 
     # ------------------------------------------------------------------ episodes
@@ -422,20 +452,14 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     def _advance(self) -> str | None:
         """Run one control period of physics; why it diverged, or None."""
         scene = self.scene
-        warning = scene.data.warning
-        before = sum(int(warning[w].number) for w in _DIVERGENCE_WARNINGS)
         try:
             if self._stepper is None:
                 scene.step(self._substeps)
             else:
                 self._step_through(self._stepper)
-        except _SimulationError as err:
+        except SimulationError as err:  # Scene.step names MuJoCo's warning and the time
             return str(err)
         data = scene.data
-        after = sum(int(warning[w].number) for w in _DIVERGENCE_WARNINGS)
-        if after != before:
-            names = [mujoco.mjtWarning(w).name for w in _DIVERGENCE_WARNINGS if warning[w].number]
-            return f"MuJoCo reported {', '.join(names)} at t={data.time:.4f} s"
         q, v = data.qpos, data.qvel
         if not (math.isfinite(q.dot(q)) and math.isfinite(v.dot(v))) and not (
             np.isfinite(q).all() and np.isfinite(v).all()

@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import abc
 import math
-from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 from gymnasium import spaces
-from numpy.typing import ArrayLike
 
 from ..compile import euler_quat, vector
 from ..errors import SpecError, unknown_name
@@ -26,23 +25,8 @@ from .spec import ArmSpec, BodyPoseSensor, CameraSensor
 if TYPE_CHECKING:
     from ..control import Gripper
     from ..robot import Robot
-    from .env import TaskEnv
 
 _INF = np.inf
-
-
-@runtime_checkable
-class Sensor(Protocol):
-    """A user observation source for `TaskSpec.sensors`.
-
-    `space(env)` is called once, when the env is built: the observations it adds, by name.
-    `read(env)` is called at every reset and step and returns a value for each of them, of the
-    declared shape (it is copied into the observation).
-    """
-
-    def space(self, env: TaskEnv) -> Mapping[str, spaces.Box]: ...
-
-    def read(self, env: TaskEnv) -> Mapping[str, ArrayLike]: ...
 
 
 class Reader(abc.ABC):
@@ -288,29 +272,3 @@ class CameraReader(Reader):
             r.render(out=self._depth)
             r.disable_depth_rendering()
         r.render(out=self._rgb)
-
-
-class UserReader(Reader):
-    """Adapts a `Sensor`: its values are checked and copied into the observation."""
-
-    def __init__(self, sensor: Sensor, env: TaskEnv, where: str) -> None:
-        boxes = sensor.space(env)
-        if not isinstance(boxes, Mapping) or not all(
-            isinstance(k, str) and isinstance(b, spaces.Box) for k, b in boxes.items()
-        ):
-            raise SpecError(f"{where}.space(env) must return a mapping of names to Box spaces")
-        super().__init__(dict(boxes))
-        self._sensor, self._env, self._where = sensor, env, where
-
-    def read(self) -> None:
-        values = self._sensor.read(self._env)
-        for key, buf in self.buffers.items():
-            if key not in values:
-                raise SpecError(f"{self._where}.read(env) returned no {key!r}")
-            value = np.asarray(values[key])
-            if value.shape != buf.shape:
-                raise SpecError(
-                    f"{self._where}.read(env)[{key!r}] has shape {value.shape}, "
-                    f"its space says {buf.shape}"
-                )
-            np.copyto(buf, value, casting="unsafe")
