@@ -41,7 +41,8 @@ import mujoco
 import numpy as np
 
 from .closable import Closable
-from .errors import MjkdlError, SpecError, unknown_name
+from .errors import MjkdlError, SpecError
+from .names import model_id
 from .validate import path_text
 
 if TYPE_CHECKING:
@@ -398,14 +399,7 @@ class VideoRecorder(Closable):
         if name == "":
             mujoco.mjv_defaultFreeCamera(model, cam)
             return cam
-        cid = (
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name)
-            if isinstance(name, str)
-            else -1
-        )
-        if cid < 0:
-            known = [model.camera(i).name for i in range(model.ncam)]
-            raise unknown_name("camera", str(name), known, where="the scene")
+        cid = model_id(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", name, "the scene")
         cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
         cam.fixedcamid = cid
         return cam

@@ -19,6 +19,7 @@ from .closable import Closable
 from .compile import compile_scene, vector
 from .describe import describe, summary, tree_for
 from .errors import MjkdlError, SimulationError, SpecError, UnknownNameError, unknown_name
+from .names import model_id
 from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
 
 if TYPE_CHECKING:
@@ -308,21 +309,7 @@ class Scene(Closable):
     # ------------------------------------------------------------------ names
 
     def _id(self, obj: mujoco.mjtObj, kind: str, name: str) -> int:
-        model = self.model
-        i = mujoco.mj_name2id(model, obj, name) if isinstance(name, str) else -1
-        if i < 0:
-            count = {
-                mujoco.mjtObj.mjOBJ_BODY: model.nbody,
-                mujoco.mjtObj.mjOBJ_SITE: model.nsite,
-                mujoco.mjtObj.mjOBJ_ACTUATOR: model.nu,
-                mujoco.mjtObj.mjOBJ_CAMERA: model.ncam,
-                mujoco.mjtObj.mjOBJ_JOINT: model.njnt,
-                mujoco.mjtObj.mjOBJ_SENSOR: model.nsensor,
-                mujoco.mjtObj.mjOBJ_KEY: model.nkey,
-            }[obj]
-            known = [mujoco.mj_id2name(model, obj, k) or "" for k in range(count)]
-            raise unknown_name(kind, str(name), known, where="the scene")
-        return i
+        return model_id(self.model, obj, kind, name, "the scene")
 
     def body_id(self, name: str) -> int:
         """MuJoCo id of body `name` (KeyError with close matches when unknown)."""

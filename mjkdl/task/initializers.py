@@ -18,6 +18,7 @@ import pinocchio as pin
 
 from ..compile import euler_quat, vector
 from ..errors import SpecError, unknown_name
+from ..names import model_id
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -90,14 +91,7 @@ class PropPlacer:
 
     @staticmethod
     def _free_body(model: mujoco.MjModel, name: str, where: str) -> int:
-        b = (
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-            if isinstance(name, str)
-            else -1
-        )
-        if b < 0:
-            known = [model.body(k).name for k in range(model.nbody)]
-            raise unknown_name("body", str(name), known, where=where)
+        b = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", name, where)
         j = model.body_jntadr[b]
         if model.body_jntnum[b] < 1 or int(model.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_FREE):
             raise SpecError(f"{where}: body {name!r} is not a free body (fixed=False objects are)")

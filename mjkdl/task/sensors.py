@@ -18,7 +18,8 @@ import numpy as np
 from gymnasium import spaces
 
 from ..compile import euler_quat, vector
-from ..errors import SpecError, unknown_name
+from ..errors import SpecError
+from ..names import model_id
 from ..spec import ToolFrameSpec
 from .spec import ArmSpec, BodyPoseSensor, CameraSensor
 
@@ -47,28 +48,12 @@ def _box(
     return spaces.Box(low=low, high=high, shape=shape, dtype=dtype)
 
 
-def _lookup(model: mujoco.MjModel, obj: mujoco.mjtObj, kind: str, name: str, where: str) -> int:
-    """MuJoCo id of `name`, or an UnknownNameError naming `where` and the close names."""
-    i = mujoco.mj_name2id(model, obj, name) if isinstance(name, str) and name else -1
-    if i < 0:
-        count = {
-            mujoco.mjtObj.mjOBJ_BODY: model.nbody,
-            mujoco.mjtObj.mjOBJ_SITE: model.nsite,
-            mujoco.mjtObj.mjOBJ_CAMERA: model.ncam,
-            mujoco.mjtObj.mjOBJ_SENSOR: model.nsensor,
-            mujoco.mjtObj.mjOBJ_ACTUATOR: model.nu,
-        }[obj]
-        known = [mujoco.mj_id2name(model, obj, k) or "" for k in range(count)]
-        raise unknown_name(kind, str(name), known, where=where)
-    return i
-
-
 def _frame_id(model: mujoco.MjModel, name: str, where: str) -> tuple[mujoco.mjtObj, int]:
     """A site, else a body, called `name`: (`mjOBJ_SITE` or `mjOBJ_XBODY`, id)."""
     site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) if name else -1
     if site >= 0:
         return mujoco.mjtObj.mjOBJ_SITE, site
-    body = _lookup(model, mujoco.mjtObj.mjOBJ_BODY, "site or body", name, where)
+    body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "site or body", name, where)
     return mujoco.mjtObj.mjOBJ_XBODY, body
 
 
@@ -154,7 +139,7 @@ class ArmReader(Reader):
             key = f"{p}_wrench" if len(ft) == 1 else f"{p}_{s.name}_wrench"
             views = []
             for name in (s.force_sensor, s.torque_sensor):
-                i = _lookup(
+                i = model_id(
                     model,
                     mujoco.mjtObj.mjOBJ_SENSOR,
                     "sensor",
@@ -200,7 +185,7 @@ class PoseReader(Reader):
     """`{name}_pose`: a body's world position and quaternion."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, s: BodyPoseSensor, where: str):
-        body = _lookup(model, mujoco.mjtObj.mjOBJ_BODY, "body", s.body, f"{where}.body")
+        body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", s.body, f"{where}.body")
         name = s.name or s.body
         super().__init__({f"{name}_pose": _box((7,))})
         self._out = self.buffers[f"{name}_pose"]
@@ -238,7 +223,7 @@ class CameraReader(Reader):
         renderer: Callable[[int, int], mujoco.Renderer],
         where: str,
     ) -> None:
-        cam = _lookup(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", s.camera, f"{where}.camera")
+        cam = model_id(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", s.camera, f"{where}.camera")
         for field in ("width", "height"):
             value = getattr(s, field)
             if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value <= 0:
