@@ -138,10 +138,16 @@ _FAULTS = tuple(
         mujoco.mjtWarning.mjWARN_CNSTRFULL,
     )
 )
-if sorted(_FAULTS) != [1, 2, 3, 4, 5, 6]:  # `Scene._check_faults` indexes them directly
+if sorted(_FAULTS) != [1, 2, 3, 4, 5, 6]:  # `_fault_counters` slices them directly
     raise ImportError(f"mjkdl does not know this MuJoCo's warning numbering: {_FAULTS}")
 _AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-_NO_WARNINGS = np.zeros(len(_FAULTS) + 1, dtype=np.int32).data
+# Scene.step compares MuJoCo's fault counters (warning numbers 1-6) with zeros in one go.
+_NO_FAULTS = np.zeros(len(_FAULTS), dtype=np.int32).data
+
+
+def _fault_counters(data: mujoco.MjData) -> memoryview:
+    """A live view of `data.warning[1:7].number`: the counts of the `_FAULTS` warnings."""
+    return data.warning.number.data[1:]
 
 
 def _compiled_options(model: mujoco.MjModel) -> mujoco.MjOption:
@@ -161,7 +167,7 @@ class Scene(Closable):
         self._robots: list[RobotHandle] = []
         self._authored_actuators = AuthoredActuators.of(model)
         self._compiled_opt = _compiled_options(model)
-        self._warn = self._data.warning.number.data
+        self._faults = _fault_counters(self._data)
         mujoco.mj_forward(model, self._data)
 
     @classmethod
@@ -205,7 +211,7 @@ class Scene(Closable):
             robot._release()
         self._model = None
         self._data = None
-        self._warn = _NO_WARNINGS  # no view into freed memory
+        self._faults = _NO_FAULTS  # no view into freed memory
         self._robots = []
 
     def _check_open(self) -> None:  # the same check as Closable's, without a property call
@@ -224,24 +230,20 @@ class Scene(Closable):
 
     def step(self, n: int = 1) -> None:
         """Advance the simulation `n` timesteps, applying robots' pending commands first."""
-        self._check_open()
+        # The closed check and the fault check are inlined: this runs once per control step.
+        if self._model is None:
+            self._check_open()
         for robot in self._robots:
             if robot._pending:
                 robot._apply()
-        if n == 1:
-            try:
-                mujoco.mj_step(self._model, self._data)
-            except mujoco.FatalError as err:
-                raise self._fatal(err) from None
-            self._check_faults()
-            return
-        if not isinstance(n, (int, np.integer)) or n < 0:
+        if n != 1 and (not isinstance(n, (int, np.integer)) or n < 0):
             raise SpecError(f"step(n): n must be a non-negative integer, got {n!r}")
         try:
-            mujoco.mj_step(self._model, self._data, int(n))
+            mujoco.mj_step(self._model, self._data, n)
         except mujoco.FatalError as err:
             raise self._fatal(err) from None
-        self._check_faults()
+        if self._faults != _NO_FAULTS:
+            self._raise_faults()
 
     @property
     def auto_reset(self) -> bool:
@@ -262,12 +264,6 @@ class Scene(Closable):
             self.model.opt.disableflags &= ~_AUTORESET
         else:
             self.model.opt.disableflags |= _AUTORESET
-
-    def _check_faults(self) -> None:
-        """Raise `SimulationError` if MuJoCo counted a divergence or a buffer overflow."""
-        w = self._warn
-        if w[3] or w[4] or w[6] or w[5] or w[1] or w[2]:  # the `_FAULTS` indices
-            self._raise_faults()
 
     def _fatal(self, err: mujoco.FatalError) -> SimulationError:
         """MuJoCo's own fatal error inside a step (its memory arena overflowed)."""
@@ -471,7 +467,7 @@ class Scene(Closable):
         old = (self._spec, self._model, self._data, self._authored_actuators, self._compiled_opt)
         self._spec, self._model, self._data = spec, model, data
         self._authored_actuators, self._compiled_opt = authored, compiled_opt
-        self._warn = data.warning.number.data
+        self._faults = _fault_counters(data)
         try:
             for robot in self._robots:
                 robot._bind(model, data)
@@ -479,7 +475,7 @@ class Scene(Closable):
             # A handle that cannot live on the new model (its chain was removed): put every
             # handle and the scene back on the previous model, which they were bound to.
             self._spec, self._model, self._data, self._authored_actuators, self._compiled_opt = old
-            self._warn = self.data.warning.number.data
+            self._faults = _fault_counters(self.data)
             for robot in self._robots:
                 robot._bind(self._model, self._data)
             raise
