@@ -9,6 +9,9 @@ arm's servos off and write MuJoCo's own bias forces into `qfrc_applied` between 
     position        update(); jnt_pos_cmd = HOME; step()   (POSITION, gravity feed-forward),
                     against a raw loop with the same servos and qfrc_bias as feed-forward
     bare seed       the seed loop on a Gen3 without gripper
+    floor           no Robot calls: the seed loop's work written out by hand (copy q, v and
+                    the measured torque, Pinocchio's gravity on the same model, write the
+                    controls, mj_step), the least any wrapper around Pinocchio can cost
 
 each measured settled (after 3 s at rest, fingers open) and, for the gripper cases, over the
 first second after a reset while the fingers close. Loops run interleaved in blocks; each
@@ -28,6 +31,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 from scenes import HOME, TOOL, tabletop_spec
 
 import mjkdl as mjk
@@ -141,6 +145,33 @@ def mjkdl_loop(kind: str, gripper: bool = True) -> Loop:
     return Loop(run, reset, scene)
 
 
+def floor_loop(gripper: bool = True) -> Loop:
+    """The seed loop's work without the Robot: what its checks and calls cost on top."""
+    scene = mjk.Scene.build(_spec(gripper))
+    robot = scene.create_robot("base_link", "bracelet_link", tool=TOOL if gripper else None)
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE  # the arm's actuators become motors in joint units
+    _home(scene)
+    robot.sync_commands()
+    m, d = scene.model, scene.data
+    pm = robot.model
+    pd = pm.createData()
+    assert robot.arm_v == slice(0, 7) and np.array_equal(robot.q, d.qpos[: pm.nq])
+    qsrc, vsrc, trq_src, ctrl = d.qpos[: pm.nq], d.qvel[: pm.nv], d.qfrc_actuator[:7], d.ctrl[:7]
+    q, v, trq, cmd = np.zeros(pm.nq), np.zeros(pm.nv), np.zeros(7), np.zeros(7)
+    gravity, step = pin.computeGeneralizedGravity, mujoco.mj_step
+
+    def run(n: int) -> None:
+        for _ in range(n):
+            q[...] = qsrc
+            v[...] = vsrc
+            trq[...] = trq_src
+            cmd[...] = gravity(pm, pd, q)[:7]
+            ctrl[...] = cmd
+            step(m, d)
+
+    return Loop(run, lambda: _home(scene, True), scene)
+
+
 def _retained(run: Callable[[int], None]) -> int:
     """Bytes still allocated after 2000 more steps of `run` (nothing should accumulate)."""
     tracemalloc.start()
@@ -174,6 +205,9 @@ def main() -> None:
         "seed settled": (mjkdl_loop("seed"), "gripper", "settled"),
         "seed first second": (mjkdl_loop("seed"), "gripper", "first"),
         "bare seed settled": (mjkdl_loop("seed", gripper=False), "bare", "settled"),
+        "floor settled": (floor_loop(), "gripper", "settled"),
+        "floor first second": (floor_loop(), "gripper", "first"),
+        "bare floor settled": (floor_loop(gripper=False), "bare", "settled"),
         "position settled": (position, "servos", "settled"),
         "gravcomp settled": (mjkdl_loop("gravcomp"), "gripper", "settled"),
         "gravcomp first second": (mjkdl_loop("gravcomp"), "gripper", "first"),
