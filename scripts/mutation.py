@@ -33,7 +33,7 @@ MODULES: dict[str, list[str]] = {
         "tests/test_robot.py",
         "tests/test_urdf.py",
     ],
-    "robot": ["tests/test_robot.py", "tests/test_robot_parity.py"],
+    "robot": ["tests/test_robot.py", "tests/test_robot_build.py", "tests/test_robot_parity.py"],
     "ik": ["tests/test_ik.py"],
     "scene": ["tests/test_scene.py", "tests/test_env.py", "tests/test_names.py"],
     "record": ["tests/test_record.py"],
@@ -60,7 +60,12 @@ def _config(module: str) -> str:
         'source_paths = ["mjkdl/"]\n'
         f'only_mutate = ["mjkdl/{module}.py"]\n'
         'also_copy = ["README.md", "docs/", "examples/", "benchmarks/"]\n'
-        "timeout_multiplier = 4.0\n"
+        # Wall-clock limit per mutant: (estimated test time + 60 s) x 3. mutmut's estimate
+        # leaves out fixture set-up, so the constant must cover building the scenes; the
+        # default multiplier (15) makes each hanging mutant (a recorder waiting on a pipe)
+        # minutes long.
+        "timeout_constant = 60.0\n"
+        "timeout_multiplier = 3.0\n"
         'pytest_add_cli_args = ["-p", "no:cacheprovider", "-q", "-x"]\n'
         f"pytest_add_cli_args_test_selection = [\n{lines},\n]\n"
     )
