@@ -134,6 +134,7 @@ def test_argument_errors_name_the_argument(motors, args, kw, message) -> None:
 def test_robot_built_directly_takes_names_without_prefix(motors) -> None:
     robot = mjk.Robot(motors, "base", "hand")
     assert robot.joint_names == ["j1", "j2"]
+    assert robot.gravity_compensation is False  # a bool, off until asked for
     robot.close()
 
 
@@ -466,3 +467,26 @@ def test_urdf_file_gone_after_the_build_means_no_velocity_limits(build, tmp_path
         path.unlink()
         robot = scene.create_robot("a", "b")
         assert robot.model.velocityLimit.tolist() == [np.inf]
+
+
+# ---------------------------------------------------------------------- unactuated chains
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="Robot._apply writes an unactuated chain's POSITION/VELOCITY command to "
+    "data.ctrl[[]]: Scene.step raises NumPy's shape mismatch instead of the SpecError",
+)
+def test_step_of_an_unactuated_chain_in_position_mode_names_the_problem(build) -> None:
+    scene = build("")
+    robot = scene.create_robot("base", "hand")
+    robot.jnt_pos_cmd = np.array([0.1, 0.2])
+    try:
+        with pytest.raises(ValueError) as err:
+            robot.step()
+        assert str(err.value) == (
+            "POSITION mode needs an actuator on every joint; none drives j1, j2 "
+            "(TORQUE mode applies the torques as qfrc_applied)"
+        )
+    finally:
+        robot.close()
