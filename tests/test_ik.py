@@ -448,6 +448,7 @@ def test_seed_below_a_lower_limit_is_clipped_first(gen3):
     np.testing.assert_array_equal(res.q, clipped)
 
 
+@pytest.mark.filterwarnings("ignore:overflow encountered in dot")
 def test_huge_finite_seed_is_clipped_not_refused(gen3):
     model, fid, lower, upper = gen3
     q0 = HOME.copy()
@@ -496,6 +497,7 @@ def test_constructor_messages_name_the_argument(gen3):
     bad = upper.copy()
     bad[2] = np.nan
     assert _message(make(upper=bad)) == "upper must not contain NaN"
+    assert _message(make(lower=[None, *lower[1:]])) == "lower must not contain NaN"
     order = "lower must be <= upper for every joint, with lower < +inf"
     swapped = lower.copy()
     swapped[1] = upper[1] + 0.1
