@@ -126,6 +126,8 @@ class IKSolver:
         self.max_iters, self.max_restarts, self.seed = int(max_iters), int(max_restarts), seed
 
         data = model.createData()
+        # A model with a single degree of freedom gets its (6, 1) Jacobian as a vector.
+        jac_all = data.J if data.J.ndim == 2 else data.J[:, None]
         # data.J, the world-frame joint Jacobian that computeJointJacobians refreshes, is the
         # frame's Jacobian once the columns of joints not carrying the frame are zeroed.  It is
         # a view on pinocchio's buffer, so it is fetched once.
@@ -141,7 +143,7 @@ class IKSolver:
             model,
             data,
             self.frame_id,
-            data.J[:, self._v_at] if run else None,  # None: gathered every iteration
+            jac_all[:, self._v_at] if run else None,  # None: gathered every iteration
             None if mask.all() else mask,
             aug,
             aug[:6],

@@ -241,3 +241,298 @@ def test_arm_inside_a_larger_model(gen3):
         solver.solve(_fk(model, fid, q_true), HOME[1:])
     with pytest.raises(ValueError, match="model's order"):
         IKSolver(model, fid, lower[:2], upper[:2], joints=[3, 1])
+
+
+# ---------------------------------------------------------------- small hand-built chains
+
+
+def _chain(joints) -> tuple[pin.Model, int]:
+    """A serial chain of `joints` with coincident origins; frame "tcp" at the last one."""
+    model = pin.Model()
+    parent = 0
+    for i, joint in enumerate(joints):
+        parent = model.addJoint(parent, joint, pin.SE3.Identity(), f"j{i}")
+    fid = model.addFrame(pin.Frame("tcp", parent, 0, pin.SE3.Identity(), pin.OP_FRAME))
+    return model, fid
+
+
+@pytest.fixture(scope="module")
+def free6() -> tuple[pin.Model, int]:
+    """x, y, z slides then z, y, x hinges: the tcp's position is (q0, q1, q2) exactly."""
+    return _chain(
+        [
+            pin.JointModelPX(),
+            pin.JointModelPY(),
+            pin.JointModelPZ(),
+            pin.JointModelRZ(),
+            pin.JointModelRY(),
+            pin.JointModelRX(),
+        ]
+    )
+
+
+FREE = (np.full(6, -np.inf), np.full(6, np.inf))
+
+
+def _offset(pose: pin.SE3, dp, w) -> pin.SE3:
+    """`pose` moved by `dp` (world) and turned by the world rotation vector `w` about its origin."""
+    return pin.SE3(pin.exp3(np.asarray(w, dtype=float)) @ pose.rotation, pose.translation + dp)
+
+
+@pytest.mark.parametrize(
+    ("tols", "where", "dp", "w"),
+    [
+        ({}, (0.6, 0.0, 0.8), (0.0, 0.9e-6, 0.0), (0.0, 0.9e-5, 0.0)),
+        ({"tol_pos": 2e-5, "tol_rot": 1e-5}, (0.6, 0.0, 0.8), (1.5e-5, 0.0, 0.0), (0, 0, 0)),
+        ({}, (0.0, 0.0, 3.0), (0.0, 0.0, 0.0), (0.9e-5, 0.0, 0.0)),
+        ({"tol_rot": 1.0}, (0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.9, 0.0, 0.0)),
+    ],
+)
+def test_seed_within_tolerance_is_returned_at_iteration_zero(free6, tols, where, dp, w):
+    """Any pose within tol_pos/tol_rot is accepted as is, wherever the target and tolerances."""
+    model, fid = free6
+    q0 = np.array([*where, 0.3, -0.2, 0.1])
+    target = _offset(_fk(model, fid, q0), dp, w)
+    res = IKSolver(model, fid, *FREE, **tols).solve(target, q0)
+    assert res.success is True
+    assert res.iterations == 0 and res.restarts == 0
+    np.testing.assert_array_equal(res.q, q0)
+    assert res.position_error == pytest.approx(np.linalg.norm(dp), rel=1e-6, abs=1e-15)
+    assert res.rotation_error == pytest.approx(np.linalg.norm(w), rel=1e-6, abs=1e-15)
+
+
+def test_seed_just_outside_the_default_tolerance_is_refined(free6):
+    """The default tolerances are 1e-6 m and 1e-5 rad: a 2e-5 rad error is not accepted."""
+    model, fid = free6
+    q0 = np.array([0.6, 0.0, 0.8, 0.3, -0.2, 0.1])
+    target = _offset(_fk(model, fid, q0), np.zeros(3), (0.0, 2e-5, 0.0))
+    res = IKSolver(model, fid, *FREE).solve(target, q0)
+    assert res.success and res.iterations >= 1
+    pos, rot = _pose_errors(model, fid, res.q, target)
+    assert pos <= 1e-6 and rot <= 1e-5
+
+
+def test_tolerance_bounds_are_inclusive(free6):
+    """A pose whose error equals the tolerance to the bit is accepted."""
+    model, fid = free6
+    q0 = np.array([0.6, 0.1, 0.8, 0.0, 0.0, 0.0])
+    pose = _fk(model, fid, q0)
+    target = pin.SE3(pose.rotation, pose.translation + np.array([3e-6, 0.0, 0.0]))
+    dp = pose.translation - target.translation
+    assert dp[1] == dp[2] == 0.0
+    res = IKSolver(model, fid, *FREE, tol_pos=abs(dp[0])).solve(target, q0)
+    assert res.success and res.iterations == 0
+    target = pin.SE3(pin.exp3(np.array([0.0, 0.0, 3e-5])), pose.translation)
+    w = pin.log6(pose * target.inverse()).vector[3:]
+    assert w[0] == w[1] == 0.0
+    res = IKSolver(model, fid, *FREE, tol_rot=abs(w[2])).solve(target, q0)
+    assert res.success and res.iterations == 0
+
+
+def test_an_attempt_without_progress_stops_after_six_iterations(gen3):
+    """Frame 0 (the world) never moves: each attempt gives up after 6 steps without a new best."""
+    model, _, lower, upper = gen3
+    target = pin.SE3(np.eye(3), np.array([0.1, 0.0, 0.0]))
+    res = IKSolver(model, 0, lower, upper, max_restarts=2).solve(target, HOME)
+    assert res.success is False
+    assert res.restarts == 2
+    assert res.iterations == 3 * 6
+    np.testing.assert_array_equal(res.q, HOME)  # all attempts tie: the first one is kept
+    assert res.position_error == pytest.approx(0.1, abs=1e-15)
+    assert res.rotation_error == 0.0
+
+
+def test_each_attempt_is_bounded_by_max_iters():
+    """Three slides, a target 1 km away: every step improves, all 1 + 20 attempts run 50."""
+    model, fid = _chain([pin.JointModelPX(), pin.JointModelPY(), pin.JointModelPZ()])
+    target = pin.SE3(np.eye(3), np.array([1000.0, 0.0, 0.0]))
+    res = IKSolver(model, fid, np.full(3, -np.inf), np.full(3, np.inf)).solve(target, np.zeros(3))
+    assert res.success is False
+    assert res.restarts == 20
+    assert res.iterations == 21 * 50
+    assert 900.0 < res.position_error < 1000.0
+
+
+def test_default_seed_is_zero(gen3):
+    model, fid, lower, upper = gen3
+    target = pin.SE3(np.eye(3), np.array([3.0, 0.0, 0.5]))
+    default = IKSolver(model, fid, lower, upper, max_restarts=2).solve(target, HOME)
+    zero = IKSolver(model, fid, lower, upper, max_restarts=2, seed=0).solve(target, HOME)
+    one = IKSolver(model, fid, lower, upper, max_restarts=2, seed=1).solve(target, HOME)
+    np.testing.assert_array_equal(default.q, zero.q)
+    assert default.iterations == zero.iterations
+    assert not np.array_equal(default.q, one.q)
+
+
+@pytest.mark.parametrize(
+    ("joints", "frame"),
+    [
+        (None, "forearm_link"),  # joints 5-7 do not carry the frame
+        ([1, 2, 3, 4, 5, 6], "pinch_site"),  # a run that does not end q
+        ([1, 2, 4, 5, 6, 7], "pinch_site"),  # not contiguous in q
+    ],
+)
+def test_one_step_is_the_damped_gauss_newton_step(gen3, joints, frame):
+    """max_iters=1: q + (J'J + λI)⁻¹J'(-e), λ = 3e-3|e|² + 1e-9, with Pinocchio's world Jacobian."""
+    model, _, lower, upper = gen3
+    fid = model.getFrameId(frame)
+    cols = list(range(7)) if joints is None else [j - 1 for j in joints]
+    q_rest = HOME.copy()
+    q_rest[2] = 2.9
+    q_goal = q_rest.copy()
+    q_goal[cols] += 0.05
+    target = _fk(model, fid, q_goal)
+    solver = IKSolver(
+        model, fid, lower[cols], upper[cols], max_iters=1, max_restarts=0, joints=joints
+    )
+    res = solver.solve(target, q_rest[cols], q_rest)
+    data = model.createData()
+    jac = pin.computeFrameJacobian(model, data, q_rest, fid, pin.WORLD)[:, cols]
+    e = pin.log6(_fk(model, fid, q_rest) * target.inverse()).vector
+    lam = 3e-3 * e.dot(e) + 1e-9
+    step = -np.linalg.solve(jac.T @ jac + lam * np.eye(len(cols)), jac.T @ e)
+    assert res.iterations == 1 and res.restarts == 0 and res.success is False
+    np.testing.assert_allclose(res.q, q_rest[cols] + step, rtol=0, atol=1e-10)
+    full = q_rest.copy()
+    full[cols] = res.q
+    pos, rot = _pose_errors(model, fid, full, target)
+    assert res.position_error == pytest.approx(pos, abs=1e-12)
+    assert res.rotation_error == pytest.approx(rot, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("lo", "hi", "goal"), [(2.0, 3.0, -1.0), (-3.0, -2.0, 1.0), (-np.inf, -2.0, 1.0)]
+)
+def test_restarts_start_inside_the_limits(lo, hi, goal):
+    """One slide, a goal outside its range but within tol_pos of some seeds outside it."""
+    model, fid = _chain([pin.JointModelPX()])
+    solver = IKSolver(model, fid, np.array([lo]), np.array([hi]), tol_pos=0.5)
+    res = solver.solve(pin.SE3(np.eye(3), np.array([goal, 0.0, 0.0])), np.array([0.0]))
+    assert res.success is False and res.restarts == 20
+    assert lo <= res.q[0] <= hi
+    near = hi if goal > hi else lo
+    assert res.q[0] == near
+    assert res.position_error == pytest.approx(abs(goal - near), abs=1e-12)
+
+
+def test_stuck_at_a_bound_the_attempt_runs_until_it_stalls():
+    """From 2.5 the first step hits the bound 3 and stays: 1 improving step, then 6 stalled."""
+    model, fid = _chain([pin.JointModelPX()])
+    solver = IKSolver(model, fid, np.array([2.0]), np.array([3.0]), max_restarts=0)
+    res = solver.solve(pin.SE3(np.eye(3), np.array([5.0, 0.0, 0.0])), np.array([2.5]))
+    assert res.success is False
+    assert res.iterations == 7
+    assert res.q[0] == 3.0
+    assert res.position_error == 2.0
+
+
+def test_fully_locked_chain_stays_at_the_lock():
+    """lower == upper everywhere: the answer is the lock to the bit even when pushed past it."""
+    model, fid = _chain([pin.JointModelPX()])
+    lock = np.array([1.0])
+    solver = IKSolver(model, fid, lock, lock, max_restarts=1)
+    res = solver.solve(pin.SE3(np.eye(3), np.array([2.0, 0.0, 0.0])), np.array([0.0]))
+    assert res.success is False
+    assert res.q[0] == 1.0
+    assert res.position_error == 1.0
+
+
+def test_seed_below_a_lower_limit_is_clipped_first(gen3):
+    """The target is where the clipped seed puts the TCP: solved there without a step."""
+    model, fid, lower, upper = gen3
+    q0 = HOME.copy()
+    q0[1] = lower[1] - 0.2
+    clipped = np.clip(q0, lower, upper)
+    res = IKSolver(model, fid, lower, upper).solve(_fk(model, fid, clipped), q0)
+    assert res.success and res.iterations == 0
+    np.testing.assert_array_equal(res.q, clipped)
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered in dot")
+def test_huge_finite_seed_is_clipped_not_refused(gen3):
+    model, fid, lower, upper = gen3
+    q0 = HOME.copy()
+    q0[1] = 1e200  # finite, though q0·q0 overflows
+    clipped = np.clip(q0, lower, upper)
+    res = IKSolver(model, fid, lower, upper).solve(_fk(model, fid, clipped), q0)
+    assert res.success and res.iterations == 0
+    np.testing.assert_array_equal(res.q, clipped)
+
+
+def test_limits_as_integers_or_a_column(gen3):
+    model, fid, _, _ = gen3
+    lower, upper = [-3] * 7, [3] * 7
+    target = _fk(model, fid, np.full(7, 0.5))
+    as_float = IKSolver(model, fid, np.full(7, -3.0), np.full(7, 3.0)).solve(target, HOME)
+    as_int = IKSolver(model, fid, lower, upper).solve(target, HOME)
+    as_column = IKSolver(model, fid, np.reshape(lower, (7, 1)), np.reshape(upper, (7, 1)))
+    assert as_float.success
+    np.testing.assert_array_equal(as_int.q, as_float.q)
+    np.testing.assert_array_equal(as_column.solve(target, HOME).q, as_float.q)
+
+
+def _message(call) -> str:
+    with pytest.raises(SpecError) as err:
+        call()
+    return str(err.value)
+
+
+def test_constructor_messages_name_the_argument(gen3):
+    model, fid, lower, upper = gen3
+    n = model.njoints
+
+    def make(**kw):
+        args = {"model": model, "frame_id": fid, "lower": lower, "upper": upper, **kw}
+        return lambda: IKSolver(**args)
+
+    one_dof = "joints must be 1-DoF joints of the model (nq == nv == 1 each)"
+    assert _message(make(model="gen3")) == "model must be a pinocchio.Model, got str"
+    assert _message(make(joints=[])) == one_dof
+    assert _message(make(joints=[n], lower=lower[:1], upper=upper[:1])) == one_dof
+    assert _message(make(joints=[2, 2], lower=lower[:2], upper=upper[:2])) == (
+        "joints must be distinct and in the model's order"
+    )
+    assert _message(make(lower=lower[:3])) == "lower must have length 7, got shape (3,)"
+    assert _message(make(upper=upper[:3])) == "upper must have length 7, got shape (3,)"
+    bad = upper.copy()
+    bad[2] = np.nan
+    assert _message(make(upper=bad)) == "upper must not contain NaN"
+    assert _message(make(lower=[None, *lower[1:]])) == "lower must not contain NaN"
+    order = "lower must be <= upper for every joint, with lower < +inf"
+    swapped = lower.copy()
+    swapped[1] = upper[1] + 0.1
+    assert _message(make(lower=swapped)) == order
+    plus_inf = np.where(np.arange(7) == 0, np.inf, lower)
+    assert _message(make(lower=plus_inf, upper=np.full(7, np.inf))) == order
+    minus_inf = np.where(np.arange(7) == 0, -np.inf, upper)
+    assert _message(make(lower=np.full(7, -np.inf), upper=minus_inf)) == order
+    tols = "tol_pos and tol_rot must be positive"
+    assert _message(make(tol_pos=0.0)) == tols
+    assert _message(make(tol_rot=0.0)) == tols
+    counts = "max_iters must be >= 1 and max_restarts >= 0"
+    assert _message(make(max_iters=0)) == counts
+    assert _message(make(max_restarts=-1)) == counts
+    assert _message(make(frame_id=model.nframes)) == (
+        f"frame_id {model.nframes} out of range [0, {model.nframes})"
+    )
+
+
+def test_joint_with_two_coordinates_is_refused():
+    """A continuous (unbounded revolute) joint has nq == 2, nv == 1."""
+    model, fid = _chain([pin.JointModelPX(), pin.JointModelRUBZ()])
+    assert (
+        _message(lambda: IKSolver(model, fid, [0.0], [1.0], joints=[2]))
+        == "joints must be 1-DoF joints of the model (nq == nv == 1 each)"
+    )
+
+
+def test_solve_messages_name_the_argument(gen3):
+    model, fid, lower, upper = gen3
+    solver = IKSolver(model, fid, lower[1:], upper[1:], joints=list(range(2, 8)))
+    target = _fk(model, fid, HOME)
+    assert _message(lambda: solver.solve(target.homogeneous, HOME[1:], HOME)) == (
+        "target must be a pinocchio.SE3, got ndarray"
+    )
+    assert _message(lambda: solver.solve(target, HOME[1:], HOME[:3])) == (
+        "q_rest must be the whole model's configuration (7 values)"
+    )
