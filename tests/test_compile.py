@@ -25,7 +25,7 @@ from conftest import (
 )
 
 import mjkdl as mjk
-from mjkdl.compile import build_mjspec
+from mjkdl.compile import build_mjspec, compile_scene
 from mjkdl.urdf import example_robot_data_path
 
 TOL = 1e-12
@@ -1033,3 +1033,48 @@ def test_array_where_an_enum_or_mass_belongs_is_named():
     part = mjk.SceneObject(name="o", mjcf_path="part.xml", mass=np.array([1.0, 2.0]))
     with pytest.raises(mjk.SpecError, match=r"objects\[0\] \('o'\): give either mjcf_path or"):
         _build(base_spec(objects=[part]))
+
+
+# ----------------------------------------------------------------------------- environment
+
+_ENVIRONMENT_XML = """
+<mujoco>
+  <visual><headlight ambient="0.3 0.3 0.3" diffuse="0.5 0.5 0.5"/></visual>
+  <asset>
+    <texture name="mjkdl_sky" type="skybox" builtin="gradient" rgb1="0.4 0.6 0.8"
+             rgb2="0 0 0" width="512" height="3072"/>
+    <texture name="mjkdl_grid" type="2d" builtin="checker" rgb1="0.2 0.3 0.4"
+             rgb2="0.1 0.2 0.3" mark="edge" markrgb="0.8 0.8 0.8" width="300" height="300"/>
+    <material name="mjkdl_grid" texture="mjkdl_grid" texrepeat="5 5" texuniform="true"
+              reflectance="0.2"/>
+  </asset>
+  <worldbody>
+    <light name="mjkdl_sun" pos="0 -1 3" dir="0 0.3 -1" type="directional"
+           diffuse="0.6 0.6 0.6" castshadow="true"/>
+    <geom name="floor" type="plane" size="0 0 0.05" material="mjkdl_grid"/>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_environment_matches_equivalent_mjcf():
+    """Headlight, sun, skybox and floor read back exactly as the same scene written in MJCF."""
+    ours = compile_scene(base_spec(add_floor=True, add_skybox=True))
+    xml = mujoco.MjModel.from_xml_string(_ENVIRONMENT_XML)
+    np.testing.assert_array_equal(ours.vis.headlight.ambient, xml.vis.headlight.ambient)
+    np.testing.assert_array_equal(ours.vis.headlight.diffuse, xml.vis.headlight.diffuse)
+    assert ours.nlight == 1 and ours.ntex == 2 and ours.nmat == 1
+    assert ours.light(0).name == "mjkdl_sun"
+    for field in ("pos", "dir", "type", "diffuse", "castshadow", "ambient", "specular"):
+        name = "light_" + field
+        np.testing.assert_array_equal(getattr(ours, name), getattr(xml, name))
+    assert [ours.texture(i).name for i in range(2)] == ["mjkdl_sky", "mjkdl_grid"]
+    for field in ("type", "width", "height", "nchannel", "adr", "data"):
+        np.testing.assert_array_equal(getattr(ours, f"tex_{field}"), getattr(xml, f"tex_{field}"))
+    assert ours.material(0).name == "mjkdl_grid"
+    for field in ("texid", "texrepeat", "texuniform", "reflectance", "rgba"):
+        np.testing.assert_array_equal(getattr(ours, f"mat_{field}"), getattr(xml, f"mat_{field}"))
+    floor = ours.geom("floor")
+    assert floor.type[0] == mujoco.mjtGeom.mjGEOM_PLANE
+    np.testing.assert_array_equal(floor.size, xml.geom("floor").size)
+    assert floor.matid[0] == 0
