@@ -25,7 +25,7 @@ from conftest import (
 )
 
 import mjkdl as mjk
-from mjkdl.compile import build_mjspec, compile_scene
+from mjkdl.compile import build_mjspec, compile_mjspec, compile_scene
 from mjkdl.urdf import example_robot_data_path
 
 TOL = 1e-12
@@ -1078,3 +1078,82 @@ def test_environment_matches_equivalent_mjcf():
     assert floor.type[0] == mujoco.mjtGeom.mjGEOM_PLANE
     np.testing.assert_array_equal(floor.size, xml.geom("floor").size)
     assert floor.matid[0] == 0
+
+
+# ----------------------------------------------------------------------------- compile errors
+
+TETRA_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+
+
+def test_mesh_removed_before_compiling_is_a_model_file_error(tmp_path):
+    (tmp_path / "tetra.obj").write_text(TETRA_OBJ)
+    path = tmp_path / "meshy.xml"
+    path.write_text(MESH_XML.replace("nope.stl", "tetra.obj"))
+    s = build_mjspec(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    (tmp_path / "tetra.obj").unlink()
+    with pytest.raises(mjk.ModelFileError) as err:
+        compile_mjspec(s)
+    assert str(err.value) == (
+        "MuJoCo could not read a model file: Error: Error opening file 'tetra.obj'"
+    )
+
+
+def test_compile_error_is_a_build_error_with_mujocos_message(tmp_path):
+    path = tmp_path / "mat.xml"
+    path.write_text(
+        '<mujoco><worldbody><body name="b"><geom size="0.1" material="nope"/></body>'
+        "</worldbody></mujoco>"
+    )
+    with pytest.raises(mjk.BuildError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert not isinstance(err.value, FileNotFoundError)
+    assert str(err.value) == (
+        "MuJoCo could not compile the scene: Error: material 'o/nope' not found in geom 1\n"
+        "Element name '', id 1, line 1"
+    )
+
+
+def test_mjcf_objects_with_conflicting_options_name_the_second(tmp_path):
+    objects = []
+    for i, impratio in enumerate(["2", "3"]):
+        path = tmp_path / f"o{i}.xml"
+        path.write_text(
+            f'<mujoco><option impratio="{impratio}"/><worldbody><body name="b">'
+            '<geom size="0.1"/></body></worldbody></mujoco>'
+        )
+        objects.append(mjk.SceneObject(name=f"o{i}", mjcf_path=str(path)))
+    with pytest.raises(mjk.BuildError) as err:
+        _build(base_spec(objects=objects))
+    assert str(err.value) == (
+        "objects[1] ('o1').mjcf_path: MuJoCo cannot attach it: Error: Attach conflict when "
+        "attaching to 'mjkdl_scene', policy is 'merge'\nimpratio: parent has 2, child has 3"
+    )
+
+
+def test_mjcf_object_free_joints_all_listed(tmp_path):
+    path = tmp_path / "free.xml"
+    path.write_text(
+        '<mujoco><worldbody><body name="a"><freejoint name="loose"/><geom size="0.1"/></body>'
+        '<body name="b"><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(mjk.SpecError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value) == (
+        f"objects[0] ('o'): {path} has a free joint (loose, (unnamed)); remove it, mjkdl adds "
+        "one to the object unless fixed=True"
+    )
+
+
+def test_mjcf_object_body_is_named_placed_and_free(tmp_path):
+    path = tmp_path / "box.xml"
+    path.write_text(
+        '<mujoco><worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    obj = mjk.SceneObject(name="o", mjcf_path=str(path), pos=OFFSET_POS, euler=OFFSET_EULER)
+    model = compile_scene(base_spec(add_floor=False, objects=[obj]))
+    body = model.body("o")
+    np.testing.assert_allclose(body.pos, OFFSET_POS, rtol=0, atol=TOL)
+    _same_quat(body.quat, _xml_euler_quat(OFFSET_EULER))
+    assert model.body("o/b").parentid[0] == body.id
+    joint = model.joint("o")
+    assert joint.type[0] == mujoco.mjtJoint.mjJNT_FREE and joint.bodyid[0] == body.id
