@@ -1157,3 +1157,13 @@ def test_mjcf_object_body_is_named_placed_and_free(tmp_path):
     assert model.body("o/b").parentid[0] == body.id
     joint = model.joint("o")
     assert joint.type[0] == mujoco.mjtJoint.mjJNT_FREE and joint.bodyid[0] == body.id
+
+
+@pytest.mark.parametrize("euler", [[0.0, 0.0, 90.0], [0.0, 0.0, 1e-6]], ids=["quarter", "tiny"])
+def test_rotation_only_robot_offset_is_applied(tmp_path, euler):
+    """A rotation without a translation is still an offset, however small."""
+    path = tmp_path / "arm.xml"
+    path.write_text(two_link_arm())
+    model = compile_scene(base_spec(robots=[mjk.RobotSpec(path=str(path), euler=euler)]))
+    np.testing.assert_array_equal(model.body("base").pos, [0, 0, 0])
+    _same_quat(model.body("base").quat, _xml_euler_quat(euler), tol=1e-15)
