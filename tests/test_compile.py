@@ -1167,3 +1167,33 @@ def test_rotation_only_robot_offset_is_applied(tmp_path, euler):
     model = compile_scene(base_spec(robots=[mjk.RobotSpec(path=str(path), euler=euler)]))
     np.testing.assert_array_equal(model.body("base").pos, [0, 0, 0])
     _same_quat(model.body("base").quat, _xml_euler_quat(euler), tol=1e-15)
+
+
+# ----------------------------------------------------------------------------- welded contacts
+
+PLATED_ARM = """<mujoco><worldbody><body name="base">{joint}<geom size="0.05"/>
+<body name="plate" pos="0 0 0.05"><geom size="0.04"/>
+<body name="l1" pos="0 0 0.05"><joint name="j1"/><geom size="0.03"/>
+<body name="l2" pos="0 0 0.05"><joint name="j2"/><geom size="0.02"/></body></body></body>
+</body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize(
+    ("mount", "excluded"),
+    [("world", {("a/plate", "a/l1")}), ("freejoint", set()), ("free_object", set())],
+)
+def test_contacts_excluded_only_below_a_world_welded_base(tmp_path, mount, excluded):
+    """The first jointed body under a welded chain is excluded from its parent, nothing else."""
+    path = tmp_path / "arm.xml"
+    path.write_text(PLATED_ARM.format(joint="<freejoint/>" if mount == "freejoint" else ""))
+    robot = mjk.RobotSpec(path=str(path), prefix="a/")
+    objects = []
+    if mount == "free_object":
+        objects = [_prim(name="cart", shape=mjk.Shape.SPHERE, size=[0.1])]
+        robot.attach_to = mjk.AttachTarget(mjk.AttachKind.Body, "cart")
+    model = compile_scene(base_spec(add_floor=False, objects=objects, robots=[robot]))
+    pairs = {
+        (model.body(sig >> 16).name, model.body(sig & 0xFFFF).name)
+        for sig in model.exclude_signature[: model.nexclude].tolist()
+    }
+    assert pairs == excluded
