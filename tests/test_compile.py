@@ -1197,3 +1197,44 @@ def test_contacts_excluded_only_below_a_world_welded_base(tmp_path, mount, exclu
         for sig in model.exclude_signature[: model.nexclude].tolist()
     }
     assert pairs == excluded
+
+
+# ----------------------------------------------------------------------------- asset files
+
+
+
+
+@pytest.mark.parametrize(
+    ("asset", "what"),
+    [
+        ('<skin name="s" file="gone.skn"/>', "skin file of s"),
+        ('<texture name="t" type="2d" file="gone.png"/>', "texture file of t"),
+        ('<texture name="c" type="cube" fileright="gone.png"/>', "texture file of c"),
+        ('<hfield name="h" file="gone.png" size="1 1 1 1"/>', "height field file of h"),
+        ('<texture type="cube" fileleft="gone.png"/>', "texture file of an unnamed texture"),
+    ],
+    ids=["skin", "texture", "cube_face", "hfield", "unnamed_cube"],
+)
+def test_missing_asset_file_named_with_its_kind(tmp_path, asset, what):
+    path = tmp_path / "assets.xml"
+    path.write_text(
+        f'<mujoco><asset>{asset}</asset><worldbody><body name="b"><geom size="0.1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    gone = "gone.skn" if "skin" in asset else "gone.png"
+    with pytest.raises(mjk.ModelFileError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value) == (
+        f"objects[0] ('o').mjcf_path: {what} in {path} not found: {tmp_path / gone}"
+    )
+
+
+def test_builtin_texture_needs_no_file(tmp_path):
+    path = tmp_path / "builtin.xml"
+    path.write_text(
+        '<mujoco><asset><texture name="t" type="2d" builtin="flat" width="8" height="8"/>'
+        '</asset><worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    model = compile_scene(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert model.texture("o/t").width[0] == 8
+
