@@ -1238,3 +1238,46 @@ def test_builtin_texture_needs_no_file(tmp_path):
     model = compile_scene(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
     assert model.texture("o/t").width[0] == 8
 
+
+
+def test_missing_file_included_by_an_included_file_is_named(tmp_path):
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "parts" / "a.xml").write_text(
+        '<mujocoinclude><include file="parts/missing.xml"/></mujocoinclude>'
+    )
+    path = tmp_path / "main.xml"
+    path.write_text(
+        '<mujoco><include file=""/><include file="parts/a.xml"/>'
+        '<worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(mjk.ModelFileError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value) == (
+        f"objects[0] ('o').mjcf_path: file 'parts/missing.xml' included by "
+        f"{tmp_path / 'parts' / 'a.xml'} not found: {tmp_path / 'parts' / 'missing.xml'}"
+    )
+
+
+def test_include_cycle_is_left_to_mujoco(tmp_path):
+    (tmp_path / "a.xml").write_text('<mujocoinclude><include file="b.xml"/></mujocoinclude>')
+    (tmp_path / "b.xml").write_text('<mujocoinclude><include file="a.xml"/></mujocoinclude>')
+    path = tmp_path / "main.xml"
+    path.write_text('<mujoco><include file="a.xml"/></mujoco>')
+    with pytest.raises(mjk.BuildError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value).startswith(f"objects[0] ('o').mjcf_path: MuJoCo cannot read {path}: ")
+
+
+def test_mesh_files_are_not_taken_for_includes(tmp_path):
+    (tmp_path / "assets").mkdir()
+    (tmp_path / "assets" / "tetra.obj").write_text(TETRA_OBJ)
+    (tmp_path / "part.xml").write_text(
+        '<mujocoinclude><asset><mesh name="m" file="tetra.obj"/></asset></mujocoinclude>'
+    )
+    path = tmp_path / "main.xml"
+    path.write_text(
+        '<mujoco><compiler meshdir="assets"/><include file="part.xml"/>'
+        '<worldbody><body name="b"><geom type="mesh" mesh="m"/></body></worldbody></mujoco>'
+    )
+    model = compile_scene(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert model.mesh("o/m").vertnum[0] == 4
