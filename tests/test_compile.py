@@ -1272,12 +1272,13 @@ def test_mesh_files_are_not_taken_for_includes(tmp_path):
     (tmp_path / "assets").mkdir()
     (tmp_path / "assets" / "tetra.obj").write_text(TETRA_OBJ)
     (tmp_path / "part.xml").write_text(
-        '<mujocoinclude><asset><mesh name="m" file="tetra.obj"/></asset></mujocoinclude>'
+        '<mujocoinclude><worldbody><body name="b"><geom type="mesh" mesh="m"/></body>'
+        "</worldbody></mujocoinclude>"
     )
     path = tmp_path / "main.xml"
     path.write_text(
         '<mujoco><compiler meshdir="assets"/><include file="part.xml"/>'
-        '<worldbody><body name="b"><geom type="mesh" mesh="m"/></body></worldbody></mujoco>'
+        '<asset><mesh name="m" file="tetra.obj"/></asset></mujoco>'
     )
     model = compile_scene(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
     assert model.mesh("o/m").vertnum[0] == 4
