@@ -1282,3 +1282,66 @@ def test_mesh_files_are_not_taken_for_includes(tmp_path):
     )
     model = compile_scene(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
     assert model.mesh("o/m").vertnum[0] == 4
+
+
+# ----------------------------------------------------------------------------- mounts and cameras
+
+SITES_XML = """<mujoco><worldbody><body name="b" pos="0.1 0.2 0.3"><geom size="0.05"/>
+<site name="turned" pos="0.01 0.02 0.03" quat="0.5 0.5 0.5 0.5"/>
+<frame pos="0 0 0.1" euler="0.1 0.2 0.3"><site name="framed" pos="0.04 0 0"/></frame>
+</body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("site", ["turned", "framed"])
+def test_camera_on_a_site_sits_exactly_on_it(tmp_path, site):
+    path = tmp_path / "sites.xml"
+    path.write_text(SITES_XML)
+    obj = mjk.SceneObject(name="o", mjcf_path=str(path), fixed=True, euler=[10, 20, 30])
+    cam = mjk.CameraSpec(
+        name="c",
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, f"o/{site}"),
+        pos=[0, 0, 0],
+        euler=[0, 0, 0],
+        fovy=60.0,
+    )
+    model = compile_scene(base_spec(objects=[obj], cameras=[cam]))
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+    np.testing.assert_allclose(data.cam("c").xpos, data.site(f"o/{site}").xpos, atol=1e-12)
+    np.testing.assert_allclose(data.cam("c").xmat, data.site(f"o/{site}").xmat, atol=1e-12)
+    assert model.cam_fovy[model.camera("c").id] == 60.0
+
+
+def test_unknown_mounts_are_named_with_field_and_place(tmp_path):
+    arm = tmp_path / "arm.xml"
+    arm.write_text(two_link_arm())
+    on_table = mjk.AttachTarget(mjk.AttachKind.Body, "tabel")
+    robot = mjk.RobotSpec(path=str(arm), attach_to=on_table)
+    with pytest.raises(mjk.UnknownNameError) as err:
+        _build(base_spec(objects=[_prim(name="table")], robots=[robot]))
+    assert str(err.value) == (
+        "no body named 'tabel' in the scene (robots[0].attach_to); close matches: table"
+    )
+    box = tmp_path / "box.xml"
+    box.write_text(
+        '<mujoco><worldbody><body name="x"><geom size="0.01"/></body></worldbody></mujoco>'
+    )
+    att = mjk.AttachmentSpec(
+        mjcf_path=str(box), attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "l3")
+    )
+    with pytest.raises(mjk.UnknownNameError) as err:
+        _build(base_spec(robots=[mjk.RobotSpec(path=str(arm), attachments=[att])]))
+    assert str(err.value) == (
+        "no body named 'l3' in the robot (robots[0].attachments[0].attach_to); "
+        "close matches: l2, l1"
+    )
+
+
+def test_primitive_accepts_integer_lists():
+    obj = _prim(size=[1, 2, 3], friction=[1], rgba=[1, 0, 0, 1])
+    model = compile_scene(base_spec(add_floor=False, objects=[obj]))
+    geom = model.geom("p")
+    np.testing.assert_array_equal(geom.size, [1, 2, 3])
+    np.testing.assert_array_equal(geom.friction, [1, 0.005, 0.0001])
+    np.testing.assert_array_equal(geom.rgba, np.float32([1, 0, 0, 1]))
