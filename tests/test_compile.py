@@ -1337,11 +1337,3 @@ def test_unknown_mounts_are_named_with_field_and_place(tmp_path):
         "close matches: l2, l1"
     )
 
-
-def test_primitive_accepts_integer_lists():
-    obj = _prim(size=[1, 2, 3], friction=[1], rgba=[1, 0, 0, 1])
-    model = compile_scene(base_spec(add_floor=False, objects=[obj]))
-    geom = model.geom("p")
-    np.testing.assert_array_equal(geom.size, [1, 2, 3])
-    np.testing.assert_array_equal(geom.friction, [1, 0.005, 0.0001])
-    np.testing.assert_array_equal(geom.rgba, np.float32([1, 0, 0, 1]))
