@@ -1337,3 +1337,20 @@ def test_unknown_mounts_are_named_with_field_and_place(tmp_path):
         "close matches: l2, l1"
     )
 
+
+
+# ----------------------------------------------------------------------------- MuJoCo notices
+
+
+def test_compiling_restores_the_users_warning_handler_and_keeps_other_warnings():
+    s = build_mjspec(base_spec())
+    s.compiler.settotalmass = 2.0  # deprecated: MuJoCo warns when compiling
+    notices: list[str] = []
+    mujoco.set_mju_user_warning(notices.append)
+    try:
+        with pytest.warns(UserWarning, match=r"^compiler attribute 'settotalmass' is deprecated"):
+            compile_mjspec(s)
+        assert mujoco.get_mju_user_warning() == notices.append
+    finally:
+        mujoco.set_mju_user_warning(None)
+    assert notices == []
