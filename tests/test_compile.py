@@ -1354,3 +1354,13 @@ def test_compiling_restores_the_users_warning_handler_and_keeps_other_warnings()
     finally:
         mujoco.set_mju_user_warning(None)
     assert notices == []
+
+
+def test_model_path_below_a_file_is_named_with_the_os_reason(tmp_path):
+    (tmp_path / "a.xml").write_text("<mujoco/>")
+    path = tmp_path / "a.xml" / "b.xml"
+    with pytest.raises(mjk.ModelFileError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value) == (
+        f"objects[0] ('o').mjcf_path: model file {path} cannot be read: Not a directory"
+    )
