@@ -25,7 +25,7 @@ from conftest import (
 )
 
 import mjkdl as mjk
-from mjkdl.compile import build_mjspec, compile_mjspec, compile_scene
+from mjkdl.compile import build_mjspec, compile_mjspec, compile_scene, euler_quat
 from mjkdl.urdf import example_robot_data_path
 
 TOL = 1e-12
@@ -1364,3 +1364,9 @@ def test_model_path_below_a_file_is_named_with_the_os_reason(tmp_path):
     assert str(err.value) == (
         f"objects[0] ('o').mjcf_path: model file {path} cannot be read: Not a directory"
     )
+
+
+def test_euler_quat_names_the_field_of_a_bad_vector():
+    with pytest.raises(mjk.SpecError) as err:
+        euler_quat([1, 2], "tool.tcp_euler")
+    assert str(err.value) == "tool.tcp_euler must have 3 values, got 2: [1, 2]"
