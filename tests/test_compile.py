@@ -25,7 +25,7 @@ from conftest import (
 )
 
 import mjkdl as mjk
-from mjkdl.compile import build_mjspec
+from mjkdl.compile import build_mjspec, compile_mjspec, compile_scene, euler_quat
 from mjkdl.urdf import example_robot_data_path
 
 TOL = 1e-12
@@ -1033,3 +1033,340 @@ def test_array_where_an_enum_or_mass_belongs_is_named():
     part = mjk.SceneObject(name="o", mjcf_path="part.xml", mass=np.array([1.0, 2.0]))
     with pytest.raises(mjk.SpecError, match=r"objects\[0\] \('o'\): give either mjcf_path or"):
         _build(base_spec(objects=[part]))
+
+
+# ----------------------------------------------------------------------------- environment
+
+_ENVIRONMENT_XML = """
+<mujoco>
+  <visual><headlight ambient="0.3 0.3 0.3" diffuse="0.5 0.5 0.5"/></visual>
+  <asset>
+    <texture name="mjkdl_sky" type="skybox" builtin="gradient" rgb1="0.4 0.6 0.8"
+             rgb2="0 0 0" width="512" height="3072"/>
+    <texture name="mjkdl_grid" type="2d" builtin="checker" rgb1="0.2 0.3 0.4"
+             rgb2="0.1 0.2 0.3" mark="edge" markrgb="0.8 0.8 0.8" width="300" height="300"/>
+    <material name="mjkdl_grid" texture="mjkdl_grid" texrepeat="5 5" texuniform="true"
+              reflectance="0.2"/>
+  </asset>
+  <worldbody>
+    <light name="mjkdl_sun" pos="0 -1 3" dir="0 0.3 -1" type="directional"
+           diffuse="0.6 0.6 0.6" castshadow="true"/>
+    <geom name="floor" type="plane" size="0 0 0.05" material="mjkdl_grid"/>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_environment_matches_equivalent_mjcf():
+    """Headlight, sun, skybox and floor read back exactly as the same scene written in MJCF."""
+    ours = compile_scene(base_spec(add_floor=True, add_skybox=True))
+    xml = mujoco.MjModel.from_xml_string(_ENVIRONMENT_XML)
+    np.testing.assert_array_equal(ours.vis.headlight.ambient, xml.vis.headlight.ambient)
+    np.testing.assert_array_equal(ours.vis.headlight.diffuse, xml.vis.headlight.diffuse)
+    assert ours.nlight == 1 and ours.ntex == 2 and ours.nmat == 1
+    assert ours.light(0).name == "mjkdl_sun"
+    for field in ("pos", "dir", "type", "diffuse", "castshadow", "ambient", "specular"):
+        name = "light_" + field
+        np.testing.assert_array_equal(getattr(ours, name), getattr(xml, name))
+    assert [ours.texture(i).name for i in range(2)] == ["mjkdl_sky", "mjkdl_grid"]
+    for field in ("type", "width", "height", "nchannel", "adr", "data"):
+        np.testing.assert_array_equal(getattr(ours, f"tex_{field}"), getattr(xml, f"tex_{field}"))
+    assert ours.material(0).name == "mjkdl_grid"
+    for field in ("texid", "texrepeat", "texuniform", "reflectance", "rgba"):
+        np.testing.assert_array_equal(getattr(ours, f"mat_{field}"), getattr(xml, f"mat_{field}"))
+    floor = ours.geom("floor")
+    assert floor.type[0] == mujoco.mjtGeom.mjGEOM_PLANE
+    np.testing.assert_array_equal(floor.size, xml.geom("floor").size)
+    assert floor.matid[0] == 0
+
+
+# ----------------------------------------------------------------------------- compile errors
+
+TETRA_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+
+
+def test_mesh_removed_before_compiling_is_a_model_file_error(tmp_path):
+    (tmp_path / "tetra.obj").write_text(TETRA_OBJ)
+    path = tmp_path / "meshy.xml"
+    path.write_text(MESH_XML.replace("nope.stl", "tetra.obj"))
+    s = build_mjspec(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    (tmp_path / "tetra.obj").unlink()
+    with pytest.raises(mjk.ModelFileError) as err:
+        compile_mjspec(s)
+    assert str(err.value) == (
+        "MuJoCo could not read a model file: Error: Error opening file 'tetra.obj'"
+    )
+
+
+def test_compile_error_is_a_build_error_with_mujocos_message(tmp_path):
+    path = tmp_path / "mat.xml"
+    path.write_text(
+        '<mujoco><worldbody><body name="b"><geom size="0.1" material="nope"/></body>'
+        "</worldbody></mujoco>"
+    )
+    with pytest.raises(mjk.BuildError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert not isinstance(err.value, FileNotFoundError)
+    assert str(err.value) == (
+        "MuJoCo could not compile the scene: Error: material 'o/nope' not found in geom 1\n"
+        "Element name '', id 1, line 1"
+    )
+
+
+def test_mjcf_objects_with_conflicting_options_name_the_second(tmp_path):
+    objects = []
+    for i, impratio in enumerate(["2", "3"]):
+        path = tmp_path / f"o{i}.xml"
+        path.write_text(
+            f'<mujoco><option impratio="{impratio}"/><worldbody><body name="b">'
+            '<geom size="0.1"/></body></worldbody></mujoco>'
+        )
+        objects.append(mjk.SceneObject(name=f"o{i}", mjcf_path=str(path)))
+    with pytest.raises(mjk.BuildError) as err:
+        _build(base_spec(objects=objects))
+    assert str(err.value) == (
+        "objects[1] ('o1').mjcf_path: MuJoCo cannot attach it: Error: Attach conflict when "
+        "attaching to 'mjkdl_scene', policy is 'merge'\nimpratio: parent has 2, child has 3"
+    )
+
+
+def test_mjcf_object_free_joints_all_listed(tmp_path):
+    path = tmp_path / "free.xml"
+    path.write_text(
+        '<mujoco><worldbody><body name="a"><freejoint name="loose"/><geom size="0.1"/></body>'
+        '<body name="b"><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(mjk.SpecError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value) == (
+        f"objects[0] ('o'): {path} has a free joint (loose, (unnamed)); remove it, mjkdl adds "
+        "one to the object unless fixed=True"
+    )
+
+
+def test_mjcf_object_body_is_named_placed_and_free(tmp_path):
+    path = tmp_path / "box.xml"
+    path.write_text(
+        '<mujoco><worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    obj = mjk.SceneObject(name="o", mjcf_path=str(path), pos=OFFSET_POS, euler=OFFSET_EULER)
+    model = compile_scene(base_spec(add_floor=False, objects=[obj]))
+    body = model.body("o")
+    np.testing.assert_allclose(body.pos, OFFSET_POS, rtol=0, atol=TOL)
+    _same_quat(body.quat, _xml_euler_quat(OFFSET_EULER))
+    assert model.body("o/b").parentid[0] == body.id
+    joint = model.joint("o")
+    assert joint.type[0] == mujoco.mjtJoint.mjJNT_FREE and joint.bodyid[0] == body.id
+
+
+@pytest.mark.parametrize("euler", [[0.0, 0.0, 90.0], [0.0, 0.0, 1e-6]], ids=["quarter", "tiny"])
+def test_rotation_only_robot_offset_is_applied(tmp_path, euler):
+    """A rotation without a translation is still an offset, however small."""
+    path = tmp_path / "arm.xml"
+    path.write_text(two_link_arm())
+    model = compile_scene(base_spec(robots=[mjk.RobotSpec(path=str(path), euler=euler)]))
+    np.testing.assert_array_equal(model.body("base").pos, [0, 0, 0])
+    _same_quat(model.body("base").quat, _xml_euler_quat(euler), tol=1e-15)
+
+
+# ----------------------------------------------------------------------------- welded contacts
+
+PLATED_ARM = """<mujoco><worldbody><body name="base">{joint}<geom size="0.05"/>
+<body name="plate" pos="0 0 0.05"><geom size="0.04"/>
+<body name="l1" pos="0 0 0.05"><joint name="j1"/><geom size="0.03"/>
+<body name="l2" pos="0 0 0.05"><joint name="j2"/><geom size="0.02"/></body></body></body>
+</body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize(
+    ("mount", "excluded"),
+    [("world", {("a/plate", "a/l1")}), ("freejoint", set()), ("free_object", set())],
+)
+def test_contacts_excluded_only_below_a_world_welded_base(tmp_path, mount, excluded):
+    """The first jointed body under a welded chain is excluded from its parent, nothing else."""
+    path = tmp_path / "arm.xml"
+    path.write_text(PLATED_ARM.format(joint="<freejoint/>" if mount == "freejoint" else ""))
+    robot = mjk.RobotSpec(path=str(path), prefix="a/")
+    objects = []
+    if mount == "free_object":
+        objects = [_prim(name="cart", shape=mjk.Shape.SPHERE, size=[0.1])]
+        robot.attach_to = mjk.AttachTarget(mjk.AttachKind.Body, "cart")
+    model = compile_scene(base_spec(add_floor=False, objects=objects, robots=[robot]))
+    pairs = {
+        (model.body(sig >> 16).name, model.body(sig & 0xFFFF).name)
+        for sig in model.exclude_signature[: model.nexclude].tolist()
+    }
+    assert pairs == excluded
+
+
+# ----------------------------------------------------------------------------- asset files
+
+
+
+
+@pytest.mark.parametrize(
+    ("asset", "what"),
+    [
+        ('<skin name="s" file="gone.skn"/>', "skin file of s"),
+        ('<texture name="t" type="2d" file="gone.png"/>', "texture file of t"),
+        ('<texture name="c" type="cube" fileright="gone.png"/>', "texture file of c"),
+        ('<hfield name="h" file="gone.png" size="1 1 1 1"/>', "height field file of h"),
+        ('<texture type="cube" fileleft="gone.png"/>', "texture file of an unnamed texture"),
+    ],
+    ids=["skin", "texture", "cube_face", "hfield", "unnamed_cube"],
+)
+def test_missing_asset_file_named_with_its_kind(tmp_path, asset, what):
+    path = tmp_path / "assets.xml"
+    path.write_text(
+        f'<mujoco><asset>{asset}</asset><worldbody><body name="b"><geom size="0.1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    gone = "gone.skn" if "skin" in asset else "gone.png"
+    with pytest.raises(mjk.ModelFileError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value) == (
+        f"objects[0] ('o').mjcf_path: {what} in {path} not found: {tmp_path / gone}"
+    )
+
+
+def test_builtin_texture_needs_no_file(tmp_path):
+    path = tmp_path / "builtin.xml"
+    path.write_text(
+        '<mujoco><asset><texture name="t" type="2d" builtin="flat" width="8" height="8"/>'
+        '</asset><worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    model = compile_scene(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert model.texture("o/t").width[0] == 8
+
+
+
+def test_missing_file_included_by_an_included_file_is_named(tmp_path):
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "parts" / "a.xml").write_text(
+        '<mujocoinclude><include file="parts/missing.xml"/></mujocoinclude>'
+    )
+    path = tmp_path / "main.xml"
+    path.write_text(
+        '<mujoco><include file=""/><include file="parts/a.xml"/>'
+        '<worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(mjk.ModelFileError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value) == (
+        f"objects[0] ('o').mjcf_path: file 'parts/missing.xml' included by "
+        f"{tmp_path / 'parts' / 'a.xml'} not found: {tmp_path / 'parts' / 'missing.xml'}"
+    )
+
+
+def test_include_cycle_is_left_to_mujoco(tmp_path):
+    (tmp_path / "a.xml").write_text('<mujocoinclude><include file="b.xml"/></mujocoinclude>')
+    (tmp_path / "b.xml").write_text('<mujocoinclude><include file="a.xml"/></mujocoinclude>')
+    path = tmp_path / "main.xml"
+    path.write_text('<mujoco><include file="a.xml"/></mujoco>')
+    with pytest.raises(mjk.BuildError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value).startswith(f"objects[0] ('o').mjcf_path: MuJoCo cannot read {path}: ")
+
+
+def test_mesh_files_are_not_taken_for_includes(tmp_path):
+    (tmp_path / "assets").mkdir()
+    (tmp_path / "assets" / "tetra.obj").write_text(TETRA_OBJ)
+    (tmp_path / "part.xml").write_text(
+        '<mujocoinclude><worldbody><body name="b"><geom type="mesh" mesh="m"/></body>'
+        "</worldbody></mujocoinclude>"
+    )
+    path = tmp_path / "main.xml"
+    path.write_text(
+        '<mujoco><compiler meshdir="assets"/><include file="part.xml"/>'
+        '<asset><mesh name="m" file="tetra.obj"/></asset></mujoco>'
+    )
+    model = compile_scene(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert model.mesh("o/m").vertnum[0] == 4
+
+
+# ----------------------------------------------------------------------------- mounts and cameras
+
+SITES_XML = """<mujoco><worldbody><body name="b" pos="0.1 0.2 0.3"><geom size="0.05"/>
+<site name="turned" pos="0.01 0.02 0.03" quat="0.5 0.5 0.5 0.5"/>
+<frame pos="0 0 0.1" euler="0.1 0.2 0.3"><site name="framed" pos="0.04 0 0"/></frame>
+</body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("site", ["turned", "framed"])
+def test_camera_on_a_site_sits_exactly_on_it(tmp_path, site):
+    path = tmp_path / "sites.xml"
+    path.write_text(SITES_XML)
+    obj = mjk.SceneObject(name="o", mjcf_path=str(path), fixed=True, euler=[10, 20, 30])
+    cam = mjk.CameraSpec(
+        name="c",
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, f"o/{site}"),
+        pos=[0, 0, 0],
+        euler=[0, 0, 0],
+        fovy=60.0,
+    )
+    model = compile_scene(base_spec(objects=[obj], cameras=[cam]))
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+    np.testing.assert_allclose(data.cam("c").xpos, data.site(f"o/{site}").xpos, atol=1e-12)
+    np.testing.assert_allclose(data.cam("c").xmat, data.site(f"o/{site}").xmat, atol=1e-12)
+    assert model.cam_fovy[model.camera("c").id] == 60.0
+
+
+def test_unknown_mounts_are_named_with_field_and_place(tmp_path):
+    arm = tmp_path / "arm.xml"
+    arm.write_text(two_link_arm())
+    on_table = mjk.AttachTarget(mjk.AttachKind.Body, "tabel")
+    robot = mjk.RobotSpec(path=str(arm), attach_to=on_table)
+    with pytest.raises(mjk.UnknownNameError) as err:
+        _build(base_spec(objects=[_prim(name="table")], robots=[robot]))
+    assert str(err.value) == (
+        "no body named 'tabel' in the scene (robots[0].attach_to); close matches: table"
+    )
+    box = tmp_path / "box.xml"
+    box.write_text(
+        '<mujoco><worldbody><body name="x"><geom size="0.01"/></body></worldbody></mujoco>'
+    )
+    att = mjk.AttachmentSpec(
+        mjcf_path=str(box), attach_to=mjk.AttachTarget(mjk.AttachKind.Body, "l3")
+    )
+    with pytest.raises(mjk.UnknownNameError) as err:
+        _build(base_spec(robots=[mjk.RobotSpec(path=str(arm), attachments=[att])]))
+    assert str(err.value) == (
+        "no body named 'l3' in the robot (robots[0].attachments[0].attach_to); "
+        "close matches: l2, l1"
+    )
+
+
+
+# ----------------------------------------------------------------------------- MuJoCo notices
+
+
+def test_compiling_restores_the_users_warning_handler_and_keeps_other_warnings():
+    s = build_mjspec(base_spec())
+    s.compiler.settotalmass = 2.0  # deprecated: MuJoCo warns when compiling
+    notices: list[str] = []
+    mujoco.set_mju_user_warning(notices.append)
+    try:
+        with pytest.warns(UserWarning, match=r"^compiler attribute 'settotalmass' is deprecated"):
+            compile_mjspec(s)
+        assert mujoco.get_mju_user_warning() == notices.append
+    finally:
+        mujoco.set_mju_user_warning(None)
+    assert notices == []
+
+
+def test_model_path_below_a_file_is_named_with_the_os_reason(tmp_path):
+    (tmp_path / "a.xml").write_text("<mujoco/>")
+    path = tmp_path / "a.xml" / "b.xml"
+    with pytest.raises(mjk.ModelFileError) as err:
+        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+    assert str(err.value) == (
+        f"objects[0] ('o').mjcf_path: model file {path} cannot be read: Not a directory"
+    )
+
+
+def test_euler_quat_names_the_field_of_a_bad_vector():
+    with pytest.raises(mjk.SpecError) as err:
+        euler_quat([1, 2], "tool.tcp_euler")
+    assert str(err.value) == "tool.tcp_euler must have 3 values, got 2: [1, 2]"
