@@ -417,3 +417,133 @@ def test_rebuild_keeps_model_edits_applied_forces_and_eq_active(env_robot) -> No
     np.testing.assert_allclose(env.data.qpos, reference.qpos, rtol=0, atol=1e-12)
     np.testing.assert_allclose(env.data.qvel, reference.qvel, rtol=0, atol=1e-9)
     robot.update()
+
+
+# ---------------------------------------------------------------------- rebuild: unnamed elements
+
+# A robot whose first body and joint, three geoms and first actuator have no name, with a
+# mocap target, a ball joint, an activation state and an (inactive, unnamed) weld; no camera.
+RICH_ROBOT = """
+<mujoco model="rich">
+  <worldbody>
+    <body name="target" mocap="true" pos="0.5 0 0.5">
+      <geom type="sphere" size="0.01" contype="0" conaffinity="0"/>
+    </body>
+    <body pos="0 1 0.5">
+      <joint axis="0 0 1"/>
+      <geom type="sphere" size="0.02"/>
+      <geom type="sphere" size="0.02" pos="0.05 0 0"/>
+      <geom type="sphere" size="0.02" pos="0.1 0 0"/>
+      <body name="arm" pos="0 0 0.1">
+        <joint name="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
+        <body name="wrist" pos="0.2 0 0">
+          <joint name="ball" type="ball"/>
+          <geom type="sphere" size="0.02"/>
+          <body name="finger">
+            <joint name="slide" type="slide" axis="1 0 0"/>
+            <geom type="sphere" size="0.01"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <equality>
+    <weld body1="arm" body2="wrist" active="false"/>
+  </equality>
+  <actuator>
+    <motor joint="hinge"/>
+    <position name="servo" joint="hinge" kp="10"/>
+    <general name="integ" joint="hinge" dyntype="integrator" dynprm="1" gainprm="1"/>
+  </actuator>
+</mujoco>
+"""
+# An object with a slide joint and a motor of its own.
+GADGET = """
+<mujoco model="gadget">
+  <worldbody>
+    <body name="carriage">
+      <joint name="slide" type="slide" axis="0 0 1"/>
+      <geom type="box" size="0.02 0.02 0.02"/>
+    </body>
+  </worldbody>
+  <actuator><motor name="push" joint="slide"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def rich_files(tmp_path_factory) -> tuple[str, str]:
+    folder = tmp_path_factory.mktemp("rich")
+    (folder / "rich.xml").write_text(RICH_ROBOT)
+    (folder / "gadget.xml").write_text(GADGET)
+    return str(folder / "rich.xml"), str(folder / "gadget.xml")
+
+
+def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
+    robot_xml, gadget_xml = rich_files
+    crate = mjk.SceneObject(
+        name="crate", shape=mjk.Shape.BOX, size=[0.1] * 3, mass=1, pos=[1, 0, 1]
+    )
+    spec = base_spec(robots=[mjk.RobotSpec(path=robot_xml)], objects=[crate])
+    with mjk.Env.build(spec) as env:
+        m, d = env.model, env.data
+        assert m.ncam == 0 and m.nmocap == 1 and m.na == 1
+        unnamed_joint = int(np.flatnonzero(m.jnt_bodyid == m.body("arm").id - 1)[0])
+        adr = {n: m.joint(n).qposadr[0] for n in ("hinge", "ball", "slide")}
+        d.qpos[m.joint(unnamed_joint).qposadr[0]] = 0.4
+        d.qpos[adr["hinge"]] = 0.3
+        d.qpos[adr["ball"] : adr["ball"] + 4] = [0.5, 0.5, 0.5, 0.5]
+        d.qpos[adr["slide"]] = 0.07
+        d.ctrl[:] = [1.5, 0.25, -0.75]
+        d.act[0] = 0.125
+        d.mocap_pos[0] = [0.1, 0.2, 0.3]
+        d.mocap_quat[0] = [0, 1, 0, 0]
+        d.xfrc_applied[0] = [1, 2, 3, 4, 5, 6]  # the world body's (MuJoCo ignores it)
+        d.xfrc_applied[m.body("wrist").id] = [0, 0, 7, 0, 0, 0]
+        middle_geom = int(np.flatnonzero(m.geom_bodyid == m.body("arm").id - 1)[1])
+        m.geom_rgba[middle_geom] = [0.1, 0.2, 0.3, 0.4]
+        m.eq_solref[0] = [0.05, 0.5]
+        m.body_mass[m.body("crate").id] = 3.5
+        m.body_mass[m.body("target").id] = 0.75  # a world child after the new object
+
+        gadget = mjk.SceneObject(name="gadget", mjcf_path=gadget_xml, fixed=True, pos=[0, -1, 0])
+        env.add_object(gadget)  # its body and joint come before the robot's
+        m, d = env.model, env.data
+        adr = {n: m.joint(n).qposadr[0] for n in ("hinge", "ball", "slide", "gadget/slide")}
+        unnamed_joint = int(np.flatnonzero(m.jnt_bodyid == m.body("arm").id - 1)[0])
+        # unnamed joint and the new object's joint: MuJoCo's defaults (qpos0), nothing carried
+        unnamed_adr = m.joint(unnamed_joint).qposadr[0]
+        assert d.qpos[unnamed_adr] == m.qpos0[unnamed_adr] == 0.0
+        assert d.qpos[adr["gadget/slide"]] == 0.0
+        assert d.qpos[adr["hinge"]] == 0.3
+        assert list(d.qpos[adr["ball"] : adr["ball"] + 4]) == [0.5, 0.5, 0.5, 0.5]
+        assert d.qpos[adr["slide"]] == 0.07
+        names = [m.actuator(a).name for a in range(m.nu)]
+        assert names == ["gadget/push", "", "servo", "integ"]
+        assert list(d.ctrl) == [0.0, 0.0, 0.25, -0.75]  # the unnamed motor's is not carried
+        assert list(d.act) == [0.125]
+        assert list(d.mocap_pos[0]) == [0.1, 0.2, 0.3]
+        assert list(d.mocap_quat[0]) == [0, 1, 0, 0]
+        assert list(d.xfrc_applied[0]) == [1, 2, 3, 4, 5, 6]
+        assert list(d.xfrc_applied[m.body("wrist").id]) == [0, 0, 7, 0, 0, 0]
+        middle_geom = int(np.flatnonzero(m.geom_bodyid == m.body("arm").id - 1)[1])
+        assert m.geom_rgba[middle_geom].tolist() == pytest.approx([0.1, 0.2, 0.3, 0.4])
+        assert m.eq_solref[0].tolist() == [0.05, 0.5]
+        assert m.body_mass[m.body("crate").id] == 3.5
+        assert m.body_mass[m.body("target").id] == 0.75
+
+
+def test_joint_sizes_match_mujocos_addresses() -> None:
+    m = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1'/><body><joint type='ball'/>"
+        "<geom size='.1'/><body><joint type='slide'/><geom size='.1'/><body><joint/>"
+        "<geom size='.1'/><body><joint type='ball'/><geom size='.1'/></body></body></body>"
+        "</body></body></worldbody></mujoco>"
+    )
+    qend = [*m.jnt_qposadr[1:], m.nq]
+    vend = [*m.jnt_dofadr[1:], m.nv]
+    for j in range(m.njnt):
+        expected = (qend[j] - m.jnt_qposadr[j], vend[j] - m.jnt_dofadr[j])
+        assert mjk.scene.joint_sizes(int(m.jnt_type[j])) == expected, m.jnt_type[j]
+    assert [int(t) for t in m.jnt_type] == [0, 1, 2, 3, 1]
