@@ -565,3 +565,97 @@ def test_remove_object_leaves_an_earlier_spec_alone():
         assert [o.name for o in scene.spec.objects] == ["crate"]
         assert scene.spec.objects[0].mass == 1
         assert scene.spec.cameras == []
+
+
+# ---------------------------------------------------------------------- failure messages in full
+
+FAILED_TAIL = (
+    "The state is kept as it was for inspection; Env.reset() starts over (set "
+    "scene.auto_reset = True for MuJoCo's silent reset instead)."
+)
+
+
+def test_divergence_message_lists_every_warning_in_full():
+    unstable = "The simulation is unstable."
+    with _ball_env() as env:
+        env.data.qpos[0] = np.nan
+        env.data.qvel[2] = np.nan
+        with pytest.raises(mjk.SimulationError) as err:
+            env.step()
+    assert str(err.value) == (
+        f"the simulation failed by t = 0.01 s: Nan, Inf or huge value in QPOS at DOF 0. "
+        f"{unstable} (mjWARN_BADQPOS x1); Nan, Inf or huge value in QVEL at DOF 2. {unstable} "
+        f"(mjWARN_BADQVEL x1); Nan, Inf or huge value in QACC at DOF 0. {unstable} "
+        f"(mjWARN_BADQACC x1). {FAILED_TAIL}"
+    )
+
+
+FATAL_TAIL = (
+    "The data is left half-computed; Env.reset() starts over (a model's <size memory=...> sets "
+    "the arena)"
+)
+
+
+def test_fatal_error_message_in_full(monkeypatch):
+    def fatal(message):
+        def mj_step(m, d, n=1):
+            d.time += 0.25
+            raise mujoco.FatalError(message)
+
+        return mj_step
+
+    with _small_scene() as scene:
+        monkeypatch.setattr(mujoco, "mj_step", fatal("mj_stackAlloc: out of memory\nmore\n"))
+        with pytest.raises(mjk.SimulationError) as err:
+            scene.step()
+        assert str(err.value) == (
+            f"MuJoCo stopped the simulation at t = 0.25 s: mj_stackAlloc: out of memory. "
+            f"{FATAL_TAIL}"
+        )
+        assert (err.value.time, err.value.warnings) == (0.25, {})
+        monkeypatch.setattr(mujoco, "mj_step", fatal("  "))  # MuJoCo said nothing
+        with pytest.raises(mjk.SimulationError) as err:
+            scene.step()
+        expected = f"MuJoCo stopped the simulation at t = 0.5 s: fatal error. {FATAL_TAIL}"
+        assert str(err.value) == expected
+
+
+# ---------------------------------------------------------------------- placing bodies
+
+PLACES = """
+<mujoco>
+  <worldbody>
+    <body name="target" mocap="true" pos="0 0 1">
+      <geom size=".01" contype="0" conaffinity="0"/>
+    </body>
+    <body name="first" pos="1 0 0"><freejoint name="first"/><geom size=".1"/></body>
+    <body name="second" pos="2 0 0"><freejoint name="second"/><geom size=".1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_set_body_pose_of_a_mocap_body_and_a_free_body_before_another():
+    with mjk.Scene(base_spec(), mujoco.MjModel.from_xml_string(PLACES)) as scene:
+        m, d = scene.model, scene.data
+        assert m.body_mocapid[m.body("target").id] == 0
+        scene.set_body_pose("target", [0.1, 0.2, 0.3], [0.0, 0.0, 0.0, 2.0])
+        assert d.mocap_pos[0].tolist() == [0.1, 0.2, 0.3]
+        assert d.mocap_quat[0].tolist() == [0.0, 0.0, 0.0, 1.0]
+        scene.set_body_pose("target", [0.4, 0.5, 0.6])  # quat=None keeps the orientation
+        assert d.mocap_pos[0].tolist() == [0.4, 0.5, 0.6]
+        assert d.mocap_quat[0].tolist() == [0.0, 0.0, 0.0, 1.0]
+
+        second = d.qpos[7:14].copy()
+        d.qvel[6:12] = 0.5
+        scene.set_body_pose("first", [1.0, 1.0, 1.0], [1e-12, 0.0, 0.0, 0.0])  # tiny: allowed
+        assert d.qpos[:7].tolist() == [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+        assert d.qpos[7:14].tolist() == second.tolist()
+        assert d.qvel[6:12].tolist() == [0.5] * 6
+
+        message = (
+            "set_body_pose('world'): body has no free joint (only free objects and mocap bodies "
+            "can be placed)"
+        )
+        with pytest.raises(mjk.SpecError, match=f"^{re.escape(message)}$"):
+            scene.set_body_pose("world", [0, 0, 0])
