@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import gc
+import re
 import weakref
 
 import mujoco
@@ -241,7 +242,9 @@ def test_two_hundred_rebuilds_do_not_grow_memory(tmp_path) -> None:
 
 def test_every_call_on_a_closed_env_raises(env_robot) -> None:
     env, robot = env_robot
+    env.on_reset = lambda ctx: None
     env.close()
+    assert env.on_reset is None  # the hook is dropped with the model
     env.close()  # twice is harmless
     calls = [
         lambda: env.model,
@@ -547,3 +550,51 @@ def test_joint_sizes_match_mujocos_addresses() -> None:
         expected = (qend[j] - m.jnt_qposadr[j], vend[j] - m.jnt_dofadr[j])
         assert mjk.scene.joint_sizes(int(m.jnt_type[j])) == expected, m.jnt_type[j]
     assert [int(t) for t in m.jnt_type] == [0, 1, 2, 3, 1]
+
+
+# ---------------------------------------------------------------- keyframes and hooks, in full
+
+
+def test_keyframe_id_accepts_names_and_in_range_integers_only(tutorial_scene) -> None:
+    env = tutorial_scene(mjk.Env)
+    m = env.model
+    assert [m.key(k).name for k in range(m.nkey)] == ["home", "retract"]
+    assert env.keyframe_id("retract") == 1
+    assert env.keyframe_id(np.int64(1)) == 1
+    for key in (2, -1, True, 1.0, "7"):
+        with pytest.raises(mjk.UnknownNameError) as err:
+            env.keyframe_id(key)
+        where = " in the scene" if isinstance(key, str) else " in the scene (2 keyframes)"
+        assert err.value.args[0] == f"no keyframe named '{key}'{where}; known: home, retract"
+    message = "reset() takes ResetOptions, got dict"
+    with pytest.raises(mjk.SpecError, match=f"^{re.escape(message)}$"):
+        env.reset({"keyframe": "home"})
+
+
+class _Hook:
+    def __call__(self, ctx: mjk.ResetContext) -> None:
+        raise ValueError("cube missing")
+
+    def __repr__(self) -> str:
+        return "Hook()"
+
+
+def test_hook_error_names_the_hooks_module_and_qualified_name(tutorial_scene) -> None:
+    env = tutorial_scene(mjk.Env)
+
+    def broken_hook(ctx: mjk.ResetContext) -> None:
+        raise ValueError("cube missing")
+
+    where = f"{__name__}.test_hook_error_names_the_hooks_module_and_qualified_name.<locals>"
+    nowhere = eval("lambda ctx: 1 / 0", {"__name__": "not_a_module"})  # no module to find
+    cases = [
+        (broken_hook, f"{where}.broken_hook raised ValueError: cube missing"),
+        (_Hook(), f"{__name__}.Hook() raised ValueError: cube missing"),  # no __qualname__
+        (nowhere, "<lambda> raised ZeroDivisionError: division by zero"),
+    ]
+    for hook, text in cases:
+        env.on_reset = hook
+        with pytest.raises(mjk.ResetHookError) as err:
+            env.reset()
+        assert err.value.args[0] == f"reset hook {text}"
+        assert type(err.value.__cause__) is (ZeroDivisionError if hook is nowhere else ValueError)
