@@ -598,3 +598,67 @@ def test_hook_error_names_the_hooks_module_and_qualified_name(tutorial_scene) ->
             env.reset()
         assert err.value.args[0] == f"reset hook {text}"
         assert type(err.value.__cause__) is (ZeroDivisionError if hook is nowhere else ValueError)
+
+
+# ---------------------------------------------------------------------- a robot on an object
+
+SERVOS = (
+    '<actuator><position name="s1" joint="j1" kp="50" ctrlrange="-1 1"/>'
+    '<position name="s2" joint="j2" kp="20" kv="2"/></actuator>'
+)
+
+
+@pytest.fixture(scope="module")
+def arm_object_xml(tmp_path_factory) -> str:
+    path = tmp_path_factory.mktemp("arm") / "arm.xml"
+    path.write_text(two_link_arm(SERVOS))
+    return str(path)
+
+
+def _arm_object_env(arm_object_xml: str) -> tuple[mjk.Env, mjk.Robot]:
+    arm = mjk.SceneObject(name="arm", mjcf_path=arm_object_xml, fixed=True)
+    env = mjk.Env.build(base_spec(objects=[arm]))
+    return env, env.create_robot("base", "l2", prefix="arm/")
+
+
+def test_closing_a_robot_gives_its_actuators_back_as_authored(arm_object_xml) -> None:
+    authored = mujoco.MjModel.from_xml_string(two_link_arm(SERVOS))
+    env, robot = _arm_object_env(arm_object_xml)
+    with env:
+        m = env.model
+        robot.ctrl_mode = mjk.CtrlMode.TORQUE
+        robot.update()
+        env.step()
+        assert m.actuator_biasprm[:, :3].tolist() == [[0.0] * 3] * 2  # a motor now
+        assert m.actuator_ctrllimited.tolist() == [0, 0]
+        robot.close()
+        for field in ("gaintype", "biastype", "gainprm", "biasprm", "ctrllimited"):
+            name = f"actuator_{field}"
+            assert getattr(m, name).tolist() == getattr(authored, name).tolist(), field
+        assert m.actuator_biasprm[:, :3].tolist() == [[0.0, -50.0, 0.0], [0.0, -20.0, -2.0]]
+        assert m.actuator_ctrllimited.tolist() == [1, 0]
+        other = mjk.Env.build(base_spec())
+        with other, pytest.raises(mjk.SpecError) as err:
+            other.remove_robot(robot)
+        assert err.value.args[0] == "remove_robot: this Robot is not registered with this scene"
+
+
+def test_a_rebuild_that_removes_a_robots_chain_keeps_the_old_model(arm_object_xml) -> None:
+    env, robot = _arm_object_env(arm_object_xml)
+    with env:
+        model, data, spec = env.model, env.data, env.spec
+        robot.ctrl_mode = mjk.CtrlMode.TORQUE
+        robot.jnt_trq_cmd = [0.5, -0.25]
+        message = "no body named 'arm/base' in the model; known: world"
+        with pytest.raises(mjk.UnknownNameError, match=f"^{re.escape(message)}$"):
+            env.remove_object("arm")
+        assert env.model is model and env.data is data and env.spec is spec
+        assert [o.name for o in env.spec.objects] == ["arm"]
+        robot.step()  # the handle drives the old model's actuators
+        assert data.ctrl.tolist() == [0.5, -0.25]
+        assert model.actuator_gainprm[:, 0].tolist() == [1.0, 1.0]
+        robot.update()
+        assert robot.jnt_pos_msr.tolist() == data.qpos.tolist()
+        data.qvel[0] = np.nan
+        with pytest.raises(mjk.SimulationError, match="mjWARN_BADQVEL"):
+            env.step()  # the fault counters watch the old data again
