@@ -662,3 +662,16 @@ def test_a_rebuild_that_removes_a_robots_chain_keeps_the_old_model(arm_object_xm
         data.qvel[0] = np.nan
         with pytest.raises(mjk.SimulationError, match="mjWARN_BADQVEL"):
             env.step()  # the fault counters watch the old data again
+
+
+def test_a_body_that_became_mocap_in_the_file_starts_where_the_file_puts_it(tmp_path) -> None:
+    path = tmp_path / "stand.xml"
+    body = '<body name="target" pos="0.5 0 0.5"{}><geom size="0.01" contype="0"/></body>'
+    xml = "<mujoco><worldbody><body name='post'><geom size='0.1'/></body>{}</worldbody></mujoco>"
+    path.write_text(xml.format(body.format("")))
+    with mjk.Env.build(base_spec(robots=[mjk.RobotSpec(path=str(path))])) as env:
+        assert env.model.nmocap == 0
+        path.write_text(xml.format(body.format(' mocap="true"')))  # edited on disk meanwhile
+        env.add_object(_obstacle())  # recompiles the robot from its file
+        assert env.model.nmocap == 1
+        assert env.data.mocap_pos[0].tolist() == [0.5, 0.0, 0.5]
