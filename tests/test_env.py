@@ -675,3 +675,15 @@ def test_a_body_that_became_mocap_in_the_file_starts_where_the_file_puts_it(tmp_
         env.add_object(_obstacle())  # recompiles the robot from its file
         assert env.model.nmocap == 1
         assert env.data.mocap_pos[0].tolist() == [0.5, 0.0, 0.5]
+
+
+def test_a_rebuild_keeps_run_time_option_edits_and_takes_the_files_new_options(tmp_path) -> None:
+    path = tmp_path / "post.xml"
+    xml = "<mujoco><option impratio='{}'/><worldbody><body name='post'><geom size='0.1'/></body>"
+    path.write_text(xml.format(5) + "</worldbody></mujoco>")
+    with mjk.Env.build(base_spec(robots=[mjk.RobotSpec(path=str(path))])) as env:
+        assert env.model.opt.impratio == 5.0
+        env.model.opt.timestep = 0.001  # a run-time edit
+        path.write_text(xml.format(7) + "</worldbody></mujoco>")  # edited on disk meanwhile
+        env.add_object(_obstacle())
+        assert (env.model.opt.timestep, env.model.opt.impratio) == (0.001, 7.0)
