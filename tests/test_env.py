@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import gc
+import re
 import weakref
 
 import mujoco
@@ -241,7 +242,9 @@ def test_two_hundred_rebuilds_do_not_grow_memory(tmp_path) -> None:
 
 def test_every_call_on_a_closed_env_raises(env_robot) -> None:
     env, robot = env_robot
+    env.on_reset = lambda ctx: None
     env.close()
+    assert env.on_reset is None  # the hook is dropped with the model
     env.close()  # twice is harmless
     calls = [
         lambda: env.model,
@@ -417,3 +420,270 @@ def test_rebuild_keeps_model_edits_applied_forces_and_eq_active(env_robot) -> No
     np.testing.assert_allclose(env.data.qpos, reference.qpos, rtol=0, atol=1e-12)
     np.testing.assert_allclose(env.data.qvel, reference.qvel, rtol=0, atol=1e-9)
     robot.update()
+
+
+# ---------------------------------------------------------------------- rebuild: unnamed elements
+
+# A robot whose first body and joint, three geoms and first actuator have no name, with a
+# mocap target, a ball joint, an activation state and an (inactive, unnamed) weld; no camera.
+RICH_ROBOT = """
+<mujoco model="rich">
+  <worldbody>
+    <body name="target" mocap="true" pos="0.5 0 0.5">
+      <geom type="sphere" size="0.01" contype="0" conaffinity="0"/>
+    </body>
+    <body pos="0 1 0.5">
+      <joint axis="0 0 1"/>
+      <geom type="sphere" size="0.02"/>
+      <geom type="sphere" size="0.02" pos="0.05 0 0"/>
+      <geom type="sphere" size="0.02" pos="0.1 0 0"/>
+      <body name="arm" pos="0 0 0.1">
+        <joint name="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
+        <body name="wrist" pos="0.2 0 0">
+          <joint name="ball" type="ball"/>
+          <geom type="sphere" size="0.02"/>
+          <body name="finger">
+            <joint name="slide" type="slide" axis="1 0 0"/>
+            <geom type="sphere" size="0.01"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <equality>
+    <weld body1="arm" body2="wrist" active="false"/>
+  </equality>
+  <actuator>
+    <motor joint="hinge"/>
+    <position name="servo" joint="hinge" kp="10"/>
+    <general name="integ" joint="hinge" dyntype="integrator" dynprm="1" gainprm="1"/>
+  </actuator>
+</mujoco>
+"""
+# An object with a slide joint and a motor of its own.
+GADGET = """
+<mujoco model="gadget">
+  <worldbody>
+    <body name="carriage">
+      <joint name="slide" type="slide" axis="0 0 1"/>
+      <geom type="box" size="0.02 0.02 0.02"/>
+    </body>
+  </worldbody>
+  <actuator><motor name="push" joint="slide"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def rich_files(tmp_path_factory) -> tuple[str, str]:
+    folder = tmp_path_factory.mktemp("rich")
+    (folder / "rich.xml").write_text(RICH_ROBOT)
+    (folder / "gadget.xml").write_text(GADGET)
+    return str(folder / "rich.xml"), str(folder / "gadget.xml")
+
+
+def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
+    robot_xml, gadget_xml = rich_files
+    crate = mjk.SceneObject(
+        name="crate", shape=mjk.Shape.BOX, size=[0.1] * 3, mass=1, pos=[1, 0, 1]
+    )
+    spec = base_spec(robots=[mjk.RobotSpec(path=robot_xml)], objects=[crate])
+    with mjk.Env.build(spec) as env:
+        m, d = env.model, env.data
+        assert m.ncam == 0 and m.nmocap == 1 and m.na == 1
+        unnamed_joint = int(np.flatnonzero(m.jnt_bodyid == m.body("arm").id - 1)[0])
+        adr = {n: m.joint(n).qposadr[0] for n in ("hinge", "ball", "slide")}
+        d.qpos[m.joint(unnamed_joint).qposadr[0]] = 0.4
+        d.qpos[adr["hinge"]] = 0.3
+        d.qpos[adr["ball"] : adr["ball"] + 4] = [0.5, 0.5, 0.5, 0.5]
+        d.qpos[adr["slide"]] = 0.07
+        d.ctrl[:] = [1.5, 0.25, -0.75]
+        d.act[0] = 0.125
+        d.mocap_pos[0] = [0.1, 0.2, 0.3]
+        d.mocap_quat[0] = [0, 1, 0, 0]
+        d.xfrc_applied[0] = [1, 2, 3, 4, 5, 6]  # the world body's (MuJoCo ignores it)
+        d.xfrc_applied[m.body("wrist").id] = [0, 0, 7, 0, 0, 0]
+        middle_geom = int(np.flatnonzero(m.geom_bodyid == m.body("arm").id - 1)[1])
+        m.geom_rgba[middle_geom] = [0.1, 0.2, 0.3, 0.4]
+        m.eq_solref[0] = [0.05, 0.5]
+        m.body_mass[m.body("crate").id] = 3.5
+        m.body_mass[m.body("target").id] = 0.75  # a world child after the new object
+
+        gadget = mjk.SceneObject(name="gadget", mjcf_path=gadget_xml, fixed=True, pos=[0, -1, 0])
+        env.add_object(gadget)  # its body and joint come before the robot's
+        m, d = env.model, env.data
+        adr = {n: m.joint(n).qposadr[0] for n in ("hinge", "ball", "slide", "gadget/slide")}
+        unnamed_joint = int(np.flatnonzero(m.jnt_bodyid == m.body("arm").id - 1)[0])
+        # unnamed joint and the new object's joint: MuJoCo's defaults (qpos0), nothing carried
+        unnamed_adr = m.joint(unnamed_joint).qposadr[0]
+        assert d.qpos[unnamed_adr] == m.qpos0[unnamed_adr] == 0.0
+        assert d.qpos[adr["gadget/slide"]] == 0.0
+        assert d.qpos[adr["hinge"]] == 0.3
+        assert list(d.qpos[adr["ball"] : adr["ball"] + 4]) == [0.5, 0.5, 0.5, 0.5]
+        assert d.qpos[adr["slide"]] == 0.07
+        names = [m.actuator(a).name for a in range(m.nu)]
+        assert names == ["gadget/push", "", "servo", "integ"]
+        assert list(d.ctrl) == [0.0, 0.0, 0.25, -0.75]  # the unnamed motor's is not carried
+        assert list(d.act) == [0.125]
+        assert list(d.mocap_pos[0]) == [0.1, 0.2, 0.3]
+        assert list(d.mocap_quat[0]) == [0, 1, 0, 0]
+        assert list(d.xfrc_applied[0]) == [1, 2, 3, 4, 5, 6]
+        assert list(d.xfrc_applied[m.body("wrist").id]) == [0, 0, 7, 0, 0, 0]
+        middle_geom = int(np.flatnonzero(m.geom_bodyid == m.body("arm").id - 1)[1])
+        assert m.geom_rgba[middle_geom].tolist() == pytest.approx([0.1, 0.2, 0.3, 0.4])
+        assert m.eq_solref[0].tolist() == [0.05, 0.5]
+        assert m.body_mass[m.body("crate").id] == 3.5
+        assert m.body_mass[m.body("target").id] == 0.75
+
+
+def test_joint_sizes_match_mujocos_addresses() -> None:
+    m = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1'/><body><joint type='ball'/>"
+        "<geom size='.1'/><body><joint type='slide'/><geom size='.1'/><body><joint/>"
+        "<geom size='.1'/><body><joint type='ball'/><geom size='.1'/></body></body></body>"
+        "</body></body></worldbody></mujoco>"
+    )
+    qend = [*m.jnt_qposadr[1:], m.nq]
+    vend = [*m.jnt_dofadr[1:], m.nv]
+    for j in range(m.njnt):
+        expected = (qend[j] - m.jnt_qposadr[j], vend[j] - m.jnt_dofadr[j])
+        assert mjk.scene.joint_sizes(int(m.jnt_type[j])) == expected, m.jnt_type[j]
+    assert [int(t) for t in m.jnt_type] == [0, 1, 2, 3, 1]
+
+
+# ---------------------------------------------------------------- keyframes and hooks, in full
+
+
+def test_keyframe_id_accepts_names_and_in_range_integers_only(tutorial_scene) -> None:
+    env = tutorial_scene(mjk.Env)
+    m = env.model
+    assert [m.key(k).name for k in range(m.nkey)] == ["home", "retract"]
+    assert env.keyframe_id("retract") == 1
+    assert env.keyframe_id(np.int64(1)) == 1
+    for key in (2, -1, True, 1.0, "7"):
+        with pytest.raises(mjk.UnknownNameError) as err:
+            env.keyframe_id(key)
+        where = " in the scene" if isinstance(key, str) else " in the scene (2 keyframes)"
+        assert err.value.args[0] == f"no keyframe named '{key}'{where}; known: home, retract"
+    message = "reset() takes ResetOptions, got dict"
+    with pytest.raises(mjk.SpecError, match=f"^{re.escape(message)}$"):
+        env.reset({"keyframe": "home"})
+
+
+class _Hook:
+    def __call__(self, ctx: mjk.ResetContext) -> None:
+        raise ValueError("cube missing")
+
+    def __repr__(self) -> str:
+        return "Hook()"
+
+
+def test_hook_error_names_the_hooks_module_and_qualified_name(tutorial_scene) -> None:
+    env = tutorial_scene(mjk.Env)
+
+    def broken_hook(ctx: mjk.ResetContext) -> None:
+        raise ValueError("cube missing")
+
+    where = f"{__name__}.test_hook_error_names_the_hooks_module_and_qualified_name.<locals>"
+    nowhere = eval("lambda ctx: 1 / 0", {"__name__": "not_a_module"})  # no module to find
+    cases = [
+        (broken_hook, f"{where}.broken_hook raised ValueError: cube missing"),
+        (_Hook(), f"{__name__}.Hook() raised ValueError: cube missing"),  # no __qualname__
+        (nowhere, "<lambda> raised ZeroDivisionError: division by zero"),
+    ]
+    for hook, text in cases:
+        env.on_reset = hook
+        with pytest.raises(mjk.ResetHookError) as err:
+            env.reset()
+        assert err.value.args[0] == f"reset hook {text}"
+        assert type(err.value.__cause__) is (ZeroDivisionError if hook is nowhere else ValueError)
+
+
+# ---------------------------------------------------------------------- a robot on an object
+
+SERVOS = (
+    '<actuator><position name="s1" joint="j1" kp="50" ctrlrange="-1 1"/>'
+    '<position name="s2" joint="j2" kp="20" kv="2"/></actuator>'
+)
+
+
+@pytest.fixture(scope="module")
+def arm_object_xml(tmp_path_factory) -> str:
+    path = tmp_path_factory.mktemp("arm") / "arm.xml"
+    path.write_text(two_link_arm(SERVOS))
+    return str(path)
+
+
+def _arm_object_env(arm_object_xml: str) -> tuple[mjk.Env, mjk.Robot]:
+    arm = mjk.SceneObject(name="arm", mjcf_path=arm_object_xml, fixed=True)
+    env = mjk.Env.build(base_spec(objects=[arm]))
+    return env, env.create_robot("base", "l2", prefix="arm/")
+
+
+def test_closing_a_robot_gives_its_actuators_back_as_authored(arm_object_xml) -> None:
+    authored = mujoco.MjModel.from_xml_string(two_link_arm(SERVOS))
+    env, robot = _arm_object_env(arm_object_xml)
+    with env:
+        m = env.model
+        robot.ctrl_mode = mjk.CtrlMode.TORQUE
+        robot.update()
+        env.step()
+        assert m.actuator_biasprm[:, :3].tolist() == [[0.0] * 3] * 2  # a motor now
+        assert m.actuator_ctrllimited.tolist() == [0, 0]
+        robot.close()
+        for field in ("gaintype", "biastype", "gainprm", "biasprm", "ctrllimited"):
+            name = f"actuator_{field}"
+            assert getattr(m, name).tolist() == getattr(authored, name).tolist(), field
+        assert m.actuator_biasprm[:, :3].tolist() == [[0.0, -50.0, 0.0], [0.0, -20.0, -2.0]]
+        assert m.actuator_ctrllimited.tolist() == [1, 0]
+        other = mjk.Env.build(base_spec())
+        with other, pytest.raises(mjk.SpecError) as err:
+            other.remove_robot(robot)
+        assert err.value.args[0] == "remove_robot: this Robot is not registered with this scene"
+
+
+def test_a_rebuild_that_removes_a_robots_chain_keeps_the_old_model(arm_object_xml) -> None:
+    env, robot = _arm_object_env(arm_object_xml)
+    with env:
+        model, data, spec = env.model, env.data, env.spec
+        robot.ctrl_mode = mjk.CtrlMode.TORQUE
+        robot.jnt_trq_cmd = [0.5, -0.25]
+        message = "no body named 'arm/base' in the model; known: world"
+        with pytest.raises(mjk.UnknownNameError, match=f"^{re.escape(message)}$"):
+            env.remove_object("arm")
+        assert env.model is model and env.data is data and env.spec is spec
+        assert [o.name for o in env.spec.objects] == ["arm"]
+        robot.step()  # the handle drives the old model's actuators
+        assert data.ctrl.tolist() == [0.5, -0.25]
+        assert model.actuator_gainprm[:, 0].tolist() == [1.0, 1.0]
+        robot.update()
+        assert robot.jnt_pos_msr.tolist() == data.qpos.tolist()
+        data.qvel[0] = np.nan
+        with pytest.raises(mjk.SimulationError, match="mjWARN_BADQVEL"):
+            env.step()  # the fault counters watch the old data again
+
+
+def test_a_body_that_became_mocap_in_the_file_starts_where_the_file_puts_it(tmp_path) -> None:
+    path = tmp_path / "stand.xml"
+    body = '<body name="target" pos="0.5 0 0.5"{}><geom size="0.01" contype="0"/></body>'
+    xml = "<mujoco><worldbody><body name='post'><geom size='0.1'/></body>{}</worldbody></mujoco>"
+    path.write_text(xml.format(body.format("")))
+    with mjk.Env.build(base_spec(robots=[mjk.RobotSpec(path=str(path))])) as env:
+        assert env.model.nmocap == 0
+        path.write_text(xml.format(body.format(' mocap="true"')))  # edited on disk meanwhile
+        env.add_object(_obstacle())  # recompiles the robot from its file
+        assert env.model.nmocap == 1
+        assert env.data.mocap_pos[0].tolist() == [0.5, 0.0, 0.5]
+
+
+def test_a_rebuild_keeps_run_time_option_edits_and_takes_the_files_new_options(tmp_path) -> None:
+    path = tmp_path / "post.xml"
+    xml = "<mujoco><option impratio='{}'/><worldbody><body name='post'><geom size='0.1'/></body>"
+    path.write_text(xml.format(5) + "</worldbody></mujoco>")
+    with mjk.Env.build(base_spec(robots=[mjk.RobotSpec(path=str(path))])) as env:
+        assert env.model.opt.impratio == 5.0
+        env.model.opt.timestep = 0.001  # a run-time edit
+        path.write_text(xml.format(7) + "</worldbody></mujoco>")  # edited on disk meanwhile
+        env.add_object(_obstacle())
+        assert (env.model.opt.timestep, env.model.opt.impratio) == (0.001, 7.0)

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import mujoco
@@ -14,6 +16,7 @@ import pytest
 from conftest import ROOT, base_spec
 
 import mjkdl as mjk
+from mjkdl import scene as scene_module
 
 CUBE_POSE = [0.35, 0.10, 0.725, 1.0, 0.0, 0.0, 0.0]
 
@@ -49,9 +52,10 @@ def test_clock(tutorial_scene):
     assert scene.time() == pytest.approx(14 * 0.002, abs=1e-12)
 
 
-@pytest.mark.parametrize("n", [-1, 2.5, "3"])
+@pytest.mark.parametrize("n", [-1, 2.5, "3", 2.0, 1.0])
 def test_step_rejects_bad_counts(n):
-    with _small_scene() as scene, pytest.raises(ValueError, match=r"step\(n\)"):
+    message = f"step(n): n must be a non-negative integer, got {n!r}"
+    with _small_scene() as scene, pytest.raises(mjk.SpecError, match=f"^{re.escape(message)}$"):
         scene.step(n)
     assert scene.closed
 
@@ -399,3 +403,259 @@ def test_contact_overflow_and_arena_exhaustion_are_simulation_errors():
             scene.step(3)  # MuJoCo raises its own FatalError here
         assert not isinstance(err.value, mujoco.FatalError)
         assert err.value.time == pytest.approx(0.002, abs=1e-12)  # after the first step
+
+
+# ---------------------------------------------------------------------- MuJoCo's log, in-process
+
+
+@pytest.fixture
+def log_config():
+    """MuJoCo's log configuration, put back as it was after the test."""
+    config = mujoco.MjLogConfig.get()
+    saved = (config.logfile, config.logto_file)
+    yield
+    config = mujoco.MjLogConfig.get()
+    config.logfile, config.logto_file = saved
+    config.set()
+
+
+def _route_from(logfile: str) -> mujoco.MjLogConfig:
+    config = mujoco.MjLogConfig.get()
+    config.logfile, config.logto_file = logfile, True
+    config.set()
+    scene_module._route_mujoco_log()
+    return mujoco.MjLogConfig.get()
+
+
+def test_mujoco_log_is_routed_from_mujocos_default_only(log_config, tmp_path, monkeypatch):
+    monkeypatch.delenv("MJKDL_MUJOCO_LOG", raising=False)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    default = tmp_path / f"mjkdl-{os.getuid()}" / "MUJOCO_LOG.TXT"
+    for _ in range(2):  # the second time the folder exists already
+        config = _route_from("MUJOCO_LOG.TXT")
+        assert (config.logfile, config.logto_file) == (str(default), True)
+        assert default.parent.is_dir()
+        assert mjk.mujoco_log_path() == str(default)
+    config = _route_from(str(tmp_path / "mine.txt"))  # the user's own choice is kept
+    assert (config.logfile, config.logto_file) == (str(tmp_path / "mine.txt"), True)
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MJKDL_MUJOCO_LOG", os.path.join("logs", "deep", "m.txt"))
+    config = _route_from("MUJOCO_LOG.TXT")
+    assert (config.logfile, config.logto_file) == (str(tmp_path / "logs" / "deep" / "m.txt"), True)
+    assert (tmp_path / "logs" / "deep").is_dir()
+
+    (tmp_path / "plain").write_text("")  # a file where the folder should be: no log file
+    monkeypatch.setenv("MJKDL_MUJOCO_LOG", str(tmp_path / "plain" / "m.txt"))
+    config = _route_from("MUJOCO_LOG.TXT")
+    assert (config.logfile, config.logto_file) == (str(tmp_path / "plain" / "m.txt"), False)
+
+    monkeypatch.delenv("MJKDL_MUJOCO_LOG")
+    monkeypatch.delattr(os, "getuid")  # as on Windows
+    config = _route_from("MUJOCO_LOG.TXT")
+    assert (config.logfile, config.logto_file) == (str(tmp_path / "mjkdl" / "MUJOCO_LOG.TXT"), True)
+
+
+# ---------------------------------------------------------------------- construction and messages
+
+
+def test_compiled_model_keeps_its_own_disable_flags():
+    xml = (
+        "<mujoco><option><flag gravity='disable' contact='disable'/></option>"
+        "<worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>"
+    )
+    authored = mujoco.MjModel.from_xml_string(xml).opt.disableflags
+    bits = mujoco.mjtDisableBit
+    assert authored == bits.mjDSBL_GRAVITY | bits.mjDSBL_CONTACT
+    with mjk.Scene(base_spec(), mujoco.MjModel.from_xml_string(xml)) as scene:
+        assert scene.model.opt.disableflags == authored | bits.mjDSBL_AUTORESET
+
+
+class _FakeRobot:
+    def _release(self, why: str = "") -> None:
+        pass
+
+
+def test_create_robot_calls_the_registered_factory(monkeypatch):
+    monkeypatch.setattr(scene_module, "_robot_factory", None)
+    with _small_scene() as scene:
+        message = "import mjkdl (or mjkdl.robot) to create robots"
+        with pytest.raises(RuntimeError, match=f"^{re.escape(message)}$"):
+            scene.create_robot("base", "tip")
+        calls = []
+        handle = _FakeRobot()
+
+        def factory(*args, **kwargs):
+            calls.append((args, kwargs))
+            return handle
+
+        scene_module.register_robot_factory(factory)
+        tool = mjk.ToolFrameSpec(tcp_pos=[0, 0, 0.1])
+        assert scene.create_robot("base", "tip", prefix="p_", tool=tool) is handle
+        assert calls == [((scene, "base", "tip"), {"prefix": "p_", "tool": tool})]
+
+
+def test_closed_scene_names_its_class():
+    scene = _small_scene()
+    scene.close()
+    with pytest.raises(RuntimeError, match=r"^this Scene is closed$"):
+        scene.forward()
+    env = mjk.Env.build(base_spec())
+    env.close()
+    with pytest.raises(RuntimeError, match=r"^this Env is closed$"):
+        env.forward()
+
+
+def test_type_errors_name_the_type_given(tutorial_scene):
+    with pytest.raises(mjk.SpecError, match=r"^build\(\) takes a SceneSpec, got dict$"):
+        mjk.Scene.build({"timestep": 0.002})
+    scene = tutorial_scene()
+    message = r"^add_object\(\) takes a SceneObject, got str$"
+    with pytest.raises(mjk.SpecError, match=message):
+        scene.add_object("cube")
+    message = "no object named 'cub' in the scene spec; close matches: cube"
+    with pytest.raises(mjk.UnknownNameError) as err:
+        scene.remove_object("cub")
+    assert err.value.args[0] == message
+    with pytest.raises(mjk.UnknownNameError) as err:
+        scene.body_id("nope")
+    assert err.value.args[0] == "no body named 'nope' in the scene"
+    with pytest.raises(mjk.UnknownNameError) as err:
+        scene.actuator_id("joint_9")
+    assert err.value.args[0].startswith("no actuator named 'joint_9' in the scene; close matches")
+
+
+def test_camera_names_are_mujocos(tutorial_scene):
+    scene = tutorial_scene()
+    m = scene.model
+    expected = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_CAMERA, i) for i in range(m.ncam)]
+    assert expected == ["task", "wrist"]
+    assert scene.camera_names() == expected
+
+
+@pytest.mark.parametrize("value", ["abc", None, [1.0, 2.0]])
+def test_set_actuator_ctrl_rejects_non_numbers(tutorial_scene, value):
+    scene = tutorial_scene()
+    message = f"set_actuator_ctrl('joint_1'): value must be a finite number, got {value!r}"
+    with pytest.raises(mjk.SpecError, match=f"^{re.escape(message)}$"):
+        scene.set_actuator_ctrl("joint_1", value)
+    assert scene.data.ctrl[scene.actuator_id("joint_1")] == 0.0
+
+
+def test_add_object_keeps_a_private_copy_of_the_object():
+    crate = mjk.SceneObject(
+        name="crate", shape=mjk.Shape.BOX, size=[0.1, 0.1, 0.1], mass=1, pos=[1, 0, 1]
+    )
+    with _small_scene() as scene:
+        scene.add_object(crate)
+        crate.pos[0] = 5.0
+        crate.size[1] = 0.5
+        assert scene.spec.objects[-1].pos == [1, 0, 1]
+        assert scene.spec.objects[-1].size == [0.1, 0.1, 0.1]
+
+
+def test_remove_object_leaves_an_earlier_spec_alone():
+    ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.05], mass=0.2)
+    crate = mjk.SceneObject(name="crate", shape=mjk.Shape.BOX, size=[0.1] * 3, mass=1)
+    with mjk.Scene.build(base_spec(objects=[ball, crate])) as scene:
+        earlier = scene.spec
+        scene.remove_object("ball")
+        earlier.objects[1].mass = 9.0  # not the scene's spec any more
+        earlier.cameras.append(mjk.CameraSpec(name="late", pos=[0, 0, 1]))
+        assert [o.name for o in scene.spec.objects] == ["crate"]
+        assert scene.spec.objects[0].mass == 1
+        assert scene.spec.cameras == []
+
+
+# ---------------------------------------------------------------------- failure messages in full
+
+FAILED_TAIL = (
+    "The state is kept as it was for inspection; Env.reset() starts over (set "
+    "scene.auto_reset = True for MuJoCo's silent reset instead)."
+)
+
+
+def test_divergence_message_lists_every_warning_in_full():
+    unstable = "The simulation is unstable."
+    with _ball_env() as env:
+        env.data.qpos[0] = np.nan
+        env.data.qvel[2] = np.nan
+        with pytest.raises(mjk.SimulationError) as err:
+            env.step()
+    assert str(err.value) == (
+        f"the simulation failed by t = 0.01 s: Nan, Inf or huge value in QPOS at DOF 0. "
+        f"{unstable} (mjWARN_BADQPOS x1); Nan, Inf or huge value in QVEL at DOF 2. {unstable} "
+        f"(mjWARN_BADQVEL x1); Nan, Inf or huge value in QACC at DOF 0. {unstable} "
+        f"(mjWARN_BADQACC x1). {FAILED_TAIL}"
+    )
+
+
+FATAL_TAIL = (
+    "The data is left half-computed; Env.reset() starts over (a model's <size memory=...> sets "
+    "the arena)"
+)
+
+
+def test_fatal_error_message_in_full(monkeypatch):
+    def fatal(message):
+        def mj_step(m, d, n=1):
+            d.time += 0.25
+            raise mujoco.FatalError(message)
+
+        return mj_step
+
+    with _small_scene() as scene:
+        monkeypatch.setattr(mujoco, "mj_step", fatal("mj_stackAlloc: out of memory\nmore\n"))
+        with pytest.raises(mjk.SimulationError) as err:
+            scene.step()
+        assert str(err.value) == (
+            f"MuJoCo stopped the simulation at t = 0.25 s: mj_stackAlloc: out of memory. "
+            f"{FATAL_TAIL}"
+        )
+        assert (err.value.time, err.value.warnings) == (0.25, {})
+        monkeypatch.setattr(mujoco, "mj_step", fatal("  "))  # MuJoCo said nothing
+        with pytest.raises(mjk.SimulationError) as err:
+            scene.step()
+        expected = f"MuJoCo stopped the simulation at t = 0.5 s: fatal error. {FATAL_TAIL}"
+        assert str(err.value) == expected
+
+
+# ---------------------------------------------------------------------- placing bodies
+
+PLACES = """
+<mujoco>
+  <worldbody>
+    <body name="target" mocap="true" pos="0 0 1">
+      <geom size=".01" contype="0" conaffinity="0"/>
+    </body>
+    <body name="first" pos="1 0 0"><freejoint name="first"/><geom size=".1"/></body>
+    <body name="second" pos="2 0 0"><freejoint name="second"/><geom size=".1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_set_body_pose_of_a_mocap_body_and_a_free_body_before_another():
+    with mjk.Scene(base_spec(), mujoco.MjModel.from_xml_string(PLACES)) as scene:
+        m, d = scene.model, scene.data
+        assert m.body_mocapid[m.body("target").id] == 0
+        scene.set_body_pose("target", [0.1, 0.2, 0.3], [0.0, 0.0, 0.0, 2.0])
+        assert d.mocap_pos[0].tolist() == [0.1, 0.2, 0.3]
+        assert d.mocap_quat[0].tolist() == [0.0, 0.0, 0.0, 1.0]
+        scene.set_body_pose("target", [0.4, 0.5, 0.6])  # quat=None keeps the orientation
+        assert d.mocap_pos[0].tolist() == [0.4, 0.5, 0.6]
+        assert d.mocap_quat[0].tolist() == [0.0, 0.0, 0.0, 1.0]
+
+        second = d.qpos[7:14].copy()
+        d.qvel[6:12] = 0.5
+        scene.set_body_pose("first", [1.0, 1.0, 1.0], [1e-12, 0.0, 0.0, 0.0])  # tiny: allowed
+        assert d.qpos[:7].tolist() == [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+        assert d.qpos[7:14].tolist() == second.tolist()
+        assert d.qvel[6:12].tolist() == [0.5] * 6
+
+        message = (
+            "set_body_pose('world'): body has no free joint (only free objects and mocap bodies "
+            "can be placed)"
+        )
+        with pytest.raises(mjk.SpecError, match=f"^{re.escape(message)}$"):
+            scene.set_body_pose("world", [0, 0, 0])
