@@ -236,9 +236,8 @@ class Scene(Closable):
         for robot in self._robots:
             if robot._pending:
                 robot._apply()
-        # A plain int passes after one test (`n != 1` let 1.0 through to mj_step's TypeError).
-        bad_int = n.__class__ is not int or n < 0
-        if bad_int and (not isinstance(n, (int, np.integer)) or n < 0):
+        # A plain int passes after two cheap tests; bool and float (1.0) are refused.
+        if (n.__class__ is not int and not isinstance(n, np.integer)) or n < 0:
             raise SpecError(f"step(n): n must be a non-negative integer, got {n!r}")
         try:
             mujoco.mj_step(self._model, self._data, n)
