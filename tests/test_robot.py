@@ -870,3 +870,148 @@ def test_tcp_offset_from_a_site_matches_mujoco(gen3) -> None:
         mujoco.mj_jac(model, data, jacp, jacr, point, body)
         expected = np.vstack([jacp[:, dofs], jacr[:, dofs]])
         assert np.abs(robot.jacobian() - expected).max() < 1e-9
+
+
+# ---------------------------------------------------------------------- small arms, every path
+
+_OMEGA = 2 * np.pi * 10.0  # the synthesised servo's bandwidth (10 Hz)
+
+
+def _small_arm(body_l2: str, side: str, actuators: str) -> str:
+    """Two links on y axes (l1: j1, l2: j2); `side` is a branch on l1 declared before l2."""
+    return f"""
+<mujoco model="small_arm">
+  <worldbody>
+    <body name="base" pos="0 0 1">
+      <geom type="cylinder" size="0.05 0.02"/>
+      <body name="l1" pos="0 0 0.05">
+        <joint name="j1" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0.05" size="0.02" mass="1"/>
+        {side}
+        <body name="l2" pos="0.3 0 0.05" {body_l2}>
+          <joint name="j2" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.25 0 0.1" size="0.02" mass="0.5"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>{actuators}</actuator>
+</mujoco>
+"""
+
+
+_SIDE = """<body name="bob" pos="0.15 0 0">
+          <joint name="swing" axis="1 0 0"/>
+          <geom type="capsule" fromto="0 0 0 0 0 -0.2" size="0.01" mass="0.4"
+                contype="0" conaffinity="0"/>
+        </body>"""
+_MOTORS = '<motor name="m1" joint="j1" gear="2"/><motor name="m2" joint="j2"/>'
+# update()'s fast paths (contiguous actuators), the general path (chain actuators 0 and 2,
+# arm dofs 0 and 2, arm not contiguous in the model), and gravcomp bodies (general path).
+_ARMS = {
+    "fast": _small_arm("", "", _MOTORS),
+    "general": _small_arm(
+        "",
+        _SIDE,
+        '<motor name="m1" joint="j1" gear="2"/><motor name="ms" joint="swing"/>'
+        '<motor name="m2" joint="j2"/>',
+    ),
+    "gravcomp": _small_arm('gravcomp="0.5"', "", _MOTORS),
+}
+
+
+def _arm_scene(tmp_path, xml: str, **kw) -> mjk.Scene:
+    path = tmp_path / "arm.xml"
+    path.write_text(xml)
+    return mjk.Scene.build(base_spec(robots=[mjk.RobotSpec(path=str(path), **kw)]))
+
+
+def _ids(scene: mjk.Scene, robot: mjk.Robot) -> tuple[np.ndarray, np.ndarray]:
+    """The chain's actuators and dofs, found by name in MuJoCo's model."""
+    model = scene.model
+    joints = [model.joint(n).id for n in robot.joint_names]
+    acts = [
+        next(a for a in range(model.nu) if model.actuator_trnid[a, 0] == j) for j in joints
+    ]
+    return np.array(acts), np.array([model.jnt_dofadr[j] for j in joints])
+
+
+def _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd) -> np.ndarray:
+    """The controls each mode should write, from MuJoCo's gravity and the actuators' gains."""
+    g = _mujoco_gravity(scene, dofs)
+    if mode is mjk.CtrlMode.TORQUE:
+        return cmd + g if gravcomp else np.array(cmd, dtype=float)
+    gear = scene.model.actuator_gear[acts, 0]
+    k = -scene.model.actuator_biasprm[acts, 1 if mode is mjk.CtrlMode.POSITION else 2]
+    return cmd + g / (gear * gear * k) if ff else np.array(cmd, dtype=float)
+
+
+_PORTS = {
+    mjk.CtrlMode.TORQUE: "jnt_trq_cmd",
+    mjk.CtrlMode.POSITION: "jnt_pos_cmd",
+    mjk.CtrlMode.VELOCITY: "jnt_vel_cmd",
+}
+_CASES = {
+    "torque": (mjk.CtrlMode.TORQUE, False, True),
+    "gravity_compensation": (mjk.CtrlMode.TORQUE, True, True),
+    "position": (mjk.CtrlMode.POSITION, False, True),
+    "position_no_feedforward": (mjk.CtrlMode.POSITION, False, False),
+    "velocity": (mjk.CtrlMode.VELOCITY, False, True),
+}
+
+
+@pytest.mark.parametrize("case", list(_CASES))
+@pytest.mark.parametrize("arm", list(_ARMS))
+def test_every_mode_writes_mujocos_controls_on_every_path(tmp_path, arm: str, case: str) -> None:
+    mode, gravcomp, ff = _CASES[case]
+    with _arm_scene(tmp_path, _ARMS[arm]) as scene:
+        model, data = scene.model, scene.data
+        mass0 = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, mass0)  # at the state the handle is built in
+        robot = scene.create_robot("base", "l2")
+        acts, dofs = _ids(scene, robot)
+        robot.set_joint_pos([0.4, -0.7])
+        robot.sync_commands()
+        robot.update()  # POSITION first: its feed-forward and gravity are then not zero
+        robot.ctrl_mode = mode
+        robot.gravity_compensation = gravcomp
+        robot.gravity_feedforward = ff
+        robot.update()  # configures the actuators for the mode
+        gear = np.array([2.0, 1.0])
+        gain, bias = np.zeros((2, 10)), np.zeros((2, 10))
+        mass = mass0[dofs, dofs]
+        if mode is mjk.CtrlMode.TORQUE:
+            gain[:, 0] = 1.0 / gear
+        elif mode is mjk.CtrlMode.POSITION:
+            kp, kv = mass * _OMEGA**2 / gear**2, 2 * mass * _OMEGA / gear**2
+            gain[:, 0], bias[:, 1], bias[:, 2] = kp * gear, -kp, -kv
+        else:
+            kv = 2 * mass * _OMEGA / gear**2
+            gain[:, 0], bias[:, 2] = kv * gear, -kv
+        np.testing.assert_allclose(model.actuator_gainprm[acts], gain, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(model.actuator_biasprm[acts], bias, rtol=1e-12, atol=0)
+        assert not model.actuator_ctrllimited[acts].any()
+        held = {mjk.CtrlMode.POSITION: [0.4, -0.7]}.get(mode, [0.0, 0.0])
+        want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, held)
+        np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+        cmd = np.array([0.3, -0.2])
+        setattr(robot, _PORTS[mode], cmd)
+        for other in set(_PORTS.values()) - {_PORTS[mode]}:
+            setattr(robot, other, np.array([5.0, -7.0]))  # ports the mode does not drive
+        want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd)
+        robot.step()
+        np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+        if mode is mjk.CtrlMode.TORQUE:
+            np.testing.assert_allclose(data.qfrc_actuator[dofs], want, rtol=0, atol=1e-9)
+        for _ in range(2):  # the state has moved: every update() writes the mode anew
+            robot.update()
+            want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd)
+            np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+            assert robot.jnt_pos_msr.tolist() == data.qpos[dofs].tolist()
+            assert robot.jnt_vel_msr.tolist() == data.qvel[dofs].tolist()
+            assert robot.jnt_trq_msr.tolist() == data.qfrc_actuator[dofs].tolist()
+            robot.step()
+        robot.set_joint_pos([-0.5, 0.9])
+        robot.update()
+        want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd)
+        np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
