@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -930,9 +931,7 @@ def _ids(scene: mjk.Scene, robot: mjk.Robot) -> tuple[np.ndarray, np.ndarray]:
     """The chain's actuators and dofs, found by name in MuJoCo's model."""
     model = scene.model
     joints = [model.joint(n).id for n in robot.joint_names]
-    acts = [
-        next(a for a in range(model.nu) if model.actuator_trnid[a, 0] == j) for j in joints
-    ]
+    acts = [next(a for a in range(model.nu) if model.actuator_trnid[a, 0] == j) for j in joints]
     return np.array(acts), np.array([model.jnt_dofadr[j] for j in joints])
 
 
@@ -1015,3 +1014,182 @@ def test_every_mode_writes_mujocos_controls_on_every_path(tmp_path, arm: str, ca
         robot.update()
         want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd)
         np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+
+
+def test_command_assignment_starts_driving(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        acts, dofs = _ids(scene, robot)
+        robot.jnt_pos_cmd = [0.3, -0.2]  # the first use of the handle
+        q0 = scene.data.qpos.copy()
+        robot.step()
+        assert (scene.model.actuator_biasprm[acts, 1] < 0).all()  # position servos now
+        moved = scene.data.qpos.copy()
+        scene.data.qpos[:] = q0  # the feed-forward is the gravity before the step
+        want = _want_ctrl(scene, acts, dofs, mjk.CtrlMode.POSITION, False, True, [0.3, -0.2])
+        scene.data.qpos[:] = moved
+        np.testing.assert_allclose(scene.data.ctrl[acts], want, rtol=0, atol=1e-9)
+
+
+def test_sync_commands_holds_the_measured_state(tmp_path) -> None:
+    assert mjk.Robot.jnt_pos_cmd.__doc__ == "Joint position command (POSITION mode)."
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.jnt_vel_cmd = [0.5, 0.25]
+        robot.jnt_trq_cmd = [1.5, -2.5]
+        robot.set_joint_pos([0.4, -0.7])
+        robot.sync_commands()
+        assert robot.jnt_pos_cmd.tolist() == [0.4, -0.7]
+        assert robot.jnt_vel_cmd.tolist() == [0.0, 0.0]
+        assert robot.jnt_trq_cmd.tolist() == [0.0, 0.0]
+
+
+def test_command_values_are_checked_on_every_path(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.ctrl_mode = mjk.CtrlMode.TORQUE
+        robot.update()  # the fast path: float64 arrays of the right shape skip _assign
+        with pytest.raises(mjk.SpecError) as err:
+            robot.jnt_trq_cmd = np.array(["a", "b"])
+        assert str(err.value) == "jnt_trq_cmd must hold numbers, got array(['a', 'b'], dtype='<U1')"
+        with pytest.raises(mjk.SpecError) as err:
+            robot.jnt_pos_cmd = ["a", "b"]
+        assert str(err.value) == "jnt_pos_cmd must hold numbers, got ['a', 'b']"
+        with pytest.raises(mjk.SpecError) as err:
+            robot.jnt_trq_cmd = np.ones(1)
+        assert str(err.value) == "jnt_trq_cmd needs 2 values (one per joint), got shape (1,)"
+        with pytest.raises(mjk.SpecError) as err:
+            robot.set_joint_pos(np.array(["a", "b"]))
+        assert str(err.value) == (
+            "set_joint_pos(q) must hold numbers, got array(['a', 'b'], dtype='<U1')"
+        )
+        robot.jnt_trq_cmd = [1e10, 1e10]  # MuJoCo's largest control is still one
+        assert robot.jnt_trq_cmd.tolist() == [1e10, 1e10]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # its square overflows: no warning, a clear error
+            with pytest.raises(mjk.SpecError, match=r"jnt_trq_cmd must be within ±1e\+10 "):
+                robot.jnt_trq_cmd = [1e200, 0.0]
+        for call, name in (
+            (lambda: robot.jacobian(q=[0.0]), "q"),
+            (lambda: robot.mass_matrix(q=[0.0]), "q"),
+            (lambda: robot.nonlinear_effects(v=[0.0]), "v"),
+            (lambda: robot.inverse_dynamics([0.0, 0.0], [0.0], [0.0, 0.0]), "v"),
+            (lambda: robot.inverse_dynamics([0.0, 0.0], [0.0, 0.0], [0.0]), "a"),
+        ):
+            with pytest.raises(mjk.SpecError) as err:
+                call()
+            assert str(err.value) == f"{name} needs 2 values (one per joint), got shape (1,)"
+
+
+def test_dynamics_at_an_explicit_state_match_mujoco(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        scene.data.qvel[:2] = [0.2, 0.1]
+        robot.set_joint_pos([0.4, -0.7])
+        robot.update()  # measured: a state other than the one asked about
+        q, v, a = np.array([-0.3, 1.1]), np.array([0.5, -0.8]), np.array([1.0, 2.0])
+        model, data = scene.model, mujoco.MjData(scene.model)
+        data.qpos[:2], data.qvel[:2] = q, v
+        mujoco.mj_forward(model, data)
+        data.qacc[:2] = a
+        mujoco.mj_inverse(model, data)
+        mass = np.zeros((2, 2))
+        mujoco.mj_fullM(model, data, mass)
+        jacp, jacr = np.zeros((3, 2)), np.zeros((3, 2))
+        mujoco.mj_jacBody(model, data, jacp, jacr, scene.body_id("l2"))
+        np.testing.assert_allclose(robot.jacobian(q), np.vstack([jacp, jacr]), atol=1e-12)
+        np.testing.assert_allclose(robot.mass_matrix(q), mass, atol=1e-12)
+        np.testing.assert_allclose(robot.nonlinear_effects(q, v), data.qfrc_bias, atol=1e-12)
+        np.testing.assert_allclose(robot.inverse_dynamics(q, v, a), data.qfrc_inverse, atol=1e-12)
+
+
+def test_gravity_with_gravcomp_bodies_after_edits_matches_mujoco(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["gravcomp"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.set_joint_pos([0.4, -0.7])
+        dofs = np.arange(2)
+        scene.model.opt.gravity[:] = [1.5, -0.5, -9.81]
+        robot.reload_inertias()
+        np.testing.assert_allclose(
+            robot.gravity_torques(), _mujoco_gravity(scene, dofs), atol=1e-12
+        )
+        scene.model.opt.gravity[2] = -4.0
+        want = _mujoco_gravity(scene, dofs)
+        scene.model.opt.gravity[2] = -9.81
+        np.testing.assert_allclose(robot.gravity_torques(-4.0), want, atol=1e-12)
+
+
+def test_authored_position_servos_keep_their_gains(tmp_path) -> None:
+    actuators = (
+        '<general name="g1" joint="j1" gainprm="50" biasprm="0 -50 -5"/>'  # no bias: a motor
+        '<position name="p2" joint="j2" kp="0.5" kv="0.1"/>'
+    )
+    with _arm_scene(tmp_path, _small_arm("", "", actuators)) as scene:
+        mass = np.zeros((2, 2))
+        mujoco.mj_fullM(scene.model, scene.data, mass)
+        robot = scene.create_robot("base", "l2")
+        robot.update()
+        gain, bias = scene.model.actuator_gainprm, scene.model.actuator_biasprm
+        assert gain[0, 0] == pytest.approx(mass[0, 0] * _OMEGA**2, rel=1e-12)
+        assert bias[0, 2] == pytest.approx(-2 * mass[0, 0] * _OMEGA, rel=1e-12)
+        assert [gain[1, 0], bias[1, 1], bias[1, 2]] == [0.5, -0.5, -0.1]
+
+
+def test_nonlinear_effects_of_a_moving_free_base_match_mujoco(tmp_path) -> None:
+    free = _ARMS["fast"].replace('pos="0 0 1">', 'pos="0 0 1"><freejoint name="float"/>', 1)
+    with _arm_scene(tmp_path, free) as scene:
+        robot = scene.create_robot("base", "l2")
+        data = scene.data
+        data.qpos[7:9] = [0.4, -0.7]
+        data.qvel[:8] = [0.3, -0.2, 0.5, 0.4, 0.7, -0.6, 0.5, -0.8]
+        mujoco.mj_forward(scene.model, data)
+        robot.update()
+        np.testing.assert_allclose(robot.nonlinear_effects(), data.qfrc_bias[6:8], atol=1e-12)
+
+
+def test_control_errors_name_the_joints(tmp_path) -> None:
+    with _arm_scene(tmp_path, _small_arm("", "", "")) as scene:
+        robot = scene.create_robot("base", "l2")
+        with pytest.raises(mjk.SpecError) as err:
+            robot.update()
+        assert str(err.value) == (
+            "POSITION mode needs an actuator on every joint; none drives j1, j2 "
+            "(TORQUE mode applies the torques as qfrc_applied)"
+        )
+    with _arm_scene(tmp_path, _small_arm("", "", '<motor joint="j1"/>')) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.ctrl_mode = mjk.CtrlMode.TORQUE
+        with pytest.raises(mjk.SpecError) as err:
+            robot.update()
+        assert str(err.value) == (
+            "joints j2 have no actuator while the rest of the chain has: a Robot drives all "
+            "chain joints through actuators, or none (TORQUE mode then applies the torques as "
+            "qfrc_applied)"
+        )
+
+
+def test_a_later_handle_drives_and_an_earlier_one_is_refused(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        reader = scene.create_robot("base", "l2")  # first in the scene's list
+        driver = scene.create_robot("l1", "l2")
+        driver.update()
+        with pytest.raises(mjk.SpecError) as err:
+            reader.update()
+        assert str(err.value) == (
+            "joints j2 are already driven by the Robot 'l1' -> 'l2'; one Robot per joint may "
+            "control (any number may read; close() the other to take over)"
+        )
+
+
+def test_closed_handles_say_why(tmp_path) -> None:
+    scene = _arm_scene(tmp_path, _ARMS["fast"])
+    robot = scene.create_robot("base", "l2")
+    other = scene.create_robot("base", "l2")
+    robot.close()
+    with pytest.raises(RuntimeError) as err:
+        robot.step()
+    assert str(err.value) == "this Robot is closed"
+    scene.close()
+    with pytest.raises(RuntimeError) as err:
+        other.jacobian()
+    assert str(err.value) == "this Robot's scene is closed"
