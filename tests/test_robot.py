@@ -1193,3 +1193,18 @@ def test_closed_handles_say_why(tmp_path) -> None:
     with pytest.raises(RuntimeError) as err:
         other.jacobian()
     assert str(err.value) == "this Robot's scene is closed"
+
+
+def test_a_rebuild_applies_the_commands_at_the_new_state(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.update()
+        robot.jnt_pos_cmd = np.array([0.6, -0.6])  # far away: the arm moves in one step
+        robot.step()
+        scene.add_object(
+            mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.02], mass=0.1)
+        )
+        acts, dofs = _ids(scene, robot)  # on the new model
+        want = _want_ctrl(scene, acts, dofs, mjk.CtrlMode.POSITION, False, True, [0.6, -0.6])
+        robot.step()  # the feed-forward of the state the rebuild carried over
+        np.testing.assert_allclose(scene.data.ctrl[acts], want, rtol=0, atol=1e-9)
