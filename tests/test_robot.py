@@ -993,10 +993,13 @@ def test_every_mode_writes_mujocos_controls_on_every_path(tmp_path, arm: str, ca
         held = {mjk.CtrlMode.POSITION: [0.4, -0.7]}.get(mode, [0.0, 0.0])
         want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, held)
         np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+        for other in sorted(set(_PORTS.values()) - {_PORTS[mode]}):
+            setattr(robot, other, np.array([5.0, -7.0]))  # a port the mode does not drive
+            robot.step()
+            np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+        robot.update()
         cmd = np.array([0.3, -0.2])
         setattr(robot, _PORTS[mode], cmd)
-        for other in set(_PORTS.values()) - {_PORTS[mode]}:
-            setattr(robot, other, np.array([5.0, -7.0]))  # ports the mode does not drive
         want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd)
         robot.step()
         np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
@@ -1171,12 +1174,12 @@ def test_control_errors_name_the_joints(tmp_path) -> None:
 def test_a_later_handle_drives_and_an_earlier_one_is_refused(tmp_path) -> None:
     with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
         reader = scene.create_robot("base", "l2")  # first in the scene's list
-        driver = scene.create_robot("l1", "l2")
+        driver = scene.create_robot("base", "l2")
         driver.update()
         with pytest.raises(mjk.SpecError) as err:
             reader.update()
         assert str(err.value) == (
-            "joints j2 are already driven by the Robot 'l1' -> 'l2'; one Robot per joint may "
+            "joints j1, j2 are already driven by the Robot 'base' -> 'l2'; one Robot per joint may "
             "control (any number may read; close() the other to take over)"
         )
 
