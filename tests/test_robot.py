@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -870,3 +871,343 @@ def test_tcp_offset_from_a_site_matches_mujoco(gen3) -> None:
         mujoco.mj_jac(model, data, jacp, jacr, point, body)
         expected = np.vstack([jacp[:, dofs], jacr[:, dofs]])
         assert np.abs(robot.jacobian() - expected).max() < 1e-9
+
+
+# ---------------------------------------------------------------------- small arms, every path
+
+_OMEGA = 2 * np.pi * 10.0  # the synthesised servo's bandwidth (10 Hz)
+
+
+def _small_arm(body_l2: str, side: str, actuators: str) -> str:
+    """Two links on y axes (l1: j1, l2: j2); `side` is a branch on l1 declared before l2."""
+    return f"""
+<mujoco model="small_arm">
+  <worldbody>
+    <body name="base" pos="0 0 1">
+      <geom type="cylinder" size="0.05 0.02"/>
+      <body name="l1" pos="0 0 0.05">
+        <joint name="j1" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0.05" size="0.02" mass="1"/>
+        {side}
+        <body name="l2" pos="0.3 0 0.05" {body_l2}>
+          <joint name="j2" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.25 0 0.1" size="0.02" mass="0.5"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>{actuators}</actuator>
+</mujoco>
+"""
+
+
+_SIDE = """<body name="bob" pos="0.15 0 0">
+          <joint name="swing" axis="1 0 0"/>
+          <geom type="capsule" fromto="0 0 0 0 0 -0.2" size="0.01" mass="0.4"
+                contype="0" conaffinity="0"/>
+        </body>"""
+_MOTORS = '<motor name="m1" joint="j1" gear="2"/><motor name="m2" joint="j2"/>'
+# update()'s fast paths (contiguous actuators), the general path (chain actuators 0 and 2,
+# arm dofs 0 and 2, arm not contiguous in the model), and gravcomp bodies (general path).
+_ARMS = {
+    "fast": _small_arm("", "", _MOTORS),
+    "general": _small_arm(
+        "",
+        _SIDE,
+        '<motor name="m1" joint="j1" gear="2"/><motor name="ms" joint="swing"/>'
+        '<motor name="m2" joint="j2"/>',
+    ),
+    "gravcomp": _small_arm('gravcomp="0.5"', "", _MOTORS),
+}
+
+
+def _arm_scene(tmp_path, xml: str, **kw) -> mjk.Scene:
+    path = tmp_path / "arm.xml"
+    path.write_text(xml)
+    return mjk.Scene.build(base_spec(robots=[mjk.RobotSpec(path=str(path), **kw)]))
+
+
+def _ids(scene: mjk.Scene, robot: mjk.Robot) -> tuple[np.ndarray, np.ndarray]:
+    """The chain's actuators and dofs, found by name in MuJoCo's model."""
+    model = scene.model
+    joints = [model.joint(n).id for n in robot.joint_names]
+    acts = [next(a for a in range(model.nu) if model.actuator_trnid[a, 0] == j) for j in joints]
+    return np.array(acts), np.array([model.jnt_dofadr[j] for j in joints])
+
+
+def _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd) -> np.ndarray:
+    """The controls each mode should write, from MuJoCo's gravity and the actuators' gains."""
+    g = _mujoco_gravity(scene, dofs)
+    if mode is mjk.CtrlMode.TORQUE:
+        return cmd + g if gravcomp else np.array(cmd, dtype=float)
+    gear = scene.model.actuator_gear[acts, 0]
+    k = -scene.model.actuator_biasprm[acts, 1 if mode is mjk.CtrlMode.POSITION else 2]
+    return cmd + g / (gear * gear * k) if ff else np.array(cmd, dtype=float)
+
+
+_PORTS = {
+    mjk.CtrlMode.TORQUE: "jnt_trq_cmd",
+    mjk.CtrlMode.POSITION: "jnt_pos_cmd",
+    mjk.CtrlMode.VELOCITY: "jnt_vel_cmd",
+}
+_CASES = {
+    "torque": (mjk.CtrlMode.TORQUE, False, True),
+    "gravity_compensation": (mjk.CtrlMode.TORQUE, True, True),
+    "position": (mjk.CtrlMode.POSITION, False, True),
+    "position_no_feedforward": (mjk.CtrlMode.POSITION, False, False),
+    "velocity": (mjk.CtrlMode.VELOCITY, False, True),
+}
+
+
+@pytest.mark.parametrize("case", list(_CASES))
+@pytest.mark.parametrize("arm", list(_ARMS))
+def test_every_mode_writes_mujocos_controls_on_every_path(tmp_path, arm: str, case: str) -> None:
+    mode, gravcomp, ff = _CASES[case]
+    with _arm_scene(tmp_path, _ARMS[arm]) as scene:
+        model, data = scene.model, scene.data
+        mass0 = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, mass0)  # at the state the handle is built in
+        robot = scene.create_robot("base", "l2")
+        acts, dofs = _ids(scene, robot)
+        robot.set_joint_pos([0.4, -0.7])
+        robot.sync_commands()
+        robot.update()  # POSITION first: its feed-forward and gravity are then not zero
+        robot.ctrl_mode = mode
+        robot.gravity_compensation = gravcomp
+        robot.gravity_feedforward = ff
+        robot.update()  # configures the actuators for the mode
+        gear = np.array([2.0, 1.0])
+        gain, bias = np.zeros((2, 10)), np.zeros((2, 10))
+        mass = mass0[dofs, dofs]
+        if mode is mjk.CtrlMode.TORQUE:
+            gain[:, 0] = 1.0 / gear
+        elif mode is mjk.CtrlMode.POSITION:
+            kp, kv = mass * _OMEGA**2 / gear**2, 2 * mass * _OMEGA / gear**2
+            gain[:, 0], bias[:, 1], bias[:, 2] = kp * gear, -kp, -kv
+        else:
+            kv = 2 * mass * _OMEGA / gear**2
+            gain[:, 0], bias[:, 2] = kv * gear, -kv
+        np.testing.assert_allclose(model.actuator_gainprm[acts], gain, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(model.actuator_biasprm[acts], bias, rtol=1e-12, atol=0)
+        assert not model.actuator_ctrllimited[acts].any()
+        held = {mjk.CtrlMode.POSITION: [0.4, -0.7]}.get(mode, [0.0, 0.0])
+        want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, held)
+        np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+        for other in sorted(set(_PORTS.values()) - {_PORTS[mode]}):
+            setattr(robot, other, np.array([5.0, -7.0]))  # a port the mode does not drive
+            robot.step()
+            np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+        robot.update()
+        cmd = np.array([0.3, -0.2])
+        setattr(robot, _PORTS[mode], cmd)
+        want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd)
+        robot.step()
+        np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+        if mode is mjk.CtrlMode.TORQUE:
+            np.testing.assert_allclose(data.qfrc_actuator[dofs], want, rtol=0, atol=1e-9)
+        for _ in range(2):  # the state has moved: every update() writes the mode anew
+            robot.update()
+            want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd)
+            np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+            assert robot.jnt_pos_msr.tolist() == data.qpos[dofs].tolist()
+            assert robot.jnt_vel_msr.tolist() == data.qvel[dofs].tolist()
+            assert robot.jnt_trq_msr.tolist() == data.qfrc_actuator[dofs].tolist()
+            robot.step()
+        robot.set_joint_pos([-0.5, 0.9])
+        robot.update()
+        want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, cmd)
+        np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
+
+
+def test_command_assignment_starts_driving(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        acts, dofs = _ids(scene, robot)
+        robot.jnt_pos_cmd = [0.3, -0.2]  # the first use of the handle
+        q0 = scene.data.qpos.copy()
+        robot.step()
+        assert (scene.model.actuator_biasprm[acts, 1] < 0).all()  # position servos now
+        moved = scene.data.qpos.copy()
+        scene.data.qpos[:] = q0  # the feed-forward is the gravity before the step
+        want = _want_ctrl(scene, acts, dofs, mjk.CtrlMode.POSITION, False, True, [0.3, -0.2])
+        scene.data.qpos[:] = moved
+        np.testing.assert_allclose(scene.data.ctrl[acts], want, rtol=0, atol=1e-9)
+
+
+def test_sync_commands_holds_the_measured_state(tmp_path) -> None:
+    assert mjk.Robot.jnt_pos_cmd.__doc__ == "Joint position command (POSITION mode)."
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.jnt_vel_cmd = [0.5, 0.25]
+        robot.jnt_trq_cmd = [1.5, -2.5]
+        robot.set_joint_pos([0.4, -0.7])
+        robot.sync_commands()
+        assert robot.jnt_pos_cmd.tolist() == [0.4, -0.7]
+        assert robot.jnt_vel_cmd.tolist() == [0.0, 0.0]
+        assert robot.jnt_trq_cmd.tolist() == [0.0, 0.0]
+
+
+def test_command_values_are_checked_on_every_path(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.ctrl_mode = mjk.CtrlMode.TORQUE
+        robot.update()  # the fast path: float64 arrays of the right shape skip _assign
+        with pytest.raises(mjk.SpecError) as err:
+            robot.jnt_trq_cmd = np.array(["a", "b"])
+        assert str(err.value) == "jnt_trq_cmd must hold numbers, got array(['a', 'b'], dtype='<U1')"
+        with pytest.raises(mjk.SpecError) as err:
+            robot.jnt_pos_cmd = ["a", "b"]
+        assert str(err.value) == "jnt_pos_cmd must hold numbers, got ['a', 'b']"
+        with pytest.raises(mjk.SpecError) as err:
+            robot.jnt_trq_cmd = np.ones(1)
+        assert str(err.value) == "jnt_trq_cmd needs 2 values (one per joint), got shape (1,)"
+        with pytest.raises(mjk.SpecError) as err:
+            robot.set_joint_pos(np.array(["a", "b"]))
+        assert str(err.value) == (
+            "set_joint_pos(q) must hold numbers, got array(['a', 'b'], dtype='<U1')"
+        )
+        robot.jnt_trq_cmd = [1e10, 1e10]  # MuJoCo's largest control is still one
+        assert robot.jnt_trq_cmd.tolist() == [1e10, 1e10]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # its square overflows: no warning, a clear error
+            with pytest.raises(mjk.SpecError, match=r"jnt_trq_cmd must be within ±1e\+10 "):
+                robot.jnt_trq_cmd = [1e200, 0.0]
+        for call, name in (
+            (lambda: robot.jacobian(q=[0.0]), "q"),
+            (lambda: robot.mass_matrix(q=[0.0]), "q"),
+            (lambda: robot.nonlinear_effects(v=[0.0]), "v"),
+            (lambda: robot.inverse_dynamics([0.0, 0.0], [0.0], [0.0, 0.0]), "v"),
+            (lambda: robot.inverse_dynamics([0.0, 0.0], [0.0, 0.0], [0.0]), "a"),
+        ):
+            with pytest.raises(mjk.SpecError) as err:
+                call()
+            assert str(err.value) == f"{name} needs 2 values (one per joint), got shape (1,)"
+
+
+def test_dynamics_at_an_explicit_state_match_mujoco(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        scene.data.qvel[:2] = [0.2, 0.1]
+        robot.set_joint_pos([0.4, -0.7])
+        robot.update()  # measured: a state other than the one asked about
+        q, v, a = np.array([-0.3, 1.1]), np.array([0.5, -0.8]), np.array([1.0, 2.0])
+        model, data = scene.model, mujoco.MjData(scene.model)
+        data.qpos[:2], data.qvel[:2] = q, v
+        mujoco.mj_forward(model, data)
+        data.qacc[:2] = a
+        mujoco.mj_inverse(model, data)
+        mass = np.zeros((2, 2))
+        mujoco.mj_fullM(model, data, mass)
+        jacp, jacr = np.zeros((3, 2)), np.zeros((3, 2))
+        mujoco.mj_jacBody(model, data, jacp, jacr, scene.body_id("l2"))
+        np.testing.assert_allclose(robot.jacobian(q), np.vstack([jacp, jacr]), atol=1e-12)
+        np.testing.assert_allclose(robot.mass_matrix(q), mass, atol=1e-12)
+        np.testing.assert_allclose(robot.nonlinear_effects(q, v), data.qfrc_bias, atol=1e-12)
+        np.testing.assert_allclose(robot.inverse_dynamics(q, v, a), data.qfrc_inverse, atol=1e-12)
+
+
+def test_gravity_with_gravcomp_bodies_after_edits_matches_mujoco(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["gravcomp"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.set_joint_pos([0.4, -0.7])
+        dofs = np.arange(2)
+        scene.model.opt.gravity[:] = [1.5, -0.5, -9.81]
+        robot.reload_inertias()
+        np.testing.assert_allclose(
+            robot.gravity_torques(), _mujoco_gravity(scene, dofs), atol=1e-12
+        )
+        scene.model.opt.gravity[2] = -4.0
+        want = _mujoco_gravity(scene, dofs)
+        scene.model.opt.gravity[2] = -9.81
+        np.testing.assert_allclose(robot.gravity_torques(-4.0), want, atol=1e-12)
+
+
+def test_authored_position_servos_keep_their_gains(tmp_path) -> None:
+    actuators = (
+        '<general name="g1" joint="j1" gainprm="50" biasprm="0 -50 -5"/>'  # no bias: a motor
+        '<position name="p2" joint="j2" kp="0.5" kv="0.1"/>'
+    )
+    with _arm_scene(tmp_path, _small_arm("", "", actuators)) as scene:
+        mass = np.zeros((2, 2))
+        mujoco.mj_fullM(scene.model, scene.data, mass)
+        robot = scene.create_robot("base", "l2")
+        robot.update()
+        gain, bias = scene.model.actuator_gainprm, scene.model.actuator_biasprm
+        assert gain[0, 0] == pytest.approx(mass[0, 0] * _OMEGA**2, rel=1e-12)
+        assert bias[0, 2] == pytest.approx(-2 * mass[0, 0] * _OMEGA, rel=1e-12)
+        assert [gain[1, 0], bias[1, 1], bias[1, 2]] == [0.5, -0.5, -0.1]
+
+
+def test_nonlinear_effects_of_a_moving_free_base_match_mujoco(tmp_path) -> None:
+    free = _ARMS["fast"].replace('pos="0 0 1">', 'pos="0 0 1"><freejoint name="float"/>', 1)
+    with _arm_scene(tmp_path, free) as scene:
+        robot = scene.create_robot("base", "l2")
+        data = scene.data
+        data.qpos[7:9] = [0.4, -0.7]
+        data.qvel[:8] = [0.3, -0.2, 0.5, 0.4, 0.7, -0.6, 0.5, -0.8]
+        mujoco.mj_forward(scene.model, data)
+        robot.update()
+        np.testing.assert_allclose(robot.nonlinear_effects(), data.qfrc_bias[6:8], atol=1e-12)
+
+
+def test_control_errors_name_the_joints(tmp_path) -> None:
+    with _arm_scene(tmp_path, _small_arm("", "", "")) as scene:
+        robot = scene.create_robot("base", "l2")
+        with pytest.raises(mjk.SpecError) as err:
+            robot.update()
+        assert str(err.value) == (
+            "POSITION mode needs an actuator on every joint; none drives j1, j2 "
+            "(TORQUE mode applies the torques as qfrc_applied)"
+        )
+    with _arm_scene(tmp_path, _small_arm("", "", '<motor joint="j1"/>')) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.ctrl_mode = mjk.CtrlMode.TORQUE
+        with pytest.raises(mjk.SpecError) as err:
+            robot.update()
+        assert str(err.value) == (
+            "joints j2 have no actuator while the rest of the chain has: a Robot drives all "
+            "chain joints through actuators, or none (TORQUE mode then applies the torques as "
+            "qfrc_applied)"
+        )
+
+
+def test_a_later_handle_drives_and_an_earlier_one_is_refused(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        reader = scene.create_robot("base", "l2")  # first in the scene's list
+        driver = scene.create_robot("base", "l2")
+        driver.update()
+        with pytest.raises(mjk.SpecError) as err:
+            reader.update()
+        assert str(err.value) == (
+            "joints j1, j2 are already driven by the Robot 'base' -> 'l2'; one Robot per joint may "
+            "control (any number may read; close() the other to take over)"
+        )
+
+
+def test_closed_handles_say_why(tmp_path) -> None:
+    scene = _arm_scene(tmp_path, _ARMS["fast"])
+    robot = scene.create_robot("base", "l2")
+    other = scene.create_robot("base", "l2")
+    robot.close()
+    with pytest.raises(RuntimeError) as err:
+        robot.step()
+    assert str(err.value) == "this Robot is closed"
+    scene.close()
+    with pytest.raises(RuntimeError) as err:
+        other.jacobian()
+    assert str(err.value) == "this Robot's scene is closed"
+
+
+def test_a_rebuild_applies_the_commands_at_the_new_state(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        robot.update()
+        robot.jnt_pos_cmd = np.array([0.6, -0.6])  # far away: the arm moves in one step
+        robot.step()
+        scene.add_object(
+            mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.02], mass=0.1)
+        )
+        acts, dofs = _ids(scene, robot)  # on the new model
+        want = _want_ctrl(scene, acts, dofs, mjk.CtrlMode.POSITION, False, True, [0.6, -0.6])
+        robot.step()  # the feed-forward of the state the rebuild carried over
+        np.testing.assert_allclose(scene.data.ctrl[acts], want, rtol=0, atol=1e-9)
