@@ -664,6 +664,8 @@ class Robot:
             else:
                 ctrl[...] = self._servo_cmd
             return
+        if self._unactuated and (error := self._control_error()):
+            raise SpecError(error)  # the same error update() gives
         mode = self._mode
         if mode is CtrlMode.TORQUE:
             if self._gravcomp:
@@ -671,8 +673,7 @@ class Robot:
             else:
                 ctrl[...] = self._trq_cmd
             if not self._actuation:
-                if self._control_error() is None:
-                    self._data.qfrc_applied[self._dadr] = ctrl
+                self._data.qfrc_applied[self._dadr] = ctrl
                 return
         else:
             cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd

@@ -472,17 +472,13 @@ def test_urdf_file_gone_after_the_build_means_no_velocity_limits(build, tmp_path
 # ---------------------------------------------------------------------- unactuated chains
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="Robot._apply writes an unactuated chain's POSITION/VELOCITY command to "
-    "data.ctrl[[]]: Scene.step raises NumPy's shape mismatch instead of the SpecError",
-)
 def test_step_of_an_unactuated_chain_in_position_mode_names_the_problem(build) -> None:
+    """step() gives update()'s error, not NumPy's shape mismatch on an empty ctrl index."""
     scene = build("")
     robot = scene.create_robot("base", "hand")
     robot.jnt_pos_cmd = np.array([0.1, 0.2])
     try:
-        with pytest.raises(ValueError) as err:
+        with pytest.raises(mjk.SpecError) as err:
             robot.step()
         assert str(err.value) == (
             "POSITION mode needs an actuator on every joint; none drives j1, j2 "
