@@ -1286,13 +1286,15 @@ def test_mesh_files_are_not_taken_for_includes(tmp_path):
 
 # ----------------------------------------------------------------------------- mounts and cameras
 
-SITES_XML = """<mujoco><worldbody><body name="b" pos="0.1 0.2 0.3"><geom size="0.05"/>
+SITES_XML = """<mujoco><compiler angle="radian"/>
+<worldbody><body name="b" pos="0.1 0.2 0.3"><geom size="0.05"/>
 <site name="turned" pos="0.01 0.02 0.03" quat="0.5 0.5 0.5 0.5"/>
+<site name="spun" pos="0.01 0 0" euler="0.3 0.2 0.1"/>
 <frame pos="0 0 0.1" euler="0.1 0.2 0.3"><site name="framed" pos="0.04 0 0"/></frame>
 </body></worldbody></mujoco>"""
 
 
-@pytest.mark.parametrize("site", ["turned", "framed"])
+@pytest.mark.parametrize("site", ["turned", "framed", "spun"])
 def test_camera_on_a_site_sits_exactly_on_it(tmp_path, site):
     path = tmp_path / "sites.xml"
     path.write_text(SITES_XML)
