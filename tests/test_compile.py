@@ -1286,13 +1286,15 @@ def test_mesh_files_are_not_taken_for_includes(tmp_path):
 
 # ----------------------------------------------------------------------------- mounts and cameras
 
-SITES_XML = """<mujoco><worldbody><body name="b" pos="0.1 0.2 0.3"><geom size="0.05"/>
+SITES_XML = """<mujoco><compiler angle="radian"/>
+<worldbody><body name="b" pos="0.1 0.2 0.3"><geom size="0.05"/>
 <site name="turned" pos="0.01 0.02 0.03" quat="0.5 0.5 0.5 0.5"/>
+<site name="spun" pos="0.01 0 0" euler="0.3 0.2 0.1"/>
 <frame pos="0 0 0.1" euler="0.1 0.2 0.3"><site name="framed" pos="0.04 0 0"/></frame>
 </body></worldbody></mujoco>"""
 
 
-@pytest.mark.parametrize("site", ["turned", "framed"])
+@pytest.mark.parametrize("site", ["turned", "framed", "spun"])
 def test_camera_on_a_site_sits_exactly_on_it(tmp_path, site):
     path = tmp_path / "sites.xml"
     path.write_text(SITES_XML)
@@ -1370,3 +1372,18 @@ def test_euler_quat_names_the_field_of_a_bad_vector():
     with pytest.raises(mjk.SpecError) as err:
         euler_quat([1, 2], "tool.tcp_euler")
     assert str(err.value) == "tool.tcp_euler must have 3 values, got 2: [1, 2]"
+
+
+def test_scene_model_name_and_gravity():
+    model = compile_scene(base_spec(add_floor=False, gravity_z=-3.5))
+    assert model.names.split(b"\0")[0] == b"mjkdl_scene"  # MuJoCo stores the model name first
+    np.testing.assert_array_equal(model.opt.gravity, [0.0, 0.0, -3.5])
+
+
+def test_floor_and_skybox_flags_each_add_only_their_own_assets():
+    floor_only = compile_scene(base_spec(add_floor=True, add_skybox=False))
+    assert [floor_only.texture(i).name for i in range(floor_only.ntex)] == ["mjkdl_grid"]
+    assert floor_only.ngeom == 1 and floor_only.geom(0).name == "floor"
+    sky_only = compile_scene(base_spec(add_floor=False, add_skybox=True))
+    assert [sky_only.texture(i).name for i in range(sky_only.ntex)] == ["mjkdl_sky"]
+    assert sky_only.ngeom == 0 and sky_only.nmat == 0
