@@ -328,3 +328,82 @@ def test_tcp_site_on_a_moving_tool_body_is_refused():
         "outside it (fingers, links beyond the tip): choose a site rigidly fixed to the chain "
         "or its tool"
     )
+
+
+def test_unknown_body_lists_the_models_bodies():
+    m = _compile(MOCAP_BASE)
+    with pytest.raises(UnknownNameError) as err:
+        Chain(m, "nosuch", "m1")
+    assert str(err.value) == "no body named 'nosuch' in the model; known: world, mbase, m1"
+
+
+def test_chain_without_joints_is_refused():
+    m = _compile(
+        '<mujoco><worldbody><body name="a"><geom size=".05" mass="1"/><body name="b" pos="0 0 .2">'
+        '<geom size=".05" mass="1"/></body></body></worldbody></mujoco>'
+    )
+    with pytest.raises(SpecError) as err:
+        Chain(m, "a", "b")
+    assert str(err.value) == "the chain 'a' -> 'b' has no joints"
+
+
+def test_world_base_keeps_only_the_tree_that_holds_the_arm():
+    m = _compile(TWO_TREES)
+    chain = Chain(m, "world", "D")
+    # MuJoCo: D is a top-level body with the single hinge jd (qpos/qvel address 7/6 after the
+    # hinges ja, ja1, jt1 and the free joints of T and C).
+    d_id = m.body("D").id
+    assert [f.name for f in chain.model.frames] == ["universe", "world", "D"]
+    assert list(chain.model.names) == ["universe", "jd"]
+    assert chain.q_span == slice(int(m.jnt_qposadr[m.joint("jd").id]), m.nq)
+    assert chain.v_span == slice(int(m.jnt_dofadr[m.joint("jd").id]), m.nv)
+    assert chain.model.frames[chain.tip_frame].name == m.body(d_id).name
+
+
+def test_contiguous_hinge_chain_is_a_plain_copy_of_qpos_and_qvel(ref_arm):
+    m, chain = ref_arm
+    assert chain.q_span == slice(0, m.nq)
+    assert chain.v_span == slice(0, m.nv)
+
+
+def test_free_base_state_is_not_a_plain_copy(free_base):
+    m, chain = free_base
+    # MuJoCo's qvel for the base's free joint is contiguous with the arm (dofs 6..16), but its
+    # linear part is in the world frame, so the state must go through read_state.
+    base_dof = int(m.jnt_dofadr[m.joint("basefree").id])
+    assert list(chain.v_index) == list(range(base_dof, m.nv))
+    assert chain.q_span is None
+    assert chain.v_span is None
+
+
+# A mocap base held by a weld, after a joint equality and a site weld on bodies outside it.
+HELD_AFTER_OTHER_EQUALITIES = """
+<mujoco>
+  <worldbody>
+    <body name="mb" mocap="true">
+      <body name="b"><body name="e1"><joint name="ej"/><geom size=".05" mass="1"/></body></body>
+    </body>
+    <body name="other" pos="1 0 0">
+      <joint name="oj"/><geom size=".05" mass="1"/><site name="so"/>
+    </body>
+    <body name="third" pos="2 0 0"><geom size=".05" mass="1"/><site name="st"/></body>
+  </worldbody>
+  <equality>
+    <joint joint1="ej" joint2="oj"/>
+    <weld site1="so" site2="st"/>
+    <weld name="hold" body1="b" body2="other"/>
+  </equality>
+</mujoco>
+"""
+
+
+def test_base_held_by_a_later_weld_is_refused():
+    m = _compile(HELD_AFTER_OTHER_EQUALITIES)
+    assert m.eq_objtype[1] == int(mujoco.mjtObj.mjOBJ_SITE)
+    with pytest.raises(SpecError) as err:
+        Chain(m, "b", "e1")
+    assert str(err.value) == (
+        "base body 'b' is held by equality constraint 'hold', which the Pinocchio model cannot "
+        "represent (it follows the kinematic tree only); mount the robot in the tree instead "
+        "(RobotSpec.attach_to) or choose a base_body below the constraint"
+    )
