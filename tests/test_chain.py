@@ -261,73 +261,79 @@ def test_mocap_base_state_matches_mujoco(mocap_base):
         _assert_body_matches(m, d, chain, data, body)
 
 
-def test_base_not_ancestor_names_the_equality_that_joins_the_trees():
-    m = _compile(TWO_TREES)
-    with pytest.raises(SpecError) as err:
-        Chain(m, "A1", "T2")
-    assert str(err.value) == (
-        "base body 'A1' is not an ancestor of tip body 'T2': a chain runs from a base down to "
-        "a tip in one kinematic tree (they are joined only by equality constraint '#3', which "
-        "the Pinocchio model cannot represent)"
-    )
+BALL_ON_ARM = (
+    '<mujoco><worldbody><body name="g1"><joint name="gj" axis="0 0 1"/>'
+    '<geom size=".05" mass="1"/><body name="g2" pos="0 0 .2"><joint name="gball" '
+    'type="ball"/><geom size=".05" mass="1"/></body></body></worldbody></mujoco>'
+)
+MOCAP_HELD = (
+    '<mujoco><worldbody><body name="mb" mocap="true"><body name="b"><body name="e1">'
+    '<joint name="ej"/><geom size=".05" mass="1"/></body></body></body>'
+    '<body name="other" pos="1 0 0"><geom size=".05"/></body></worldbody>'
+    '<equality><weld name="hold" body1="b" body2="other"/></equality></mujoco>'
+)
 
 
-def test_base_not_ancestor_without_equality_has_no_hint():
-    m = _compile(TWO_TREES)
-    with pytest.raises(SpecError) as err:
-        Chain(m, "A1", "D")
-    assert str(err.value) == (
-        "base body 'A1' is not an ancestor of tip body 'D': a chain runs from a base down to "
-        "a tip in one kinematic tree"
-    )
-
-
-def test_ball_joint_on_the_arm_is_refused():
-    m = _compile(
-        '<mujoco><worldbody><body name="g1"><joint name="gj" axis="0 0 1"/>'
-        '<geom size=".05" mass="1"/><body name="g2" pos="0 0 .2"><joint name="gball" '
-        'type="ball"/><geom size=".05" mass="1"/></body></body></worldbody></mujoco>'
-    )
-    with pytest.raises(SpecError) as err:
-        Chain(m, "world", "g2")
-    assert str(err.value) == (
-        "joint 'gball' is a mjJNT_BALL joint: the chain from base to tip takes only hinge and "
-        "slide joints"
-    )
-
-
-def test_mocap_base_held_by_weld_is_refused():
-    m = _compile(
-        '<mujoco><worldbody><body name="mb" mocap="true"><body name="b"><body name="e1">'
-        '<joint name="ej"/><geom size=".05" mass="1"/></body></body></body>'
-        '<body name="other" pos="1 0 0"><geom size=".05"/></body></worldbody>'
-        '<equality><weld name="hold" body1="b" body2="other"/></equality></mujoco>'
-    )
-    with pytest.raises(SpecError) as err:
-        Chain(m, "b", "e1")
-    assert str(err.value) == (
-        "base body 'b' is held by equality constraint 'hold', which the Pinocchio model cannot "
-        "represent (it follows the kinematic tree only); mount the robot in the tree instead "
-        "(RobotSpec.attach_to) or choose a base_body below the constraint"
-    )
-
-
-def test_unknown_tcp_site_lists_known_sites():
-    m = _compile(FREE_BASE)
-    with pytest.raises(UnknownNameError) as err:
-        Chain(m, "base", "l2", "nosuch")
-    assert str(err.value) == "no site named 'nosuch' in the model (tool.tcp_site); known: grip"
-
-
-def test_tcp_site_on_a_moving_tool_body_is_refused():
-    m = _compile(FREE_BASE)
-    with pytest.raises(SpecError) as err:
-        Chain(m, "base", "l2", "grip")
-    assert str(err.value) == (
-        "TCP site 'grip' is on body 'hand', which moves relative to the chain through joints "
-        "outside it (fingers, links beyond the tip): choose a site rigidly fixed to the chain "
-        "or its tool"
-    )
+@pytest.mark.parametrize(
+    ("xml", "args", "error", "message"),
+    [
+        pytest.param(
+            "TWO_TREES",
+            ("A1", "T2"),
+            SpecError,
+            "base body 'A1' is not an ancestor of tip body 'T2': a chain runs from a base down "
+            "to a tip in one kinematic tree (they are joined only by equality constraint '#3', "
+            "which the Pinocchio model cannot represent)",
+            id="trees joined by an equality",
+        ),
+        pytest.param(
+            "TWO_TREES",
+            ("A1", "D"),
+            SpecError,
+            "base body 'A1' is not an ancestor of tip body 'D': a chain runs from a base down "
+            "to a tip in one kinematic tree",
+            id="trees not joined",
+        ),
+        pytest.param(
+            BALL_ON_ARM,
+            ("world", "g2"),
+            SpecError,
+            "joint 'gball' is a mjJNT_BALL joint: the chain from base to tip takes only hinge "
+            "and slide joints",
+            id="ball joint on the arm",
+        ),
+        pytest.param(
+            MOCAP_HELD,
+            ("b", "e1"),
+            SpecError,
+            "base body 'b' is held by equality constraint 'hold', which the Pinocchio model "
+            "cannot represent (it follows the kinematic tree only); mount the robot in the tree "
+            "instead (RobotSpec.attach_to) or choose a base_body below the constraint",
+            id="mocap base held by a weld",
+        ),
+        pytest.param(
+            "FREE_BASE",
+            ("base", "l2", "nosuch"),
+            UnknownNameError,
+            "no site named 'nosuch' in the model (tool.tcp_site); known: grip",
+            id="unknown TCP site",
+        ),
+        pytest.param(
+            "FREE_BASE",
+            ("base", "l2", "grip"),
+            SpecError,
+            "TCP site 'grip' is on body 'hand', which moves relative to the chain through joints "
+            "outside it (fingers, links beyond the tip): choose a site rigidly fixed to the "
+            "chain or its tool",
+            id="TCP site on a moving tool body",
+        ),
+    ],
+)
+def test_chains_pinocchio_cannot_model_are_refused_by_name(xml, args, error, message):
+    m = _compile(globals().get(xml, xml))
+    with pytest.raises(error) as err:
+        Chain(m, *args)
+    assert str(err.value) == message
 
 
 def test_unknown_body_lists_the_models_bodies():
