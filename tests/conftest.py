@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+import signal
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -178,3 +180,19 @@ def panda_arm(env: mjk.Env, mode: mjk.CtrlMode = mjk.CtrlMode.VELOCITY) -> mjk.R
     env.reset()
     robot.update()
     return robot
+
+
+@contextmanager
+def deadline(seconds: float, what: str) -> Iterator[None]:
+    """Turn `what` running longer than `seconds` (a hang) into a TimeoutError (SIGALRM)."""
+
+    def expire(signum: int, frame: object) -> None:
+        raise TimeoutError(f"{what} took more than {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)

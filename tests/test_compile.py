@@ -75,6 +75,11 @@ def _build(spec: mjk.SceneSpec) -> mjk.Scene:
     return mjk.Scene.build(spec)
 
 
+def _build_object(path) -> mjk.Scene:
+    """A scene holding the MJCF file `path` as its one object, named `o`."""
+    return _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+
+
 def _table_site(table: mjk.SceneObject) -> mjk.AttachTarget:
     return mjk.AttachTarget(mjk.AttachKind.Site, mjk.scene_object_site_name(table, "table_top"))
 
@@ -1105,7 +1110,7 @@ def test_compile_error_is_a_build_error_with_mujocos_message(tmp_path):
         "</worldbody></mujoco>"
     )
     with pytest.raises(mjk.BuildError) as err:
-        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+        _build_object(path)
     assert not isinstance(err.value, FileNotFoundError)
     assert str(err.value) == (
         "MuJoCo could not compile the scene: Error: material 'o/nope' not found in geom 1\n"
@@ -1137,7 +1142,7 @@ def test_mjcf_object_free_joints_all_listed(tmp_path):
         '<body name="b"><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
     )
     with pytest.raises(mjk.SpecError) as err:
-        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+        _build_object(path)
     assert str(err.value) == (
         f"objects[0] ('o'): {path} has a free joint (loose, (unnamed)); remove it, mjkdl adds "
         "one to the object unless fixed=True"
@@ -1223,7 +1228,7 @@ def test_missing_asset_file_named_with_its_kind(tmp_path, asset, what):
     )
     gone = "gone.skn" if "skin" in asset else "gone.png"
     with pytest.raises(mjk.ModelFileError) as err:
-        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+        _build_object(path)
     assert str(err.value) == (
         f"objects[0] ('o').mjcf_path: {what} in {path} not found: {tmp_path / gone}"
     )
@@ -1251,7 +1256,7 @@ def test_missing_file_included_by_an_included_file_is_named(tmp_path):
         '<worldbody><body name="b"><geom size="0.1"/></body></worldbody></mujoco>'
     )
     with pytest.raises(mjk.ModelFileError) as err:
-        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+        _build_object(path)
     assert str(err.value) == (
         f"objects[0] ('o').mjcf_path: file 'parts/missing.xml' included by "
         f"{tmp_path / 'parts' / 'a.xml'} not found: {tmp_path / 'parts' / 'missing.xml'}"
@@ -1264,7 +1269,7 @@ def test_include_cycle_is_left_to_mujoco(tmp_path):
     path = tmp_path / "main.xml"
     path.write_text('<mujoco><include file="a.xml"/></mujoco>')
     with pytest.raises(mjk.BuildError) as err:
-        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+        _build_object(path)
     assert str(err.value).startswith(f"objects[0] ('o').mjcf_path: MuJoCo cannot read {path}: ")
 
 
@@ -1362,7 +1367,7 @@ def test_model_path_below_a_file_is_named_with_the_os_reason(tmp_path):
     (tmp_path / "a.xml").write_text("<mujoco/>")
     path = tmp_path / "a.xml" / "b.xml"
     with pytest.raises(mjk.ModelFileError) as err:
-        _build(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
+        _build_object(path)
     assert str(err.value) == (
         f"objects[0] ('o').mjcf_path: model file {path} cannot be read: Not a directory"
     )

@@ -12,16 +12,13 @@ from __future__ import annotations
 import math
 import os
 import re
-import signal
 import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager
 from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import two_link_arm
+from conftest import deadline, two_link_arm
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from hypothesis.configuration import set_hypothesis_home_dir
@@ -207,22 +204,8 @@ def files(tmp_path_factory) -> dict[str, str]:
     }
 
 
-@contextmanager
-def _time_limit(seconds: int) -> Iterator[None]:
-    def expire(signum: int, frame: object) -> None:
-        raise TimeoutError(f"building a spec took more than {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-
-
 def _builds_or_names_a_field(spec: mjk.SceneSpec) -> None:
-    with _time_limit(EXAMPLE_SECONDS):
+    with deadline(EXAMPLE_SECONDS, "building a spec"):
         try:
             scene = mjk.Scene.build(spec)
         except mjk.MjkdlError as err:

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import contextlib
 import math
-import signal
 
 import mujoco
 import numpy as np
 import pytest
-from conftest import base_spec
+from conftest import base_spec, deadline
 
 import mjkdl as mjk
 
@@ -97,22 +95,6 @@ def _diag_mass(scene: mjk.Scene, joints) -> np.ndarray:
     return np.diag(full)[[scene.model.joint(name).dofadr[0] for name in joints]]
 
 
-@contextlib.contextmanager
-def _deadline(seconds: float):
-    """Turn a call that never returns into a TimeoutError."""
-
-    def expire(signum, frame):
-        raise TimeoutError(f"did not return within {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-
-
 # ---------------------------------------------------------------------- arguments
 
 
@@ -182,7 +164,7 @@ def test_unknown_tool_body_lists_close_matches(motors) -> None:
 def test_tool_body_not_below_the_tip_is_refused(motors, body) -> None:
     # world is body 0; base is the root of the arm's tree, ball (body 1) of another tree.
     assert motors.model.body(1).name == "ball"
-    with _deadline(2.0), pytest.raises(ValueError) as err:
+    with deadline(2.0, "create_robot"), pytest.raises(ValueError) as err:
         motors.create_robot("base", "hand", tool=mjk.ToolFrameSpec(tool_body=body))
     assert str(err.value) == f"tool.tool_body {body!r} is not mounted below the tip 'hand'"
 
