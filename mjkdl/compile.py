@@ -8,7 +8,6 @@ named, never inside MuJoCo without context.
 
 from __future__ import annotations
 
-import re
 import stat
 import warnings
 from pathlib import Path
@@ -63,9 +62,6 @@ _NAMESPACES = (
     "sensors",
     "tendons",
 )
-
-# A resource-provider URI ("http://...", "mem://..."): not a file on disk.
-_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 
 
 def compile_scene(spec: SceneSpec) -> mujoco.MjModel:
@@ -199,7 +195,7 @@ def _check_asset_files(child: mujoco.MjSpec, model: Path, field: str) -> None:
             if kind == "texture":
                 names += list(element.cubefiles)
             for name in names:
-                if not name or name in child.assets or _SCHEME.match(name):
+                if not name:
                     continue
                 file = base / folder / name  # an absolute folder or name replaces the base
                 what = f"{kind} file of {element.name or 'an unnamed ' + kind} in {model}"
@@ -440,10 +436,14 @@ def _camera_host(
     element = _element(s, target, f"the scene ({field})")
     if target.kind is AttachKind.Body:
         return element
-    # A frame at the site's own placement in its body: the site's orientation may still be
-    # an alternative form (euler, axis-angle) that MuJoCo resolves only when compiling.
-    frame = element.parent.add_frame(pos=element.pos, quat=element.quat)
-    frame.alt = element.alt
+    # A frame at the site's own placement in its body. The site's orientation may still be an
+    # alternative form (euler, axis-angle) in the angle unit of the file it came from (its
+    # own mjsCompiler), which the scene's compiler (radians) would misread: resolve it here.
+    quat = element.quat
+    if element.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:
+        own = element.compiler
+        quat = mujoco.MjSpec.resolve_orientation(own.degree, own.eulerseq, element.alt)
+    frame = element.parent.add_frame(pos=element.pos, quat=quat)
     if element.frame is not None:
         frame.set_frame(element.frame)
     return frame

@@ -565,12 +565,11 @@ class Env(Scene):
 def _transfer_state(
     old_m: mujoco.MjModel, old_d: mujoco.MjData, new_m: mujoco.MjModel, new_d: mujoco.MjData
 ) -> None:
-    """Copy state from an old model's data into a new one, element by element by name."""
+    """Copy state from an old model's data into a new one, element by element (by name;
+    unnamed elements by their place, see `_element_keys`)."""
     new_d.time = old_d.time
-    for j in range(new_m.njnt):
-        name = new_m.joint(j).name
-        k = mujoco.mj_name2id(old_m, mujoco.mjtObj.mjOBJ_JOINT, name) if name else -1
-        if k < 0 or old_m.jnt_type[k] != new_m.jnt_type[j]:
+    for j, k in _pairs(old_m, new_m, mujoco.mjtObj.mjOBJ_JOINT):
+        if old_m.jnt_type[k] != new_m.jnt_type[j]:
             continue
         nq, nv = joint_sizes(int(new_m.jnt_type[j]))
         qa, qb = new_m.jnt_qposadr[j], old_m.jnt_qposadr[k]
@@ -578,28 +577,20 @@ def _transfer_state(
         new_d.qpos[qa : qa + nq] = old_d.qpos[qb : qb + nq]
         for field in ("qvel", "qacc_warmstart", "qfrc_applied"):
             getattr(new_d, field)[va : va + nv] = getattr(old_d, field)[vb : vb + nv]
-    for a in range(new_m.nu):
-        k = mujoco.mj_name2id(old_m, mujoco.mjtObj.mjOBJ_ACTUATOR, new_m.actuator(a).name)
-        if k < 0 or not new_m.actuator(a).name:
-            continue
+    for a, k in _pairs(old_m, new_m, mujoco.mjtObj.mjOBJ_ACTUATOR):
         new_d.ctrl[a] = old_d.ctrl[k]
         n = min(new_m.actuator_actnum[a], old_m.actuator_actnum[k])
         if n:
             a0, k0 = new_m.actuator_actadr[a], old_m.actuator_actadr[k]
             new_d.act[a0 : a0 + n] = old_d.act[k0 : k0 + n]
-    for b in range(new_m.nbody):
-        k = mujoco.mj_name2id(old_m, mujoco.mjtObj.mjOBJ_BODY, new_m.body(b).name)
-        if k < 0:
-            continue
+    for b, k in _pairs(old_m, new_m, mujoco.mjtObj.mjOBJ_BODY):
         new_d.xfrc_applied[b] = old_d.xfrc_applied[k]
         mocap, old_mocap = new_m.body_mocapid[b], old_m.body_mocapid[k]
         if mocap >= 0 and old_mocap >= 0:
             new_d.mocap_pos[mocap] = old_d.mocap_pos[old_mocap]
             new_d.mocap_quat[mocap] = old_d.mocap_quat[old_mocap]
-    old_eq = _element_keys(old_m, mujoco.mjtObj.mjOBJ_EQUALITY)
-    for key, e in _element_keys(new_m, mujoco.mjtObj.mjOBJ_EQUALITY).items():
-        if key in old_eq:
-            new_d.eq_active[e] = old_d.eq_active[old_eq[key]]
+    for e, k in _pairs(old_m, new_m, mujoco.mjtObj.mjOBJ_EQUALITY):
+        new_d.eq_active[e] = old_d.eq_active[k]
 
 
 # Model fields a user may edit at run time, carried over by element (see `_transfer_model`).
@@ -646,7 +637,7 @@ _OPTION_FIELDS = tuple(
     for name in dir(mujoco.MjOption)
     if not name.startswith("_") and isinstance(getattr(mujoco.MjOption, name), property)
 )
-# The element an unnamed element hangs on, to key it by (parent body, ordinal).
+# The body an element hangs on, to key an unnamed one by its place in that body.
 _PARENT_FIELD = {
     mujoco.mjtObj.mjOBJ_BODY: "body_parentid",
     mujoco.mjtObj.mjOBJ_JOINT: "jnt_bodyid",
@@ -663,6 +654,17 @@ _COUNT_FIELD = {
     mujoco.mjtObj.mjOBJ_CAMERA: "ncam",
     mujoco.mjtObj.mjOBJ_LIGHT: "nlight",
     mujoco.mjtObj.mjOBJ_EQUALITY: "neq",
+    mujoco.mjtObj.mjOBJ_ACTUATOR: "nu",
+    mujoco.mjtObj.mjOBJ_TENDON: "ntendon",
+}
+# What an actuator's transmission (mjtTrn) acts on.
+_TRANSMISSION_TARGET = {
+    mujoco.mjtTrn.mjTRN_JOINT: mujoco.mjtObj.mjOBJ_JOINT,
+    mujoco.mjtTrn.mjTRN_JOINTINPARENT: mujoco.mjtObj.mjOBJ_JOINT,
+    mujoco.mjtTrn.mjTRN_SLIDERCRANK: mujoco.mjtObj.mjOBJ_SITE,
+    mujoco.mjtTrn.mjTRN_TENDON: mujoco.mjtObj.mjOBJ_TENDON,
+    mujoco.mjtTrn.mjTRN_SITE: mujoco.mjtObj.mjOBJ_SITE,
+    mujoco.mjtTrn.mjTRN_BODY: mujoco.mjtObj.mjOBJ_BODY,
 }
 
 
@@ -672,12 +674,11 @@ def _transfer_model(
     """Carry run-time edits of the old model into the new one, element by element.
 
     Copies `_MODEL_FIELDS` and `_DOF_FIELDS` of every element that survives (matched by name;
-    unnamed ones by their body and order within it), and every `opt` field that differs from
+    unnamed ones by their place, see `_keys`), and every `opt` field that differs from
     what the old model was compiled with. Actuator parameters are the Robot handles' to set.
     """
     for obj, fields in _MODEL_FIELDS.items():
-        old_keys = _element_keys(old_m, obj)
-        pairs = [(i, old_keys[k]) for k, i in _element_keys(new_m, obj).items() if k in old_keys]
+        pairs = _pairs(old_m, new_m, obj)
         if not pairs:
             continue
         new_ids = np.array([i for i, _ in pairs])
@@ -698,27 +699,51 @@ def _transfer_model(
             setattr(new_m.opt, name, value)
 
 
+def _pairs(
+    old_m: mujoco.MjModel, new_m: mujoco.MjModel, obj: mujoco.mjtObj
+) -> list[tuple[int, int]]:
+    """(new id, old id) of every element of kind `obj` that survives a recompile."""
+    old = _element_keys(old_m, obj)
+    return [(i, old[key]) for key, i in _element_keys(new_m, obj).items() if key in old]
+
+
 def _element_keys(m: mujoco.MjModel, obj: mujoco.mjtObj) -> dict[Hashable, int]:
-    """Element id by a key that survives recompiling: its name, else (body, ordinal) or, for
-    an unnamed equality, (type, names of the two elements it ties)."""
-    keys: dict[Hashable, int] = {}
-    ordinal: defaultdict[int, int] = defaultdict(int)
+    """Element id by a key that survives recompiling; see `_keys`."""
+    return {key: i for i, key in enumerate(_keys(m, obj, {}))}
+
+
+def _keys(
+    m: mujoco.MjModel, obj: mujoco.mjtObj, done: dict[mujoco.mjtObj, list[Hashable]]
+) -> list[Hashable]:
+    """A key per element that survives recompiling: its name; for an unnamed one, what it hangs
+    on (its body's key; an actuator's target; an equality's type and the two elements it ties)
+    and its rank among the unnamed elements hanging there. Counting unnamed ones only keeps the
+    rank when named elements (an added object) come in before it. `done`: keys already made."""
+    if obj in done:
+        return done[obj]
+    keys: list[Hashable] = []
+    done[obj] = keys  # bodies key their children while the list grows (parents come first)
+    rank: defaultdict[Hashable, int] = defaultdict(int)
     parent_field = _PARENT_FIELD.get(obj)
     for i in range(getattr(m, _COUNT_FIELD[obj])):
         name = mujoco.mj_id2name(m, obj, i)
-        key: Hashable = name
+        if name:
+            keys.append(name)
+            continue
+        anchor: Hashable = None
         if parent_field is not None:
-            parent = int(getattr(m, parent_field)[i])
-            rank = ordinal[parent]
-            ordinal[parent] += 1
-            if not name:
-                key = (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, parent), rank)
-        elif not name:
+            bodies = _keys(m, mujoco.mjtObj.mjOBJ_BODY, done)
+            anchor = bodies[int(getattr(m, parent_field)[i])]
+        elif obj == mujoco.mjtObj.mjOBJ_ACTUATOR:
+            trn = int(m.actuator_trntype[i])
+            target = _TRANSMISSION_TARGET.get(mujoco.mjtTrn(trn))
+            if target is not None:
+                anchor = (trn, _keys(m, target, done)[int(m.actuator_trnid[i, 0])])
+        elif obj == mujoco.mjtObj.mjOBJ_EQUALITY:
             kind = mujoco.mjtObj(int(m.eq_objtype[i]))
-            key = (
-                int(m.eq_type[i]),
-                mujoco.mj_id2name(m, kind, int(m.eq_obj1id[i])),
-                mujoco.mj_id2name(m, kind, int(m.eq_obj2id[i])),
-            )
-        keys[key] = i
+            tied = _keys(m, kind, done) if kind in _COUNT_FIELD else None
+            ends = (int(m.eq_obj1id[i]), int(m.eq_obj2id[i]))
+            anchor = (int(m.eq_type[i]), *(tied[e] if tied and e >= 0 else e for e in ends))
+        keys.append((anchor, rank[anchor]))
+        rank[anchor] += 1
     return keys

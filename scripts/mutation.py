@@ -106,7 +106,10 @@ def main() -> None:
     if unknown:
         parser.error(f"unknown module(s) {', '.join(unknown)}; choose from {', '.join(MODULES)}")
     args.modules = args.modules or list(MODULES)
-    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    # mutmut forks a worker per mutant from a process that has already rendered; Mesa's
+    # llvmpipe threads do not survive a fork, so a forked worker's first render would wait on
+    # them forever. LP_NUM_THREADS=0 makes llvmpipe render on the calling thread.
+    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"), LP_NUM_THREADS="0")
     for module in args.modules:
         dest = _prepare(module)
         if not args.report:

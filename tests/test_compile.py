@@ -551,6 +551,20 @@ def test_missing_mesh_named(tmp_path, as_robot):
         _build(spec)
 
 
+def test_mesh_named_by_a_uri_is_refused_like_a_missing_file(tmp_path):
+    # MuJoCo reads "mem://x.obj" as the path "mem:/x.obj"; Python has no resource providers,
+    # so it is a missing file, reported with the object and model at fault.
+    path = tmp_path / "uri.xml"
+    path.write_text(MESH_XML.replace("nope.stl", "mem://x.obj"))
+    spec = base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path), fixed=True)])
+    with pytest.raises(mjk.ModelFileError) as err:
+        _build(spec)
+    assert str(err.value).startswith(
+        f"objects[0] ('o').mjcf_path: mesh file of m in {path} not found: "
+    )
+    assert str(err.value).endswith("mem:/x.obj")
+
+
 @pytest.mark.parametrize(
     ("kind", "name", "suggestion"),
     [
@@ -1297,12 +1311,24 @@ SITES_XML = """<mujoco><compiler angle="radian"/>
 <site name="spun" pos="0.01 0 0" euler="0.3 0.2 0.1"/>
 <frame pos="0 0 0.1" euler="0.1 0.2 0.3"><site name="framed" pos="0.04 0 0"/></frame>
 </body></worldbody></mujoco>"""
+# The same in degrees (MuJoCo's default unit) and another Euler sequence: the scene compiles in
+# radians, so a site's angles must be read in the unit of the file it comes from.
+SITES_DEGREES_XML = """<mujoco><compiler angle="degree" eulerseq="zyx"/>
+<worldbody><body name="b" pos="0.1 0.2 0.3"><geom size="0.05"/>
+<site name="spun" pos="0.01 0 0" euler="30 20 90"/>
+<site name="axis" axisangle="0 1 1 120"/>
+<frame euler="0 90 0"><site name="framed" pos="0.04 0 0" euler="45 0 0"/></frame>
+</body></worldbody></mujoco>"""
 
 
-@pytest.mark.parametrize("site", ["turned", "framed", "spun"])
-def test_camera_on_a_site_sits_exactly_on_it(tmp_path, site):
+@pytest.mark.parametrize(
+    "unit, site",
+    [("radian", s) for s in ("turned", "framed", "spun")]
+    + [("degree", s) for s in ("spun", "axis", "framed")],
+)
+def test_camera_on_a_site_sits_exactly_on_it(tmp_path, unit, site):
     path = tmp_path / "sites.xml"
-    path.write_text(SITES_XML)
+    path.write_text(SITES_XML if unit == "radian" else SITES_DEGREES_XML)
     obj = mjk.SceneObject(name="o", mjcf_path=str(path), fixed=True, euler=[10, 20, 30])
     cam = mjk.CameraSpec(
         name="c",

@@ -424,8 +424,9 @@ def test_rebuild_keeps_model_edits_applied_forces_and_eq_active(env_robot) -> No
 
 # ---------------------------------------------------------------------- rebuild: unnamed elements
 
-# A robot whose first body and joint, three geoms and first actuator have no name, with a
-# mocap target, a ball joint, an activation state and an (inactive, unnamed) weld; no camera.
+# A robot with two unnamed bodies, each with an unnamed joint, three unnamed geoms and two
+# unnamed motors on one joint, with a mocap target, a ball joint, an activation state and an
+# (inactive, unnamed) weld; no camera.
 RICH_ROBOT = """
 <mujoco model="rich">
   <worldbody>
@@ -450,11 +451,16 @@ RICH_ROBOT = """
         </body>
       </body>
     </body>
+    <body pos="0 -1 0.5">
+      <joint type="slide" axis="0 0 1"/>
+      <geom type="sphere" size="0.02"/>
+    </body>
   </worldbody>
   <equality>
     <weld body1="arm" body2="wrist" active="false"/>
   </equality>
   <actuator>
+    <motor joint="hinge"/>
     <motor joint="hinge"/>
     <position name="servo" joint="hinge" kp="10"/>
     <general name="integ" joint="hinge" dyntype="integrator" dynprm="1" gainprm="1"/>
@@ -492,13 +498,16 @@ def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
     with mjk.Env.build(spec) as env:
         m, d = env.model, env.data
         assert m.ncam == 0 and m.nmocap == 1 and m.na == 1
-        unnamed_joint = int(np.flatnonzero(m.jnt_bodyid == m.body("arm").id - 1)[0])
+        first, second = _unnamed_joints(m)
         adr = {n: m.joint(n).qposadr[0] for n in ("hinge", "ball", "slide")}
-        d.qpos[m.joint(unnamed_joint).qposadr[0]] = 0.4
+        d.qpos[m.jnt_qposadr[first]] = 0.4
+        d.qpos[m.jnt_qposadr[second]] = -0.2
+        d.qfrc_applied[m.jnt_dofadr[second]] = 3.0
+        d.xfrc_applied[m.jnt_bodyid[second]] = [0, 0, 9, 0, 0, 0]  # an unnamed body's
         d.qpos[adr["hinge"]] = 0.3
         d.qpos[adr["ball"] : adr["ball"] + 4] = [0.5, 0.5, 0.5, 0.5]
         d.qpos[adr["slide"]] = 0.07
-        d.ctrl[:] = [1.5, 0.25, -0.75]
+        d.ctrl[:] = [1.5, 2.5, 0.25, -0.75]
         d.act[0] = 0.125
         d.mocap_pos[0] = [0.1, 0.2, 0.3]
         d.mocap_quat[0] = [0, 1, 0, 0]
@@ -514,17 +523,19 @@ def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
         env.add_object(gadget)  # its body and joint come before the robot's
         m, d = env.model, env.data
         adr = {n: m.joint(n).qposadr[0] for n in ("hinge", "ball", "slide", "gadget/slide")}
-        unnamed_joint = int(np.flatnonzero(m.jnt_bodyid == m.body("arm").id - 1)[0])
-        # unnamed joint and the new object's joint: MuJoCo's defaults (qpos0), nothing carried
-        unnamed_adr = m.joint(unnamed_joint).qposadr[0]
-        assert d.qpos[unnamed_adr] == m.qpos0[unnamed_adr] == 0.0
-        assert d.qpos[adr["gadget/slide"]] == 0.0
+        first, second = _unnamed_joints(m)
+        # unnamed elements are matched by their place: body (itself by its place), rank
+        assert d.qpos[m.jnt_qposadr[first]] == 0.4
+        assert d.qpos[m.jnt_qposadr[second]] == -0.2
+        assert d.qfrc_applied[m.jnt_dofadr[second]] == 3.0
+        assert list(d.xfrc_applied[m.jnt_bodyid[second]]) == [0, 0, 9, 0, 0, 0]
+        assert d.qpos[adr["gadget/slide"]] == 0.0  # the new object's: MuJoCo's default
         assert d.qpos[adr["hinge"]] == 0.3
         assert list(d.qpos[adr["ball"] : adr["ball"] + 4]) == [0.5, 0.5, 0.5, 0.5]
         assert d.qpos[adr["slide"]] == 0.07
         names = [m.actuator(a).name for a in range(m.nu)]
-        assert names == ["gadget/push", "", "servo", "integ"]
-        assert list(d.ctrl) == [0.0, 0.0, 0.25, -0.75]  # the unnamed motor's is not carried
+        assert names == ["gadget/push", "", "", "servo", "integ"]
+        assert list(d.ctrl) == [0.0, 1.5, 2.5, 0.25, -0.75]
         assert list(d.act) == [0.125]
         assert list(d.mocap_pos[0]) == [0.1, 0.2, 0.3]
         assert list(d.mocap_quat[0]) == [0, 1, 0, 0]
@@ -535,6 +546,10 @@ def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
         assert m.eq_solref[0].tolist() == [0.05, 0.5]
         assert m.body_mass[m.body("crate").id] == 3.5
         assert m.body_mass[m.body("target").id] == 0.75
+
+
+def _unnamed_joints(m: mujoco.MjModel) -> list[int]:
+    return [j for j in range(m.njnt) if not m.joint(j).name]
 
 
 def test_joint_sizes_match_mujocos_addresses() -> None:
