@@ -9,6 +9,7 @@ import textwrap
 from pathlib import Path
 
 import cv2
+import mujoco
 import numpy as np
 import pytest
 from conftest import HOME, ROOT, base_spec, tutorial_spec
@@ -288,7 +289,209 @@ def test_empty_recording_is_an_error_but_never_hides_the_real_one(tmp_path: Path
             rec.close()
         with (
             pytest.raises(KeyError, match="boom"),
-            pytest.warns(RuntimeWarning, match="no frame"),
+            pytest.warns(RuntimeWarning, match="no frame") as warned,
             mjk.VideoRecorder.open(scene, tmp_path / "e2.mp4", 320, 240, 30, **FAST),
         ):
             raise KeyError("boom")
+        assert warned[0].filename == __file__  # pointing at the user's `with` block
+
+
+# ----------------------------------------------------------------------------- what is recorded
+
+
+def _bgr_to_rgb(frame: np.ndarray) -> np.ndarray:
+    return frame[:, :, ::-1].astype(int)
+
+
+def _reference(scene: mjk.Scene, size: tuple[int, int], **view) -> np.ndarray:
+    """What MuJoCo's own Renderer shows of the scene's current state (no shadows/reflections)."""
+    renderer = mujoco.Renderer(scene.model, height=size[1], width=size[0])
+    try:
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        renderer.update_scene(scene.data, **view)
+        return renderer.render().astype(int)
+    finally:
+        renderer.close()
+
+
+RED_BLOCK = mjk.SceneObject(
+    name="block",
+    shape=mjk.Shape.BOX,
+    size=[0.3, 0.3, 0.3],
+    pos=[0, 0, 0.3],
+    mass=1,
+    rgba=[1, 0, 0, 1],
+    fixed=True,
+)
+
+
+def test_a_rebuilt_scene_is_recorded_through_the_chosen_view(tmp_path: Path) -> None:
+    """After add_object the recorder renders the new model through the same camera or view."""
+    front = mjk.CameraSpec(name="front", pos=[2.0, 0, 0.5], euler=[90, 90, 0], fovy=45)
+    size = (320, 240)
+    path = tmp_path / "rebuilt.mp4"
+    view = mujoco.MjvCamera()
+    mujoco.mjv_defaultCamera(view)
+    view.lookat[:], view.distance, view.azimuth, view.elevation = [0, 0, 0.3], 3.0, 45.0, -30.0
+    see_through = mujoco.MjvOption()  # the followed view's own option: transparent geoms
+    see_through.flags[mujoco.mjtVisFlag.mjVIS_TRANSPARENT] = True
+    expected = []
+    scene = mjk.Scene.build(base_spec(cameras=[front]))
+    with scene, mjk.VideoRecorder.open(scene, path, *size, 10, **FAST) as rec:
+        rec.use_camera("front")
+        scene.add_object(RED_BLOCK)  # a new model: the recorder follows it
+        rec.record_frame()
+        expected.append(_reference(scene, size, camera="front"))
+        rec.follow_view(view, see_through)
+        scene.remove_object("block")
+        scene.add_object(RED_BLOCK)
+        scene.data.time += 0.1
+        rec.record_frame()
+        expected.append(_reference(scene, size, camera=view, scene_option=see_through))
+        rec.use_camera("front")  # the followed view's option goes with it
+        scene.data.time += 0.1
+        rec.record_frame()
+        expected.append(_reference(scene, size, camera="front"))
+    frames = [_bgr_to_rgb(f) for f in _read_video(path)[3]]
+    assert len(frames) == 3
+    for i, (got, want) in enumerate(zip(frames, expected, strict=True)):
+        assert np.abs(got - want).mean() < 3.0, f"frame {i} is not the chosen view"
+    # the block is in the front camera's picture: red dominates its centre
+    centre = frames[0][100:140, 140:180]
+    assert centre[..., 0].mean() > 150 and centre[..., 1].mean() < 60
+    assert np.abs(frames[1] - frames[0]).mean() > 10.0  # another view
+
+
+def test_an_overlay_draws_into_the_recorded_scene(tmp_path: Path) -> None:
+    seen: list[tuple[type, int]] = []
+
+    def overlay(scn: mujoco.MjvScene) -> None:
+        seen.append((type(scn), scn.ngeom))
+        mujoco.mjv_initGeom(
+            scn.geoms[scn.ngeom],
+            mujoco.mjtGeom.mjGEOM_SPHERE,
+            np.array([0.5, 0, 0]),
+            np.zeros(3),
+            np.eye(3).ravel(),
+            np.array([0, 0, 1, 1], dtype=np.float32),
+        )
+        scn.ngeom += 1
+
+    camera = mujoco.MjvCamera()
+    mujoco.mjv_defaultCamera(camera)
+    camera.lookat[:], camera.distance = [0, 0, 0.5], 2.0
+    path = tmp_path / "overlay.mp4"
+    with _ball_scene(0.01) as scene:
+        with mjk.VideoRecorder.open(scene, path, 320, 240, 10, **FAST) as rec:
+            rec.follow_view(camera, None, overlay)
+            rec.record_frame()
+        plain = _reference(scene, (320, 240), camera=camera)
+        assert seen == [(mujoco.MjvScene, scene.model.ngeom)]
+    frame = _bgr_to_rgb(_read_video(path)[3][0])
+    blue = (frame[..., 2] > 150) & (frame[..., 0] < 80) & (frame[..., 1] < 80)
+    assert (
+        blue.sum() > 500 and blue.sum() > 10 * ((plain[..., 2] > 150) & (plain[..., 0] < 80)).sum()
+    )
+
+
+def test_open_preset_defaults_and_passes_its_options(tmp_path: Path) -> None:
+    shadow, reflection = mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION
+    cases = [({}, 60.0, (1, 1)), ({"shadows": False}, 60.0, (0, 1))]
+    cases += [({"reflections": False}, 60.0, (1, 0)), ({"fps": 24}, 24.0, (1, 1))]
+    with _ball_scene(0.01) as scene:
+        for i, (kwargs, fps, flags) in enumerate(cases):
+            res = mjk.VideoResolution.R480p
+            with mjk.VideoRecorder.open_preset(scene, tmp_path / f"p{i}.mp4", res, **kwargs) as rec:
+                assert rec.fps == fps
+                drawn = rec._renderer.scene.flags  # what MuJoCo will render with
+                assert (drawn[shadow], drawn[reflection]) == flags, kwargs
+                rec.record_frame()
+            assert _read_video(rec.path)[:2] == (854, 480)
+
+
+def test_a_jump_of_one_second_is_real_time_and_more_starts_a_new_segment(tmp_path: Path) -> None:
+    scene = _ball_scene(0.01)
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "jumps.mp4", 160, 120, 30, **FAST) as rec:
+        scene.data.time = 0.0
+        rec.record_frame()
+        scene.data.time = 1.0  # exactly one second on: 30 frame periods, repeated
+        rec.record_frame()
+        assert rec.frames_written == 1 + 30
+        scene.data.time = 2.5  # 1.5 s on: a new segment, one frame
+        rec.record_frame()
+        assert rec.frames_written == 1 + 30 + 1
+
+
+def test_closed_scene_message_names_the_call(tmp_path: Path) -> None:
+    scene = _ball_scene(0.01)
+    rec = mjk.VideoRecorder.open(scene, tmp_path / "c.mp4", 160, 120, 30, **FAST)
+    rec.record_frame()
+    scene.close()
+    with pytest.raises(RuntimeError) as err:
+        rec.record_frame()
+    assert str(err.value) == "VideoRecorder.record_frame: the scene is closed"
+    rec.close()
+
+
+# ----------------------------------------------------------------------------- GL backend
+
+
+class _ContextMade(Exception):
+    """Raised by a stand-in GL context class when MuJoCo's Renderer makes one."""
+
+
+def _stand_in(module: str) -> type:
+    def __init__(self, *args, **kwargs):
+        raise _ContextMade(module)
+
+    return type("GLContext", (), {"__module__": module, "__init__": __init__})
+
+
+@pytest.fixture
+def gl_context(monkeypatch):
+    """MuJoCo's Renderer backend module, with MUJOCO_GL unset."""
+    from mujoco.rendering.classic import gl_context
+
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    return gl_context
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the EGL fallback is Linux-only")
+def test_an_implicit_glfw_backend_renders_through_egl(gl_context, monkeypatch) -> None:
+    glfw = _stand_in("mujoco.glfw")
+    monkeypatch.setattr(gl_context, "GLContext", glfw)
+    with mjk.Scene.build(base_spec()) as scene:
+        renderer = mjk.record.offscreen_renderer(scene.model, 64, 48, **FAST)
+        try:
+            renderer.update_scene(scene.data)
+            image = renderer.render()
+        finally:
+            renderer.close()
+    assert image.shape == (48, 64, 3) and image.std() > 0  # drawn, on EGL
+    assert gl_context.GLContext is glfw  # MuJoCo's choice is restored
+
+
+@pytest.mark.parametrize("asked", ["glfw", " GLFW "])
+def test_an_explicit_glfw_backend_is_respected(gl_context, monkeypatch, asked) -> None:
+    monkeypatch.setattr(gl_context, "GLContext", _stand_in("mujoco.glfw"))
+    monkeypatch.setenv("MUJOCO_GL", asked)
+    with mjk.Scene.build(base_spec()) as scene, pytest.raises(_ContextMade, match=r"mujoco\.glfw"):
+        mjk.record.offscreen_renderer(scene.model, 64, 48)
+
+
+def test_another_backend_is_used_as_mujoco_chose_it(gl_context, monkeypatch) -> None:
+    monkeypatch.setattr(gl_context, "GLContext", _stand_in("mujoco.osmesa"))
+    with mjk.Scene.build(base_spec()) as scene, pytest.raises(_ContextMade, match="osmesa"):
+        mjk.record.offscreen_renderer(scene.model, 64, 48)
+
+
+def test_without_egl_the_implicit_glfw_backend_is_kept(gl_context, monkeypatch) -> None:
+    import mujoco.egl
+
+    glfw = _stand_in("mujoco.glfw")
+    monkeypatch.setattr(gl_context, "GLContext", glfw)
+    monkeypatch.setattr(mujoco.egl, "GLContext", _stand_in("mujoco.egl"))  # EGL fails too
+    with mjk.Scene.build(base_spec()) as scene, pytest.raises(_ContextMade, match=r"mujoco\.glfw"):
+        mjk.record.offscreen_renderer(scene.model, 64, 48)
+    assert gl_context.GLContext is glfw
