@@ -81,7 +81,9 @@ class RobotSpec:
 
 @dataclass
 class SceneObject:
-    """A primitive (`shape`, `size`, `mass`, ...) or an MJCF file; free unless `fixed`."""
+    """A primitive (`shape`, `size`, `mass`, `rgba`, `friction`, `condim`) or an MJCF file
+    (whose own geoms keep their properties); placed at `pos`/`euler` (degrees); free unless
+    `fixed`."""
 
     name: str = ""
     mjcf_path: str | Path = ""

@@ -229,6 +229,12 @@ def _check_object(obj: SceneObject, field: str) -> None:
             raise SpecError(
                 f"{field}: give either mjcf_path or a primitive (shape, size, mass), not both"
             )
+        for name in _PRIMITIVE_ONLY:
+            if _set(obj, name):
+                raise SpecError(
+                    f"{field}.{name} applies to primitive objects only; an MJCF object keeps "
+                    f"what its file gives (edit the file, or model.geom_{name} after building)"
+                )
         return
     if obj.shape is None:
         raise SpecError(f"{field}.shape is unset: a primitive object needs a Shape")
@@ -257,6 +263,20 @@ def _check_object(obj: SceneObject, field: str) -> None:
         int(obj.condim) not in {int(c) for c in Condim}
     ):
         raise SpecError(f"{field}.condim must be 1, 3, 4 or 6, got {obj.condim!r}")
+
+
+# SceneObject fields that describe a primitive's geom; an MJCF object's come from its file.
+_PRIMITIVE_ONLY = ("rgba", "friction", "condim")
+_DEFAULTS = SceneObject()
+
+
+def _set(obj: SceneObject, name: str) -> bool:
+    """Whether field `name` of `obj` differs from its default."""
+    value, default = getattr(obj, name), getattr(_DEFAULTS, name)
+    try:
+        return not np.array_equal(np.asarray(value, dtype=float), np.asarray(default, dtype=float))
+    except (TypeError, ValueError):
+        return True
 
 
 def _check_robot(robot: RobotSpec, field: str) -> None:

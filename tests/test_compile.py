@@ -551,6 +551,24 @@ def test_missing_mesh_named(tmp_path, as_robot):
         _build(spec)
 
 
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("rgba", [1, 0, 0, 1]), ("friction", [0.5]), ("condim", mjk.Condim.Rolling)],
+)
+def test_primitive_only_fields_on_an_mjcf_object_are_refused(field, value):
+    table = mjk.SceneObject(name="t", mjcf_path=str(ASSETS / "table.xml"), fixed=True)
+    setattr(table, field, value)
+    with pytest.raises(mjk.SpecError) as err:
+        _build(base_spec(objects=[table]))
+    assert str(err.value) == (
+        f"objects[0] ('t').{field} applies to primitive objects only; an MJCF object keeps what "
+        f"its file gives (edit the file, or model.geom_{field} after building)"
+    )
+    setattr(table, field, getattr(mjk.SceneObject(), field))  # the defaults are not "set"
+    with _build(base_spec(objects=[table])) as scene:
+        assert scene.model.body("t/table").name == "t/table"
+
+
 def test_mesh_named_by_a_uri_is_refused_like_a_missing_file(tmp_path):
     # MuJoCo reads "mem://x.obj" as the path "mem:/x.obj"; Python has no resource providers,
     # so it is a missing file, reported with the object and model at fault.

@@ -289,11 +289,21 @@ def test_empty_recording_is_an_error_but_never_hides_the_real_one(tmp_path: Path
             rec.close()
         with (
             pytest.raises(KeyError, match="boom"),
-            pytest.warns(RuntimeWarning, match="no frame") as warned,
+            pytest.warns(RuntimeWarning, match="no frame"),
             mjk.VideoRecorder.open(scene, tmp_path / "e2.mp4", 320, 240, 30, **FAST),
         ):
             raise KeyError("boom")
-        assert warned[0].filename == __file__  # pointing at the user's `with` block
+
+
+def test_the_warning_points_at_the_users_with_block(tmp_path: Path) -> None:
+    with _ball_scene(0.01) as scene:
+        with (
+            pytest.raises(KeyError),
+            pytest.warns(RuntimeWarning, match="no frame") as warned,
+            mjk.VideoRecorder.open(scene, tmp_path / "e3.mp4", 320, 240, 30, **FAST),
+        ):
+            raise KeyError("boom")
+        assert warned[0].filename == __file__
 
 
 # ----------------------------------------------------------------------------- what is recorded
