@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import threading
 from pathlib import Path
 
 import cv2
@@ -138,9 +139,10 @@ def test_bad_output_paths_are_named(tmp_path: Path) -> None:
 def test_unknown_camera_lists_close_matches(tmp_path: Path) -> None:
     scene = mjk.Scene.build(tutorial_spec())
     with scene, mjk.VideoRecorder.open(scene, tmp_path / "cam.mp4", 320, 240, 30, **FAST) as rec:
-        with pytest.raises(mjk.UnknownNameError, match="close matches: task") as err:
+        with pytest.raises(mjk.UnknownNameError) as err:
             rec.use_camera("tsak")
         assert isinstance(err.value, KeyError)
+        assert err.value.args[0] == "no camera named 'tsak' in the scene; close matches: task"
         rec.use_camera("task")
         rec.use_camera("")  # back to the free camera
         assert rec.record_frame()
@@ -344,8 +346,8 @@ def test_a_rebuilt_scene_is_recorded_through_the_chosen_view(tmp_path: Path) -> 
     view = mujoco.MjvCamera()
     mujoco.mjv_defaultCamera(view)
     view.lookat[:], view.distance, view.azimuth, view.elevation = [0, 0, 0.3], 3.0, 45.0, -30.0
-    see_through = mujoco.MjvOption()  # the followed view's own option: transparent geoms
-    see_through.flags[mujoco.mjtVisFlag.mjVIS_TRANSPARENT] = True
+    hidden = mujoco.MjvOption()  # the followed view's own option: geom group 0 not drawn
+    hidden.geomgroup[0] = 0
     expected = []
     scene = mjk.Scene.build(base_spec(cameras=[front]))
     with scene, mjk.VideoRecorder.open(scene, path, *size, 10, **FAST) as rec:
@@ -353,12 +355,12 @@ def test_a_rebuilt_scene_is_recorded_through_the_chosen_view(tmp_path: Path) -> 
         scene.add_object(RED_BLOCK)  # a new model: the recorder follows it
         rec.record_frame()
         expected.append(_reference(scene, size, camera="front"))
-        rec.follow_view(view, see_through)
+        rec.follow_view(view, hidden)
         scene.remove_object("block")
         scene.add_object(RED_BLOCK)
         scene.data.time += 0.1
         rec.record_frame()
-        expected.append(_reference(scene, size, camera=view, scene_option=see_through))
+        expected.append(_reference(scene, size, camera=view, scene_option=hidden))
         rec.use_camera("front")  # the followed view's option goes with it
         scene.data.time += 0.1
         rec.record_frame()
@@ -370,7 +372,7 @@ def test_a_rebuilt_scene_is_recorded_through_the_chosen_view(tmp_path: Path) -> 
     # the block is in the front camera's picture: red dominates its centre
     centre = frames[0][100:140, 140:180]
     assert centre[..., 0].mean() > 150 and centre[..., 1].mean() < 60
-    assert np.abs(frames[1] - frames[0]).mean() > 10.0  # another view
+    assert np.abs(frames[1] - frames[0]).mean() > 10.0  # the floor and block not drawn
 
 
 def test_an_overlay_draws_into_the_recorded_scene(tmp_path: Path) -> None:
@@ -505,3 +507,130 @@ def test_without_egl_the_implicit_glfw_backend_is_kept(gl_context, monkeypatch) 
     with mjk.Scene.build(base_spec()) as scene, pytest.raises(_ContextMade, match=r"mujoco\.glfw"):
         mjk.record.offscreen_renderer(scene.model, 64, 48)
     assert gl_context.GLContext is glfw
+
+
+# ------------------------------------------------------------------------ messages and defaults
+
+
+def test_open_defaults_and_refuses_what_is_not_a_scene(tmp_path: Path) -> None:
+    flags = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION)
+    scene = _ball_scene(0.01)
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "d.mp4", 160, 120) as rec:
+        assert rec.fps == 30.0
+        assert [rec._renderer.scene.flags[f] for f in flags] == [1, 1]
+        rec.record_frame()
+    with pytest.raises(mjk.SpecError) as err:
+        mjk.VideoRecorder.open(object(), tmp_path / "o.mp4", 160, 120)  # type: ignore[arg-type]
+    assert str(err.value) == "VideoRecorder needs a Scene or Env, got object"
+
+
+def test_output_path_errors_name_the_path_and_folder(tmp_path: Path) -> None:
+    with _ball_scene(0.01) as scene:
+        avi, missing = tmp_path / "out.avi", tmp_path / "nope" / "out.mp4"
+        with pytest.raises(mjk.SpecError) as err:
+            mjk.VideoRecorder.open(scene, avi, 160, 120)
+        assert str(err.value) == f"video path must end in .mp4, got {str(avi)!r}"
+        with pytest.raises(mjk.VideoWriteError) as err:
+            mjk.VideoRecorder.open(scene, missing, 160, 120)
+        assert str(err.value) == (
+            f"cannot write video {str(missing)!r}: folder {str(missing.parent)!r} does not exist"
+        )
+        folder = tmp_path / "folder.mp4"
+        folder.mkdir()  # passes the permission bits, fails to open
+        with pytest.raises(mjk.VideoWriteError) as err:
+            mjk.VideoRecorder.open(scene, folder, 160, 120)
+        assert str(err.value) == f"cannot write video {str(folder)!r}: Is a directory"
+        if os.geteuid() == 0:
+            with pytest.raises(mjk.VideoWriteError) as err:
+                mjk.VideoRecorder.open(scene, "/proc/self/out.mp4", 160, 120)
+            assert str(err.value) == "cannot write video '/proc/self/out.mp4': permission denied"
+
+
+def test_an_existing_file_is_overwritten_and_kept_when_opening_fails(tmp_path: Path) -> None:
+    path = tmp_path / "old.mp4"
+    path.write_bytes(b"an older video")
+    with _ball_scene(0.01) as scene:
+        with pytest.raises(mjk.SpecError, match="offscreen buffer"):
+            mjk.VideoRecorder.open(scene, path, 2560, 1440)
+        assert path.read_bytes() == b"an older video"  # not ours to delete
+        with mjk.VideoRecorder.open(scene, path, 160, 120, 10, **FAST) as rec:
+            for _ in range(20):
+                scene.step()
+                rec.record_frame()
+    assert len(_read_video(path)[3]) == 2
+
+
+def test_the_free_camera_is_kept_over_a_rebuild(tmp_path: Path) -> None:
+    path = tmp_path / "free.mp4"
+    scene = mjk.Scene.build(base_spec())
+    with scene, mjk.VideoRecorder.open(scene, path, 320, 240, 10, **FAST) as rec:
+        scene.add_object(RED_BLOCK)
+        rec.record_frame()
+        expected = _reference(scene, (320, 240))  # MuJoCo's default free camera
+    frame = _bgr_to_rgb(_read_video(path)[3][0])
+    assert np.abs(frame - expected).mean() < 3.0
+
+
+def test_encoder_settings_are_in_the_stream_and_its_thread_is_named(tmp_path: Path) -> None:
+    path = tmp_path / "x264.mp4"
+    scene = _ball_scene(0.01)
+    with scene, mjk.VideoRecorder.open(scene, path, 160, 120, 10, **FAST) as rec:
+        encoders = [t for t in threading.enumerate() if t.name == "mjkdl-video-encoder"]
+        assert len(encoders) == 1 and encoders[0].daemon  # never keeps Python alive
+        rec.record_frame()
+    # x264 writes its settings into the stream: libx264's ultrafast preset, constant quality 23
+    options = path.read_bytes().split(b"x264 - core", 1)[1].split(b"\x00", 1)[0].decode()
+    assert "crf=23.0" in options.split() and "subme=0" in options.split()
+    assert "me=dia" in options.split() and "cabac=0" in options.split()
+
+
+class _BrokenWriter:
+    """Stands in for imageio-ffmpeg's frame writer when ffmpeg has died."""
+
+    def __init__(self, writer, error: Exception) -> None:
+        self._writer, self._error = writer, error
+
+    def send(self, frame) -> None:
+        raise self._error
+
+    def close(self) -> None:
+        self._writer.close()
+
+
+@pytest.mark.parametrize(
+    ("error", "shown"),
+    [(BrokenPipeError("pipe closed\nffmpeg said more"), "pipe closed"), (OSError(), "OSError")],
+)
+def test_an_encoder_failure_is_a_write_error_naming_the_file(tmp_path: Path, error, shown) -> None:
+    path = tmp_path / "broken.mp4"
+    with _ball_scene(0.01) as scene:
+        rec = mjk.VideoRecorder.open(scene, path, 160, 120, 100, **FAST)
+        encoder = rec._encoder
+        encoder._writer = _BrokenWriter(encoder._writer, error)
+        with pytest.raises(mjk.VideoWriteError) as err:
+            for _ in range(50):  # the failure comes back on a later frame or at close
+                scene.step()
+                rec.record_frame()
+            rec.close()
+    assert str(err.value) == f"video encoder failed writing {str(path)!r}: {shown}"
+
+
+@pytest.mark.parametrize(
+    ("error", "shown"),
+    [
+        (RuntimeError("ffmpeg:\nmoov atom not found "), "moov atom not found"),
+        (OSError(), "OSError"),
+    ],
+)
+def test_an_unreadable_video_is_a_recording_error(tmp_path: Path, monkeypatch, error, shown):
+    def unreadable(path):
+        raise error
+
+    path = tmp_path / "unreadable.mp4"
+    with _ball_scene(0.01) as scene:
+        rec = mjk.VideoRecorder.open(scene, path, 160, 120, 10, **FAST)
+        rec.record_frame()
+        monkeypatch.setattr(mjk.record.imageio_ffmpeg, "count_frames_and_secs", unreadable)
+        with pytest.raises(mjk.RecordingError) as err:
+            rec.close()
+    assert str(err.value) == f"video {str(path)!r} cannot be read back: {shown}"
