@@ -19,7 +19,7 @@ from .closable import Closable
 from .compile import compile_scene, vector
 from .describe import describe, summary, tree_for
 from .errors import MjkdlError, SimulationError, SpecError, UnknownNameError, unknown_name
-from .names import model_id
+from .names import COUNT_FIELD, model_id
 from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
 
 if TYPE_CHECKING:
@@ -646,17 +646,6 @@ _PARENT_FIELD = {
     mujoco.mjtObj.mjOBJ_CAMERA: "cam_bodyid",
     mujoco.mjtObj.mjOBJ_LIGHT: "light_bodyid",
 }
-_COUNT_FIELD = {
-    mujoco.mjtObj.mjOBJ_BODY: "nbody",
-    mujoco.mjtObj.mjOBJ_JOINT: "njnt",
-    mujoco.mjtObj.mjOBJ_GEOM: "ngeom",
-    mujoco.mjtObj.mjOBJ_SITE: "nsite",
-    mujoco.mjtObj.mjOBJ_CAMERA: "ncam",
-    mujoco.mjtObj.mjOBJ_LIGHT: "nlight",
-    mujoco.mjtObj.mjOBJ_EQUALITY: "neq",
-    mujoco.mjtObj.mjOBJ_ACTUATOR: "nu",
-    mujoco.mjtObj.mjOBJ_TENDON: "ntendon",
-}
 # What an actuator's transmission (mjtTrn) acts on.
 _TRANSMISSION_TARGET = {
     mujoco.mjtTrn.mjTRN_JOINT: mujoco.mjtObj.mjOBJ_JOINT,
@@ -725,7 +714,7 @@ def _keys(
     done[obj] = keys  # bodies key their children while the list grows (parents come first)
     rank: defaultdict[Hashable, int] = defaultdict(int)
     parent_field = _PARENT_FIELD.get(obj)
-    for i in range(getattr(m, _COUNT_FIELD[obj])):
+    for i in range(getattr(m, COUNT_FIELD[obj])):
         name = mujoco.mj_id2name(m, obj, i)
         if name:
             keys.append(name)
@@ -741,7 +730,7 @@ def _keys(
                 anchor = (trn, _keys(m, target, done)[int(m.actuator_trnid[i, 0])])
         elif obj == mujoco.mjtObj.mjOBJ_EQUALITY:
             kind = mujoco.mjtObj(int(m.eq_objtype[i]))
-            tied = _keys(m, kind, done) if kind in _COUNT_FIELD else None
+            tied = _keys(m, kind, done) if kind in COUNT_FIELD else None
             ends = (int(m.eq_obj1id[i]), int(m.eq_obj2id[i]))
             anchor = (int(m.eq_type[i]), *(tied[e] if tied and e >= 0 else e for e in ends))
         keys.append((anchor, rank[anchor]))
