@@ -74,7 +74,6 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
     validate_scene_spec(spec)
     s = mujoco.MjSpec()
     s.modelname = "mjkdl_scene"
-    s.compiler.degree = False
     # Under the merge policy a child's non-default <option> (the 2F-85's elliptic cone and
     # impratio, Gen3's implicitfast integrator) is adopted; two children that disagree raise.
     s.compiler.conflict = mujoco.mjtConflict.mjCONFLICT_MERGE
@@ -437,8 +436,8 @@ def _camera_host(
     if target.kind is AttachKind.Body:
         return element
     # A frame at the site's own placement in its body. The site's orientation may still be an
-    # alternative form (euler, axis-angle) in the angle unit of the file it came from (its
-    # own mjsCompiler), which the scene's compiler (radians) would misread: resolve it here.
+    # alternative form (euler, axis-angle) in the angle unit and Euler sequence of the file it
+    # came from (its own mjsCompiler); a frame added here would be read with the scene's.
     quat = element.quat
     if element.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:
         own = element.compiler
