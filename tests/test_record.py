@@ -634,3 +634,62 @@ def test_an_unreadable_video_is_a_recording_error(tmp_path: Path, monkeypatch, e
         with pytest.raises(mjk.RecordingError) as err:
             rec.close()
     assert str(err.value) == f"video {str(path)!r} cannot be read back: {shown}"
+
+
+def test_offscreen_renderer_sizes_and_defaults() -> None:
+    flags = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION)
+    with mjk.Scene.build(base_spec()) as scene:
+        for bad, shown in ((0, "0"), (-2, "-2"), (True, "True"), (1.5, "1.5")):
+            with pytest.raises(mjk.SpecError) as err:
+                mjk.record.offscreen_renderer(scene.model, bad, 48)
+            assert str(err.value) == f"width must be a positive integer, got {shown}"
+            with pytest.raises(mjk.SpecError) as err:
+                mjk.record.offscreen_renderer(scene.model, 64, bad)
+            assert str(err.value) == f"height must be a positive integer, got {shown}"
+        renderer = mjk.record.offscreen_renderer(scene.model, 1, 1)  # the smallest image
+        try:
+            assert [renderer.scene.flags[f] for f in flags] == [1, 1]
+            renderer.update_scene(scene.data)
+            assert renderer.render().shape == (1, 1, 3)
+        finally:
+            renderer.close()
+
+
+@pytest.mark.parametrize(("mujoco_gl", "shown"), [(None, "default (glfw)"), ("osmesa", "osmesa")])
+def test_no_gl_context_is_an_offscreen_render_error(gl_context, monkeypatch, mujoco_gl, shown):
+    def no_display(self, *args, **kwargs):
+        raise mujoco.FatalError("gladLoadGL error")
+
+    backend = type("GLContext", (), {"__module__": "mujoco.osmesa", "__init__": no_display})
+    monkeypatch.setattr(gl_context, "GLContext", backend)
+    if mujoco_gl is not None:
+        monkeypatch.setenv("MUJOCO_GL", mujoco_gl)
+    with mjk.Scene.build(base_spec()) as scene, pytest.raises(mjk.OffscreenRenderError) as err:
+        mjk.record.offscreen_renderer(scene.model, 64, 48)
+    assert str(err.value) == (
+        f"cannot create an OpenGL context for offscreen rendering (MUJOCO_GL={shown}): "
+        "gladLoadGL error. On a machine without a display set MUJOCO_GL=egl (or osmesa) before "
+        "importing mujoco or mjkdl."
+    )
+
+
+def test_open_checks_sizes_and_rates_with_exact_messages(tmp_path: Path) -> None:
+    out = tmp_path / "o.mp4"
+    with _ball_scene(0.01) as scene:
+        for width, height, field, value in ((641, 480, "width", 641), (640, 1, "height", 1)):
+            with pytest.raises(mjk.SpecError) as err:
+                mjk.VideoRecorder.open(scene, out, width, height)
+            assert str(err.value) == f"{field} must be even for H.264 yuv420p video, got {value}"
+        for fps in ("fast", None, 0, float("nan")):
+            with pytest.raises(mjk.SpecError) as err:
+                mjk.VideoRecorder.open(scene, out, 160, 120, fps)  # type: ignore[arg-type]
+            assert str(err.value) == f"fps must be a positive number up to 240, got {fps!r}"
+        for fps in (0.5, 1, 240):  # the limits are inclusive where they should be
+            with mjk.VideoRecorder.open(scene, out, 160, 120, fps, **FAST) as rec:
+                rec.record_frame()
+            assert rec.fps == fps
+    closed = _ball_scene(0.01)
+    closed.close()
+    with pytest.raises(RuntimeError) as err:
+        mjk.VideoRecorder.open(closed, out, 160, 120)
+    assert str(err.value) == "VideoRecorder.open: the scene is closed"
