@@ -656,6 +656,12 @@ _TRANSMISSION_TARGET = {
     mujoco.mjtTrn.mjTRN_BODY: mujoco.mjtObj.mjOBJ_BODY,
 }
 
+# What an equality ties when MuJoCo's eq_objtype does not say (joint and tendon equalities).
+_EQUALITY_TIES = {
+    mujoco.mjtEq.mjEQ_JOINT: mujoco.mjtObj.mjOBJ_JOINT,
+    mujoco.mjtEq.mjEQ_TENDON: mujoco.mjtObj.mjOBJ_TENDON,
+}
+
 
 def _transfer_model(
     old_m: mujoco.MjModel, compiled_opt: mujoco.MjOption, new_m: mujoco.MjModel
@@ -730,6 +736,8 @@ def _keys(
                 anchor = (trn, _keys(m, target, done)[int(m.actuator_trnid[i, 0])])
         elif obj == mujoco.mjtObj.mjOBJ_EQUALITY:
             kind = mujoco.mjtObj(int(m.eq_objtype[i]))
+            if kind == mujoco.mjtObj.mjOBJ_UNKNOWN:  # MuJoCo leaves it unset for joint/tendon
+                kind = _EQUALITY_TIES.get(mujoco.mjtEq(int(m.eq_type[i])), kind)
             tied = _keys(m, kind, done) if kind in COUNT_FIELD else None
             ends = (int(m.eq_obj1id[i]), int(m.eq_obj2id[i]))
             anchor = (int(m.eq_type[i]), *(tied[e] if tied and e >= 0 else e for e in ends))

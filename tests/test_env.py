@@ -433,6 +433,10 @@ RICH_ROBOT = """
     <body name="target" mocap="true" pos="0.5 0 0.5">
       <geom type="sphere" size="0.01" contype="0" conaffinity="0"/>
     </body>
+    <body name="lift" pos="0 2 0.5">
+      <joint name="lift" type="slide" axis="0 0 1"/>
+      <geom type="sphere" size="0.02"/>
+    </body>
     <body pos="0 1 0.5">
       <joint axis="0 0 1"/>
       <geom type="sphere" size="0.02"/>
@@ -458,6 +462,7 @@ RICH_ROBOT = """
   </worldbody>
   <equality>
     <weld body1="arm" body2="wrist" active="false"/>
+    <joint joint1="lift" active="false"/>
   </equality>
   <actuator>
     <motor joint="hinge"/>
@@ -467,7 +472,8 @@ RICH_ROBOT = """
   </actuator>
 </mujoco>
 """
-# An object with a slide joint and a motor of its own.
+# An object with a slide joint, a motor of its own and an unnamed one, and an unnamed
+# equality: in the rebuilt model they come before the robot's unnamed ones.
 GADGET = """
 <mujoco model="gadget">
   <worldbody>
@@ -476,7 +482,8 @@ GADGET = """
       <geom type="box" size="0.02 0.02 0.02"/>
     </body>
   </worldbody>
-  <actuator><motor name="push" joint="slide"/></actuator>
+  <equality><joint joint1="slide" active="false"/></equality>
+  <actuator><motor name="push" joint="slide"/><motor joint="slide"/></actuator>
 </mujoco>
 """
 
@@ -508,6 +515,7 @@ def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
         d.qpos[adr["ball"] : adr["ball"] + 4] = [0.5, 0.5, 0.5, 0.5]
         d.qpos[adr["slide"]] = 0.07
         d.ctrl[:] = [1.5, 2.5, 0.25, -0.75]
+        d.eq_active[_equality(m, "joint")] = 1  # switched on at run time
         d.act[0] = 0.125
         d.mocap_pos[0] = [0.1, 0.2, 0.3]
         d.mocap_quat[0] = [0, 1, 0, 0]
@@ -515,7 +523,7 @@ def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
         d.xfrc_applied[m.body("wrist").id] = [0, 0, 7, 0, 0, 0]
         middle_geom = int(np.flatnonzero(m.geom_bodyid == m.body("arm").id - 1)[1])
         m.geom_rgba[middle_geom] = [0.1, 0.2, 0.3, 0.4]
-        m.eq_solref[0] = [0.05, 0.5]
+        m.eq_solref[_equality(m, "weld")] = [0.05, 0.5]
         m.body_mass[m.body("crate").id] = 3.5
         m.body_mass[m.body("target").id] = 0.75  # a world child after the new object
 
@@ -534,8 +542,8 @@ def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
         assert list(d.qpos[adr["ball"] : adr["ball"] + 4]) == [0.5, 0.5, 0.5, 0.5]
         assert d.qpos[adr["slide"]] == 0.07
         names = [m.actuator(a).name for a in range(m.nu)]
-        assert names == ["gadget/push", "", "", "servo", "integ"]
-        assert list(d.ctrl) == [0.0, 1.5, 2.5, 0.25, -0.75]
+        assert names == ["gadget/push", "", "", "", "servo", "integ"]
+        assert list(d.ctrl) == [0.0, 0.0, 1.5, 2.5, 0.25, -0.75]
         assert list(d.act) == [0.125]
         assert list(d.mocap_pos[0]) == [0.1, 0.2, 0.3]
         assert list(d.mocap_quat[0]) == [0, 1, 0, 0]
@@ -543,13 +551,21 @@ def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
         assert list(d.xfrc_applied[m.body("wrist").id]) == [0, 0, 7, 0, 0, 0]
         middle_geom = int(np.flatnonzero(m.geom_bodyid == m.body("arm").id - 1)[1])
         assert m.geom_rgba[middle_geom].tolist() == pytest.approx([0.1, 0.2, 0.3, 0.4])
-        assert m.eq_solref[0].tolist() == [0.05, 0.5]
+        assert m.eq_solref[_equality(m, "weld")].tolist() == [0.05, 0.5]
+        gadget_eq, lift_eq = np.flatnonzero(m.eq_type == mujoco.mjtEq.mjEQ_JOINT)
+        assert m.eq_obj1id[gadget_eq] == m.joint("gadget/slide").id
+        assert (d.eq_active[gadget_eq], d.eq_active[lift_eq]) == (0, 1)
         assert m.body_mass[m.body("crate").id] == 3.5
         assert m.body_mass[m.body("target").id] == 0.75
 
 
 def _unnamed_joints(m: mujoco.MjModel) -> list[int]:
     return [j for j in range(m.njnt) if not m.joint(j).name]
+
+
+def _equality(m: mujoco.MjModel, kind: str) -> int:
+    """The robot's one equality of type `kind` ("weld" or "joint"), the last of its type."""
+    return int(np.flatnonzero(m.eq_type == getattr(mujoco.mjtEq, f"mjEQ_{kind.upper()}"))[-1])
 
 
 def test_joint_sizes_match_mujocos_addresses() -> None:
