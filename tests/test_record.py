@@ -574,9 +574,10 @@ def test_the_free_camera_is_kept_over_a_rebuild(tmp_path: Path) -> None:
 def test_encoder_settings_are_in_the_stream_and_its_thread_is_named(tmp_path: Path) -> None:
     path = tmp_path / "x264.mp4"
     scene = _ball_scene(0.01)
+    before = set(threading.enumerate())
     with scene, mjk.VideoRecorder.open(scene, path, 160, 120, 10, **FAST) as rec:
-        encoders = [t for t in threading.enumerate() if t.name == "mjkdl-video-encoder"]
-        assert len(encoders) == 1 and encoders[0].daemon  # never keeps Python alive
+        started = set(threading.enumerate()) - before
+        assert [(t.name, t.daemon) for t in started] == [("mjkdl-video-encoder", True)]
         rec.record_frame()
     # x264 writes its settings into the stream: libx264's ultrafast preset, constant quality 23
     options = path.read_bytes().split(b"x264 - core", 1)[1].split(b"\x00", 1)[0].decode()
@@ -612,13 +613,17 @@ def test_an_encoder_failure_is_a_write_error_naming_the_file(tmp_path: Path, err
                 scene.step()
                 rec.record_frame()
             rec.close()
-    assert str(err.value) == f"video encoder failed writing {str(path)!r}: {shown}"
+        assert str(err.value) == f"video encoder failed writing {str(path)!r}: {shown}"
+        if not rec.closed:  # raised by record_frame: the file is short of what was recorded
+            with pytest.raises(mjk.RecordingError, match=r"broken\.mp4"):
+                rec.close()
+    assert not encoder._thread.is_alive()
 
 
 @pytest.mark.parametrize(
     ("error", "shown"),
     [
-        (RuntimeError("ffmpeg:\nmoov atom not found "), "moov atom not found"),
+        (RuntimeError("ffmpeg failed:\nInvalid data\nmoov atom not found "), "moov atom not found"),
         (OSError(), "OSError"),
     ],
 )
