@@ -17,6 +17,7 @@ COUNT_FIELD = {
     mujoco.mjtObj.mjOBJ_EQUALITY: "neq",
     mujoco.mjtObj.mjOBJ_ACTUATOR: "nu",
     mujoco.mjtObj.mjOBJ_TENDON: "ntendon",
+    mujoco.mjtObj.mjOBJ_FLEX: "nflex",
     mujoco.mjtObj.mjOBJ_SENSOR: "nsensor",
     mujoco.mjtObj.mjOBJ_KEY: "nkey",
 }

@@ -656,10 +656,13 @@ _TRANSMISSION_TARGET = {
     mujoco.mjtTrn.mjTRN_BODY: mujoco.mjtObj.mjOBJ_BODY,
 }
 
-# What an equality ties when MuJoCo's eq_objtype does not say (joint and tendon equalities).
+# What an equality ties when MuJoCo's eq_objtype does not say (connect and weld set it).
 _EQUALITY_TIES = {
     mujoco.mjtEq.mjEQ_JOINT: mujoco.mjtObj.mjOBJ_JOINT,
     mujoco.mjtEq.mjEQ_TENDON: mujoco.mjtObj.mjOBJ_TENDON,
+    mujoco.mjtEq.mjEQ_FLEX: mujoco.mjtObj.mjOBJ_FLEX,
+    mujoco.mjtEq.mjEQ_FLEXVERT: mujoco.mjtObj.mjOBJ_FLEX,
+    mujoco.mjtEq.mjEQ_FLEXSTRAIN: mujoco.mjtObj.mjOBJ_FLEX,
 }
 
 
@@ -736,11 +739,11 @@ def _keys(
                 anchor = (trn, _keys(m, target, done)[int(m.actuator_trnid[i, 0])])
         elif obj == mujoco.mjtObj.mjOBJ_EQUALITY:
             kind = mujoco.mjtObj(int(m.eq_objtype[i]))
-            if kind == mujoco.mjtObj.mjOBJ_UNKNOWN:  # MuJoCo leaves it unset for joint/tendon
-                kind = _EQUALITY_TIES.get(mujoco.mjtEq(int(m.eq_type[i])), kind)
-            tied = _keys(m, kind, done) if kind in COUNT_FIELD else None
-            ends = (int(m.eq_obj1id[i]), int(m.eq_obj2id[i]))
-            anchor = (int(m.eq_type[i]), *(tied[e] if tied and e >= 0 else e for e in ends))
+            if kind == mujoco.mjtObj.mjOBJ_UNKNOWN:  # unset for joint, tendon, flex equalities
+                kind = _EQUALITY_TIES[mujoco.mjtEq(int(m.eq_type[i]))]
+            tied = _keys(m, kind, done)
+            ends = (int(m.eq_obj1id[i]), int(m.eq_obj2id[i]))  # -1: none (a single joint's)
+            anchor = (int(m.eq_type[i]), *(tied[e] if e >= 0 else e for e in ends))
         keys.append((anchor, rank[anchor]))
         rank[anchor] += 1
     return keys

@@ -498,8 +498,9 @@ def rich_files(tmp_path_factory) -> tuple[str, str]:
 
 def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
     robot_xml, gadget_xml = rich_files
+    # fixed: the robot's first joint is joint 0 until the gadget comes in before it
     crate = mjk.SceneObject(
-        name="crate", shape=mjk.Shape.BOX, size=[0.1] * 3, mass=1, pos=[1, 0, 1]
+        name="crate", shape=mjk.Shape.BOX, size=[0.1] * 3, mass=1, pos=[1, 0, 1], fixed=True
     )
     spec = base_spec(robots=[mjk.RobotSpec(path=robot_xml)], objects=[crate])
     with mjk.Env.build(spec) as env:
@@ -557,6 +558,19 @@ def test_rebuild_matches_elements_by_name_past_unnamed_ones(rich_files) -> None:
         assert (d.eq_active[gadget_eq], d.eq_active[lift_eq]) == (0, 1)
         assert m.body_mass[m.body("crate").id] == 3.5
         assert m.body_mass[m.body("target").id] == 0.75
+
+
+def test_rebuild_keeps_an_unnamed_equality_of_one_joint_apart_from_a_new_one(rich_files):
+    gadget_xml = rich_files[1]
+    first = mjk.SceneObject(name="g1", mjcf_path=gadget_xml, fixed=True)
+    with mjk.Env.build(base_spec(objects=[first])) as env:
+        assert (env.model.neq, env.model.eq_obj2id[0]) == (1, -1)  # ties g1/slide alone
+        env.data.eq_active[0] = 1
+        env.add_object(mjk.SceneObject(name="g2", mjcf_path=gadget_xml, fixed=True, pos=[1, 0, 0]))
+        m, d = env.model, env.data
+        ties = [m.joint(int(j)).name for j in m.eq_obj1id]
+        assert ties == ["g1/slide", "g2/slide"]
+        assert d.eq_active.tolist() == [1, 0]
 
 
 def _unnamed_joints(m: mujoco.MjModel) -> list[int]:
