@@ -98,8 +98,7 @@ def compile_mjspec(s: mujoco.MjSpec) -> mujoco.MjModel:
             return s.compile()
     except ValueError as err:
         msg = str(err).strip()
-        lower = msg.lower()
-        if any(text in lower for text in ("resource not found", "could not open", "error opening")):
+        if "error opening" in msg.lower():  # MuJoCo's words for a file it cannot read
             raise ModelFileError(f"MuJoCo could not read a model file: {msg}") from None
         raise BuildError(f"MuJoCo could not compile the scene: {msg}") from None
 

@@ -45,6 +45,7 @@ MODULES: dict[str, list[str]] = {
 # trampoline). Their kills are checked by hand, see docs/mutation.md.
 UNRUNNABLE = [
     "tests/test_record.py::test_the_warning_points_at_the_users_with_block",
+    "tests/test_compile.py::test_a_mujoco_notice_points_at_the_caller_of_the_compiling_function",
     "tests/test_scene.py::test_closed_scene_raises_everywhere",
     "tests/test_compile.py::test_fifo_asset_is_refused_without_hanging",
     "tests/test_record.py::test_renders_headless_without_mujoco_gl",

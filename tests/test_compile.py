@@ -405,6 +405,35 @@ def test_attach_notices_stay_out_of_stdout_and_mujoco_log(tmp_path, monkeypatch,
     assert "Attach conflict" not in capfd.readouterr().out
 
 
+def _bad_qpos_inside_the_notice_filter() -> None:
+    """A MuJoCo C-level warning (mj_checkPos on a NaN qpos) where compile_mjspec compiles."""
+    m = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><joint/><geom size='.1'/></body></worldbody></mujoco>"
+    )
+    d = mujoco.MjData(m)
+    d.qpos[0] = np.nan
+    with mjk.compile._quiet_attach_notices():
+        mujoco.mj_checkPos(m, d)
+
+
+BAD_QPOS = "Nan, Inf or huge value in QPOS at DOF 0. The simulation is unstable. Time = 0.0000."
+
+
+def test_other_mujoco_notices_come_back_as_python_warnings(tmp_path, monkeypatch, capfd):
+    monkeypatch.chdir(tmp_path)
+    with pytest.warns(UserWarning) as warned:
+        _bad_qpos_inside_the_notice_filter()
+    assert [(w.category, str(w.message)) for w in warned] == [(UserWarning, f"MuJoCo: {BAD_QPOS}")]
+    assert list(tmp_path.iterdir()) == []  # MuJoCo's own handler would write MUJOCO_LOG.TXT
+    assert BAD_QPOS not in capfd.readouterr().out
+
+
+def test_a_mujoco_notice_points_at_the_caller_of_the_compiling_function():
+    with pytest.warns(UserWarning) as warned:
+        _bad_qpos_inside_the_notice_filter()
+    assert warned[0].filename == __file__
+
+
 def test_welded_gen3_has_no_contacts_at_rest(tutorial):
     m = tutorial.model
     data = mujoco.MjData(m)
@@ -861,6 +890,8 @@ def test_camera_on_unknown_mount_is_named(kind, name, pattern):
     spec.cameras[0].attach_to = mjk.AttachTarget(mjk.AttachKind.Frame, "bracelet_link")
     with pytest.raises(mjk.SpecError, match=r"cameras\[0\].*must be an AttachTarget.*of kind Body"):
         _build(spec)
+
+
 # ----------------------------------------------------------------------------- spec validation
 # validate_scene_spec runs before any file is opened, so robots may name files that don't exist.
 
@@ -1239,8 +1270,6 @@ def test_contacts_excluded_only_below_a_world_welded_base(tmp_path, mount, exclu
 # ----------------------------------------------------------------------------- asset files
 
 
-
-
 @pytest.mark.parametrize(
     ("asset", "what"),
     [
@@ -1274,7 +1303,6 @@ def test_builtin_texture_needs_no_file(tmp_path):
     )
     model = compile_scene(base_spec(objects=[mjk.SceneObject(name="o", mjcf_path=str(path))]))
     assert model.texture("o/t").width[0] == 8
-
 
 
 def test_missing_file_included_by_an_included_file_is_named(tmp_path):
@@ -1387,7 +1415,6 @@ def test_unknown_mounts_are_named_with_field_and_place(tmp_path):
         "no body named 'l3' in the robot (robots[0].attachments[0].attach_to); "
         "close matches: l2, l1"
     )
-
 
 
 # ----------------------------------------------------------------------------- MuJoCo notices
