@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -340,6 +341,20 @@ def test_an_attempt_without_progress_stops_after_six_iterations(gen3):
     np.testing.assert_array_equal(res.q, HOME)  # all attempts tie: the first one is kept
     assert res.position_error == pytest.approx(0.1, abs=1e-15)
     assert res.rotation_error == 0.0
+
+
+def test_a_failed_box_qp_ends_the_attempt_where_it_stands(gen3, monkeypatch):
+    """mju_boxQP reports failure (< 0, a Hessian it cannot factor): no step is taken and the
+    attempt ends; the next seed is tried."""
+    model, fid, lower, upper = gen3
+    target = _fk(model, fid, HOME)
+    target.translation += [0.001, 0, 0]  # 1 mm from the seed: the seed is the best start
+    calls = []
+    monkeypatch.setattr(mujoco, "mju_boxQP", lambda *args: calls.append(1) or -1)
+    res = IKSolver(model, fid, lower, upper, max_restarts=2).solve(target, HOME)
+    assert (res.success, res.restarts, res.iterations, len(calls)) == (False, 2, 0, 3)
+    np.testing.assert_array_equal(res.q, HOME)  # no attempt moved
+    assert res.position_error == pytest.approx(0.001, rel=1e-9)
 
 
 def test_each_attempt_is_bounded_by_max_iters():
