@@ -22,7 +22,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from .errors import SpecError, unknown_name
+from .errors import SpecError
+from .names import model_id
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 _SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
@@ -56,8 +57,8 @@ class Chain:
         tcp_site: str = "",
         tcp_offset: pin.SE3 | None = None,
     ) -> None:
-        self.base = _body_id(m, base_body)
-        self.tip = _body_id(m, tip_body)
+        self.base = model_id(m, mujoco.mjtObj.mjOBJ_BODY, "body", base_body, "the model")
+        self.tip = model_id(m, mujoco.mjtObj.mjOBJ_BODY, "body", tip_body, "the model")
         path = _path(m, self.base, self.tip, base_body, tip_body)
         self.model = pin.Model()
         self.model.name = f"{base_body}->{tip_body}"
@@ -250,10 +251,7 @@ class Chain:
         return jid
 
     def _add_site_frame(self, m: mujoco.MjModel, site: str) -> int:
-        s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)
-        if s < 0:
-            known = [m.site(k).name for k in range(m.nsite)]
-            raise unknown_name("site", site, known, where="the model (tool.tcp_site)")
+        s = model_id(m, mujoco.mjtObj.mjOBJ_SITE, "site", site, "the model (tool.tcp_site)")
         body = int(m.site_bodyid[s])
         if body not in self._frames or not self._rigid_to_arm(m, body):
             if body in self._frames and body not in _ancestors(m, self.base):
@@ -384,14 +382,6 @@ def _span(idx: list[int]) -> slice | np.ndarray:
 def _frame_name(m: mujoco.MjModel, b: int) -> str:
     """Pinocchio frame name of MuJoCo body `b` (its name, or `body<id>` when unnamed)."""
     return m.body(b).name or f"body{b}"
-
-
-def _body_id(m: mujoco.MjModel, name: str) -> int:
-    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
-    if i < 0:
-        known = [m.body(k).name for k in range(m.nbody)]
-        raise unknown_name("body", name, known, where="the model")
-    return i
 
 
 def _ancestors(m: mujoco.MjModel, body: int) -> list[int]:

@@ -26,6 +26,7 @@ import numpy as np
 
 from . import urdf
 from .errors import MjkdlError
+from .names import find_id
 from .spec import SceneSpec
 
 # Name parts that mark a TCP site or a tool-frame body, best first.
@@ -168,13 +169,11 @@ def _file_roots(path: str | Path) -> list[str]:
 
 
 def _bodies(model: mujoco.MjModel, prefix: str, names: Iterable[str]) -> list[int]:
-    ids = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, prefix + n) for n in names)
+    ids = (find_id(model, mujoco.mjtObj.mjOBJ_BODY, prefix + n) for n in names)
     return [i for i in ids if i > 0]
 
 
-def _suggest(
-    m: mujoco.MjModel, root: int, tools: list[int], prefix: str
-) -> RobotSuggestion | None:
+def _suggest(m: mujoco.MjModel, root: int, tools: list[int], prefix: str) -> RobotSuggestion | None:
     children = _children(m)
     jointed = _jointed_subtrees(m, children)
     path = [root]
@@ -314,7 +313,7 @@ def _best_site(m: mujoco.MjModel, bodies: set[int]) -> str:
 
 def _best_body(m: mujoco.MjModel, bodies: list[int]) -> int | None:
     name = _best([m.body(b).name for b in bodies])
-    return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name) if name else None
+    return find_id(m, mujoco.mjtObj.mjOBJ_BODY, name) if name else None
 
 
 def _unprefixed(name: str, prefix: str) -> str:
@@ -338,7 +337,7 @@ def _counts(m: mujoco.MjModel) -> str:
 def _marks(spec: SceneSpec, robots: list[_Robot], m: mujoco.MjModel) -> dict[int, str]:
     marks = {}
     for obj in spec.objects:
-        body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, obj.name)
+        body = find_id(m, mujoco.mjtObj.mjOBJ_BODY, obj.name)
         if body > 0:
             marks[body] = f"[object {_quote(obj.name)}]"
     for robot in robots:

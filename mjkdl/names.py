@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import mujoco
 
-from .errors import unknown_name
+from .errors import SpecTypeError, unknown_name
 
 # The MjModel field that counts each kind of element.
 COUNT_FIELD = {
@@ -23,9 +23,21 @@ COUNT_FIELD = {
 }
 
 
+def find_id(model: mujoco.MjModel, obj: mujoco.mjtObj, name: object) -> int:
+    """MuJoCo id of the element `name`, -1 when there is none or `name` is not a non-empty
+    string. Every lookup goes through here: MuJoCo's `mj_name2id` crashes on None and would
+    find "hand" for "hand\\0junk" (C strings end at a NUL byte)."""
+    if not isinstance(name, str) or not name or "\x00" in name:
+        return -1
+    return mujoco.mj_name2id(model, obj, name)
+
+
 def model_id(model: mujoco.MjModel, obj: mujoco.mjtObj, kind: str, name: object, where: str) -> int:
-    """MuJoCo id of the `kind` element `name`, or an `UnknownNameError` naming `where`."""
-    i = mujoco.mj_name2id(model, obj, name) if isinstance(name, str) and name else -1
+    """MuJoCo id of the `kind` element `name`, or an `UnknownNameError` naming `where`
+    (`SpecTypeError` when `name` is not text at all)."""
+    if not isinstance(name, str):
+        raise SpecTypeError(f"{kind} name in {where} must be a string, got {name!r}")
+    i = find_id(model, obj, name)
     if i < 0:
         count = getattr(model, COUNT_FIELD[obj])
         known = [mujoco.mj_id2name(model, obj, k) or "" for k in range(count)]

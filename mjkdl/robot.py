@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import math
+import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,14 +17,17 @@ from .chain import Chain
 from .compile import euler_quat, vector
 from .errors import SpecError, unknown_name
 from .ik import IKResult, IKSolver
+from .names import model_id
 from .scene import AuthoredActuators, Scene, register_robot_factory
 from .spec import CtrlMode, ForceTorqueSensorSpec, SceneSpec, ToolFrameSpec
+from .validate import check_tool, flag, real
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # Default servo bandwidth for joints whose actuators are plain motors (URDF robots).
 _SERVO_HZ = 10.0
 # MuJoCo zeroes (with a warning) any control above this magnitude (mjMAXVAL).
 _MAX_CTRL = 1e10
+_FLOAT_MAX = sys.float_info.max
 _F64 = np.dtype(np.float64)
 _gravity = pin.computeGeneralizedGravity
 _hypot = math.hypot
@@ -83,7 +87,7 @@ class _Command:
                 robot._ctrl[...] = value
             elif fast == 2:
                 _add(value, robot._g_arm, robot._ctrl)
-            elif robot.gravity_feedforward:
+            elif robot._gravity_ff:
                 _add(value, robot._ff, robot._ctrl)
             else:
                 robot._ctrl[...] = value
@@ -134,8 +138,8 @@ class Robot:
         for field, value in (("base_body", base_body), ("tip_body", tip_body), ("prefix", prefix)):
             if not isinstance(value, str):
                 raise SpecError(f"create_robot: {field} must be a string, got {value!r}")
-        if tool is not None and not isinstance(tool, ToolFrameSpec):
-            raise SpecError(f"tool must be a ToolFrameSpec, got {type(tool).__name__}")
+        if tool is not None:
+            check_tool(tool)
         self._scene = scene
         self._open = True
         self._closed_why = ""
@@ -150,7 +154,7 @@ class Robot:
         self._gravcomp = False
         self._fast = 0  # which fast path update() takes, see _choose_path
         self._driven: np.ndarray | None = None  # the command port that path writes through
-        self.gravity_feedforward = True
+        self._gravity_ff = True
         self._bind(scene.model, scene.data)
         self._hold_commands()
         self._pending = False
@@ -248,10 +252,7 @@ class Robot:
         if not self._tool.tool_body:
             return
         name = self._prefixed(self._tool.tool_body)
-        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-        if body < 0:
-            known = [model.body(k).name for k in range(model.nbody)]
-            raise unknown_name("body", name, known, where="the model (tool.tool_body)")
+        body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", name, "the model (tool.tool_body)")
         b = body
         while b not in (chain.tip, 0):
             b = int(model.body_parentid[b])
@@ -267,10 +268,8 @@ class Robot:
             ("torque_sensor", "torque", mujoco.mjtSensor.mjSENS_TORQUE),
         ):
             name = self._prefixed(getattr(sensor, field))
-            i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name)
-            if i < 0:
-                known = [model.sensor(k).name for k in range(model.nsensor)]
-                raise unknown_name("sensor", name, known, where=f"ft_sensors {sensor.name!r}")
+            where = f"ft_sensors {sensor.name!r}"
+            i = model_id(model, mujoco.mjtObj.mjOBJ_SENSOR, "sensor", name, where)
             if int(model.sensor_type[i]) != int(want):
                 raise SpecError(
                     f"ft_sensors {sensor.name!r}: sensor {name!r} is not a {kind} sensor"
@@ -430,9 +429,12 @@ class Robot:
             self._check_open()
         if type(value) is not np.ndarray or value.dtype != np.float64:
             try:
-                value = np.asarray(value, dtype=float)
-            except (TypeError, ValueError):
-                raise SpecError(f"{name} must hold numbers, got {value!r}") from None
+                arr: np.ndarray | None = np.asarray(value)
+            except (TypeError, ValueError):  # ragged nesting
+                arr = None
+            if arr is None or arr.dtype.kind not in "iuf":  # no bools, text, complex, objects
+                raise SpecError(f"{name} must hold real numbers, got {value!r}")
+            value = arr.astype(float)
         if value.shape != (self._n,):
             raise SpecError(
                 f"{name} needs {self._n} values (one per joint), got shape {value.shape}"
@@ -440,7 +442,7 @@ class Robot:
         # v.v <= bound² holds when every entry is within bound (NaN compares false); only when
         # it does not is the exact, slower check needed: one BLAS call on the fast path.
         with np.errstate(over="ignore", invalid="ignore"):
-            small = value.dot(value) <= bound * bound
+            small = value.dot(value) <= min(bound * bound, _FLOAT_MAX)  # inf is never small
         if not small:
             if not np.isfinite(value).all():
                 raise SpecError(f"{name} must be finite, got {value!r}")
@@ -547,8 +549,7 @@ class Robot:
     @gravity_compensation.setter
     def gravity_compensation(self, on: bool) -> None:
         self._check_open()
-        if not isinstance(on, (bool, np.bool_)):
-            raise SpecError(f"gravity_compensation must be True or False, got {on!r}")
+        flag(on, "gravity_compensation")
         if on and self._mode is not CtrlMode.TORQUE:
             raise SpecError(
                 f"gravity_compensation works in TORQUE mode only; ctrl_mode is {self._mode.name} "
@@ -559,6 +560,18 @@ class Robot:
         self._gravcomp = bool(on)
         self._pending = True
         self._choose_path()
+
+    @property
+    def gravity_feedforward(self) -> bool:
+        """POSITION and VELOCITY: whether `update()` adds the gravity torques to the servos'
+        commands as feed-forward (on by default), so a held pose does not sag."""
+        self._check_open()
+        return self._gravity_ff
+
+    @gravity_feedforward.setter
+    def gravity_feedforward(self, on: bool) -> None:
+        self._check_open()
+        self._gravity_ff = flag(on, "gravity_feedforward")
 
     def update(self) -> None:
         """Read the measured state, then apply the command ports for the current mode."""
@@ -576,7 +589,7 @@ class Robot:
             if fast == 2:  # TORQUE with gravity compensation
                 _gravity(self._pin, self._gdata, self._q)
                 _add(self._trq_cmd, self._g_arm, self._ctrl)
-            elif self.gravity_feedforward:  # servos
+            elif self._gravity_ff:  # servos
                 _gravity(self._pin, self._gdata, self._q)
                 _mul(self._g_arm, self._ff_scale, self._ff)
                 _add(self._servo_cmd, self._ff, self._ctrl)
@@ -632,7 +645,7 @@ class Robot:
         """What the mode adds to the commands at the measured state: gravity, once per update."""
         if self._applied_mode is not self._mode:
             return  # _apply configures the mode first, then comes back here
-        if self._gravcomp or (self._mode is not CtrlMode.TORQUE and self.gravity_feedforward):
+        if self._gravcomp or (self._mode is not CtrlMode.TORQUE and self._gravity_ff):
             _gravity(self._pin, self._gdata, self._q)
             self._finish_gravity()
             if not self._gravcomp and self._actuation:
@@ -659,7 +672,7 @@ class Robot:
                 ctrl[...] = self._trq_cmd
             return
         if self._servos:  # the same for POSITION and VELOCITY
-            if self.gravity_feedforward:
+            if self._gravity_ff:
                 np.add(self._servo_cmd, self._ff, out=ctrl)
             else:
                 ctrl[...] = self._servo_cmd
@@ -677,7 +690,7 @@ class Robot:
                 return
         else:
             cmd = self._pos_cmd if mode is CtrlMode.POSITION else self._vel_cmd
-            if self.gravity_feedforward:
+            if self._gravity_ff:
                 np.add(cmd, self._ff, out=ctrl)
             else:
                 ctrl[...] = cmd
@@ -767,6 +780,7 @@ class Robot:
         Positions outside a joint's range are refused: MuJoCo would push the joint back.
         """
         q = self._vector(q, "set_joint_pos(q)")
+        flag(call_forward, "set_joint_pos: call_forward")
         lo, hi = (
             self._pin.lowerPositionLimit[self._arm_q],
             self._pin.upperPositionLimit[self._arm_q],
@@ -828,19 +842,12 @@ class Robot:
         """
         if not self._open:
             self._check_open()
-        if gravity_z is None or gravity_z == self._gravity_z:
+        if gravity_z is None or (gravity_z.__class__ is float and gravity_z == self._gravity_z):
             g = _gravity(self._pin, self._pdata, self._q)
             if self._gc_model is not None:
                 g -= _gravity(self._gc_model, self._pdata, self._q)
             return g if self._arm_only else g[self._arm_v]
-        try:
-            gz = float(gravity_z)
-        except (TypeError, ValueError):
-            gz = math.nan
-        if not math.isfinite(gz):
-            raise SpecError(
-                f"gravity_torques: gravity_z must be a finite number, got {gravity_z!r}"
-            )
+        gz = real(gravity_z, "gravity_torques: gravity_z")
         models = [self._pin] + ([self._gc_model] if self._gc_model is not None else [])
         saved = self._pin.gravity.linear.copy()
         try:
@@ -916,8 +923,8 @@ class Robot:
     def ft_sensor(self, name: str) -> pin.Force:
         """Force/torque reading of `tool.ft_sensors[name]`, in the sensor's site frame."""
         self._check_open()
-        if name not in self._ft:
-            raise unknown_name("force/torque sensor", name, self._ft, where="tool.ft_sensors")
+        if not isinstance(name, str) or name not in self._ft:
+            raise unknown_name("force/torque sensor", str(name), self._ft, where="tool.ft_sensors")
         force, torque = self._ft[name]
         data = self._data.sensordata
         return pin.Force(data[force].copy(), data[torque].copy())

@@ -18,9 +18,17 @@ import pinocchio as pin
 from .closable import Closable
 from .compile import compile_scene, vector
 from .describe import describe, summary, tree_for
-from .errors import MjkdlError, SimulationError, SpecError, UnknownNameError, unknown_name
-from .names import COUNT_FIELD, model_id
+from .errors import (
+    MjkdlError,
+    SimulationError,
+    SpecError,
+    SpecTypeError,
+    UnknownNameError,
+    unknown_name,
+)
+from .names import COUNT_FIELD, find_id, model_id
 from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
+from .validate import text
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -327,7 +335,8 @@ class Scene(Closable):
 
     def has_actuator(self, name: str) -> bool:
         """Whether an actuator called `name` exists."""
-        return mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_ACTUATOR, name) >= 0
+        text(name, "has_actuator(name)")
+        return find_id(self.model, mujoco.mjtObj.mjOBJ_ACTUATOR, name) >= 0
 
     def set_actuator_ctrl(self, name: str, value: float) -> None:
         """Set the control input of actuator `name` (clamped by MuJoCo to its ctrlrange)."""
@@ -450,7 +459,7 @@ class Scene(Closable):
         """Remove the object called `name` and recompile, keeping all surviving state."""
         self._check_open()
         names = [o.name for o in self._spec.objects]
-        if name not in names:
+        if text(name, "remove_object(name)") not in names:
             raise unknown_name("object", name, names, where="the scene spec")
         spec = copy.deepcopy(self._spec)
         spec.objects = [o for o in spec.objects if o.name != name]
@@ -500,7 +509,21 @@ class Env(Scene):
 
     def __init__(self, spec: SceneSpec, model: mujoco.MjModel) -> None:
         super().__init__(spec, model)
-        self.on_reset: Callable[[ResetContext], None] | None = None
+        self._on_reset: Callable[[ResetContext], None] | None = None
+
+    @property
+    def on_reset(self) -> Callable[[ResetContext], None] | None:
+        """Called by `reset()` with a `ResetContext`, after MuJoCo's reset and before the
+        robots sync (place objects, randomise); None for no hook."""
+        return self._on_reset
+
+    @on_reset.setter
+    def on_reset(self, hook: Callable[[ResetContext], None] | None) -> None:
+        if hook is not None and not callable(hook):
+            raise SpecTypeError(
+                f"on_reset must be a function of a ResetContext, or None; got {hook!r}"
+            )
+        self._on_reset = hook
 
     def keyframe_id(self, key: int | str) -> int:
         """Index of keyframe `key` (an index or a name)."""

@@ -23,10 +23,12 @@ from .spec import (
     AttachTarget,
     CameraSpec,
     Condim,
+    ForceTorqueSensorSpec,
     RobotSpec,
     SceneObject,
     SceneSpec,
     Shape,
+    ToolFrameSpec,
 )
 
 # Sane ranges: beyond them MuJoCo either fails deep inside or simulates nonsense.
@@ -299,6 +301,30 @@ def _check_robot(robot: RobotSpec, field: str) -> None:
         prefix = text(att.prefix, f"{where}.prefix")
         reserved_prefix(robot.prefix + prefix, f"{where}.prefix")
         _pose(att.pos, att.euler, where)
+
+
+def check_tool(tool: object, field: str = "tool") -> None:
+    """A `ToolFrameSpec` as `create_robot` takes it: names are text, each F/T pair is named
+    once and names both of its MuJoCo sensors (the TCP offset is checked where it is read)."""
+    if not isinstance(tool, ToolFrameSpec):
+        raise SpecTypeError(f"{field} must be a ToolFrameSpec, got {type(tool).__name__}")
+    text(tool.tool_body, f"{field}.tool_body")
+    text(tool.tcp_site, f"{field}.tcp_site")
+    _entries(tool.ft_sensors, ForceTorqueSensorSpec, f"{field}.ft_sensors")
+    first: dict[str, int] = {}
+    for i, sensor in enumerate(tool.ft_sensors):
+        where = f"{field}.ft_sensors[{i}]"
+        name = text(sensor.name, f"{where}.name")
+        if not name:
+            raise SpecError(f"{where}.name is empty: ft_sensor(name) reads the pair by it")
+        if name in first:
+            raise SpecError(
+                f"{where}.name: duplicate {name!r} ({field}.ft_sensors[{first[name]}] has it too)"
+            )
+        first[name] = i
+        for part in ("force", "torque"):
+            if not text(getattr(sensor, f"{part}_sensor"), f"{where}.{part}_sensor"):
+                raise SpecError(f"{where}.{part}_sensor is empty: name the MuJoCo {part} sensor")
 
 
 def _check_camera(cam: CameraSpec, field: str) -> None:

@@ -98,6 +98,18 @@ def test_reset_syncs_commands_so_position_mode_holds(env_robot) -> None:
     assert np.abs(robot.jnt_pos_msr - HOME).max() < 1e-6
 
 
+@pytest.mark.parametrize("hook", [5, "reset_cube"])
+def test_a_hook_that_cannot_be_called_is_refused_when_set(env_robot, hook) -> None:
+    env, _ = env_robot
+    with pytest.raises(mjk.SpecTypeError) as err:
+        env.on_reset = hook
+    assert str(err.value) == (
+        f"on_reset must be a function of a ResetContext, or None; got {hook!r}"
+    )
+    assert env.on_reset is None
+    assert env.reset().time == 0.0
+
+
 def test_hook_error_names_hook_and_env_stays_usable(env_robot) -> None:
     env, robot = env_robot
 

@@ -6,7 +6,7 @@ import mujoco
 import pytest
 
 import mjkdl as mjk
-from mjkdl.names import model_id
+from mjkdl.names import find_id, model_id
 
 XML = """<mujoco><worldbody>
   <body name="upper_arm"><joint name="shoulder"/><geom size="0.1"/><site name="elbow_site"/>
@@ -42,7 +42,18 @@ def test_unknown_name_says_where_and_lists_close_names(model) -> None:
     assert isinstance(err.value, KeyError)
 
 
-@pytest.mark.parametrize("name", ["", None, 3])
-def test_empty_or_non_string_names_are_unknown(model, name) -> None:
-    with pytest.raises(mjk.UnknownNameError, match=f"no camera named '{name}' in here"):
+@pytest.mark.parametrize("name", ["", "front\x00", "\x00front"])
+def test_empty_names_and_names_cut_by_a_nul_byte_are_unknown(model, name) -> None:
+    with pytest.raises(mjk.UnknownNameError) as err:
         model_id(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", name, "here")
+    assert err.value.args[0].startswith(f"no camera named {name!r} in here; ")
+    assert find_id(model, mujoco.mjtObj.mjOBJ_CAMERA, name) == -1
+
+
+@pytest.mark.parametrize("name", [None, 3, b"front", ["front"]])
+def test_names_that_are_not_text_never_reach_mujoco(model, name) -> None:
+    # mj_name2id crashes the interpreter on None.
+    with pytest.raises(mjk.SpecTypeError) as err:
+        model_id(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", name, "here")
+    assert str(err.value) == f"camera name in here must be a string, got {name!r}"
+    assert find_id(model, mujoco.mjtObj.mjOBJ_CAMERA, name) == -1

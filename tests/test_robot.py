@@ -758,9 +758,10 @@ def test_unused_handle_leaves_actuators_alone(tutorial_scene) -> None:
 
 def test_gravity_override_must_be_a_finite_number(gen3) -> None:
     _, robot = gen3
-    for bad in ("abc", np.nan, np.inf):
-        with pytest.raises(ValueError, match="gravity_z must be a finite number"):
+    for bad, why in (("abc", "a number"), (np.nan, "finite"), (np.inf, "finite")):
+        with pytest.raises(ValueError) as err:
             robot.gravity_torques(bad)
+        assert str(err.value) == f"gravity_torques: gravity_z must be {why}, got {bad!r}"
 
 
 def test_ft_sensor_kind_is_checked(tmp_path) -> None:
@@ -1054,17 +1055,19 @@ def test_command_values_are_checked_on_every_path(tmp_path) -> None:
         robot.update()  # the fast path: float64 arrays of the right shape skip _assign
         with pytest.raises(mjk.SpecError) as err:
             robot.jnt_trq_cmd = np.array(["a", "b"])
-        assert str(err.value) == "jnt_trq_cmd must hold numbers, got array(['a', 'b'], dtype='<U1')"
+        assert str(err.value) == (
+            "jnt_trq_cmd must hold real numbers, got array(['a', 'b'], dtype='<U1')"
+        )
         with pytest.raises(mjk.SpecError) as err:
             robot.jnt_pos_cmd = ["a", "b"]
-        assert str(err.value) == "jnt_pos_cmd must hold numbers, got ['a', 'b']"
+        assert str(err.value) == "jnt_pos_cmd must hold real numbers, got ['a', 'b']"
         with pytest.raises(mjk.SpecError) as err:
             robot.jnt_trq_cmd = np.ones(1)
         assert str(err.value) == "jnt_trq_cmd needs 2 values (one per joint), got shape (1,)"
         with pytest.raises(mjk.SpecError) as err:
             robot.set_joint_pos(np.array(["a", "b"]))
         assert str(err.value) == (
-            "set_joint_pos(q) must hold numbers, got array(['a', 'b'], dtype='<U1')"
+            "set_joint_pos(q) must hold real numbers, got array(['a', 'b'], dtype='<U1')"
         )
         robot.jnt_trq_cmd = [1e10, 1e10]  # MuJoCo's largest control is still one
         assert robot.jnt_trq_cmd.tolist() == [1e10, 1e10]
@@ -1082,6 +1085,81 @@ def test_command_values_are_checked_on_every_path(tmp_path) -> None:
             with pytest.raises(mjk.SpecError) as err:
                 call()
             assert str(err.value) == f"{name} needs 2 values (one per joint), got shape (1,)"
+
+
+@pytest.mark.parametrize(
+    ("value", "shown"),
+    [
+        ([True, False], "[True, False]"),
+        (np.array([1j, 0]), "array([0.+1.j, 0.+0.j])"),
+        (["1", "2"], "['1', '2']"),
+        ([[1.0], [2.0, 3.0]], "[[1.0], [2.0, 3.0]]"),
+        ([None, 1.0], "[None, 1.0]"),
+    ],
+)
+def test_commands_and_arguments_refuse_what_is_not_a_real_number(tmp_path, value, shown) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        for call, name in (
+            (lambda: setattr(robot, "jnt_trq_cmd", value), "jnt_trq_cmd"),
+            (lambda: setattr(robot, "jnt_pos_cmd", value), "jnt_pos_cmd"),
+            (lambda: robot.fk_frame(value), "q"),
+            (lambda: robot.set_joint_pos(value), "set_joint_pos(q)"),
+        ):
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # no ComplexWarning on the way
+                with pytest.raises(mjk.SpecError) as err:
+                    call()
+            assert str(err.value) == f"{name} must hold real numbers, got {shown}"
+        assert robot.jnt_trq_cmd.tolist() == [0.0, 0.0]  # nothing of it was kept
+
+
+def test_infinite_positions_are_refused_like_nan(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        for call, name in (
+            (lambda q: robot.fk_frame(q), "q"),
+            (lambda q: robot.jacobian(q), "q"),
+            (lambda q: robot.mass_matrix(q), "q"),
+            (lambda q: robot.nonlinear_effects(v=q), "v"),
+            (lambda q: robot.set_joint_pos(q), "set_joint_pos(q)"),
+        ):
+            for bad in ([np.inf, 0.0], [0.0, -np.inf]):
+                with pytest.raises(mjk.SpecError) as err:
+                    call(bad)
+                assert str(err.value) == f"{name} must be finite, got {np.array(bad)!r}"
+        assert robot.fk_frame([1e150, 0.0]) is not None  # finite, however large, is a position
+
+
+def test_robot_switches_and_lookups_refuse_wrong_types(tmp_path) -> None:
+    with _arm_scene(tmp_path, _ARMS["fast"]) as scene:
+        robot = scene.create_robot("base", "l2")
+        with pytest.raises(mjk.SpecError) as err:
+            robot.gravity_feedforward = "no"
+        assert str(err.value) == "gravity_feedforward must be True or False, got 'no'"
+        assert robot.gravity_feedforward is True
+        robot.gravity_feedforward = np.False_
+        assert robot.gravity_feedforward is False
+        with pytest.raises(mjk.SpecError) as err:
+            robot.gravity_torques(gravity_z=True)
+        assert str(err.value) == "gravity_torques: gravity_z must be a number, got True"
+        with pytest.raises(mjk.SpecError) as err:
+            robot.gravity_torques(gravity_z="-9.81")
+        assert str(err.value) == "gravity_torques: gravity_z must be a number, got '-9.81'"
+        with pytest.raises(mjk.SpecError) as err:
+            robot.set_joint_pos([0.0, 0.0], call_forward="no")
+        assert str(err.value) == "set_joint_pos: call_forward must be True or False, got 'no'"
+        for name, shown in ((3, "'3'"), (["wrist"], "\"['wrist']\"")):
+            with pytest.raises(KeyError) as err:
+                robot.ft_sensor(name)
+            assert err.value.args[0].startswith(f"no force/torque sensor named {shown}")
+        robot.close()
+        for attempt in (
+            lambda: robot.gravity_feedforward,
+            lambda: setattr(robot, "gravity_feedforward", True),
+        ):
+            with pytest.raises(RuntimeError, match="this Robot is closed"):
+                attempt()
 
 
 def test_dynamics_at_an_explicit_state_match_mujoco(tmp_path) -> None:

@@ -136,6 +136,53 @@ def test_tcp_offset_errors_name_the_field(motors, tool, message) -> None:
     assert str(err.value) == message
 
 
+def _ft(name: object = "wrist", force: object = "force", torque: object = "torque"):
+    """An F/T pair of the `motors` scene's sensors, with one field possibly wrong."""
+    return mjk.ForceTorqueSensorSpec(name=name, force_sensor=force, torque_sensor=torque)
+
+
+@pytest.mark.parametrize(
+    ("tool", "message"),
+    [
+        (mjk.ToolFrameSpec(tool_body=None), "tool.tool_body must be a string, got None"),
+        (mjk.ToolFrameSpec(tcp_site=3), "tool.tcp_site must be a string, got 3"),
+        (
+            mjk.ToolFrameSpec(ft_sensors=None),
+            "tool.ft_sensors must be a list of ForceTorqueSensorSpec, got None",
+        ),
+        (
+            mjk.ToolFrameSpec(ft_sensors=["wrist"]),
+            "tool.ft_sensors[0] must be a ForceTorqueSensorSpec, got 'wrist'",
+        ),
+        (
+            mjk.ToolFrameSpec(ft_sensors=[_ft(), _ft(name=5)]),
+            "tool.ft_sensors[1].name must be a string, got 5",
+        ),
+        (
+            mjk.ToolFrameSpec(ft_sensors=[_ft(name="")]),
+            "tool.ft_sensors[0].name is empty: ft_sensor(name) reads the pair by it",
+        ),
+        (
+            mjk.ToolFrameSpec(ft_sensors=[_ft(), _ft()]),
+            "tool.ft_sensors[1].name: duplicate 'wrist' (tool.ft_sensors[0] has it too)",
+        ),
+        (
+            mjk.ToolFrameSpec(ft_sensors=[_ft(force=None)]),
+            "tool.ft_sensors[0].force_sensor must be a string, got None",
+        ),
+        (
+            mjk.ToolFrameSpec(ft_sensors=[_ft(torque="")]),
+            "tool.ft_sensors[0].torque_sensor is empty: name the MuJoCo torque sensor",
+        ),
+    ],
+)
+def test_tool_field_errors_name_the_field(motors, tool, message) -> None:
+    with pytest.raises(ValueError) as err:
+        motors.create_robot("base", "hand", tool=tool)
+    assert str(err.value) == message
+    assert not motors._robots  # nothing half-made stays registered
+
+
 def test_tool_is_copied_so_later_edits_do_not_reach_the_handle(build) -> None:
     scene = build(MOTORS)
     tool = mjk.ToolFrameSpec(tcp_site="tcp")

@@ -141,6 +141,39 @@ def test_frames_unknown_names(tutorial_scene):
         scene.site_frame("pinch")
 
 
+@pytest.mark.parametrize("name", [None, 3, b"joint_1"])
+def test_lookups_refuse_names_that_are_not_text(tutorial_scene, name):
+    # MuJoCo's mj_name2id crashes the interpreter on None: no lookup may reach it with one.
+    scene = tutorial_scene()
+    with pytest.raises(mjk.SpecTypeError) as err:
+        scene.has_actuator(name)
+    assert str(err.value) == f"has_actuator(name) must be a string, got {name!r}"
+    with pytest.raises(mjk.SpecTypeError) as err:
+        scene.remove_object(name)
+    assert str(err.value) == f"remove_object(name) must be a string, got {name!r}"
+    for call, kind in (
+        (scene.body_frame, "body"),
+        (scene.site_frame, "site"),
+        (scene.actuator_id, "actuator"),
+        (lambda n: scene.set_actuator_ctrl(n, 0.0), "actuator"),
+        (lambda n: scene.set_body_pose(n, [0.0, 0.0, 0.0]), "body"),
+    ):
+        with pytest.raises(mjk.SpecTypeError) as err:
+            call(name)
+        assert str(err.value) == f"{kind} name in the scene must be a string, got {name!r}"
+
+
+def test_a_name_cut_by_a_nul_byte_is_not_found(tutorial_scene):
+    # MuJoCo reads names as C strings: "base_link\0x" would find base_link.
+    scene = tutorial_scene()
+    with pytest.raises(KeyError) as err:
+        scene.body_frame("base_link\x00x")
+    assert err.value.args[0].startswith("no body named 'base_link\\x00x' in the scene")
+    with pytest.raises(mjk.SpecError) as err:
+        scene.has_actuator("joint_1\x00")
+    assert str(err.value) == "has_actuator(name) contains a NUL byte: 'joint_1\\x00'"
+
+
 def test_set_body_pose_free_cube(tutorial_scene):
     scene = tutorial_scene()
     adr, dof = _cube_qpos(scene)

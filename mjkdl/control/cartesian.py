@@ -29,6 +29,7 @@ import numpy as np
 from scipy.linalg.lapack import dsyev as _dsyev
 
 from ..errors import SpecError, unknown_name
+from ..names import find_id, model_id
 from ..spec import CtrlMode
 
 if TYPE_CHECKING:
@@ -573,10 +574,10 @@ def _frame_rotation(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np
     """A live view of the control frame's world rotation (9 values), None for the world."""
     if not name:
         return None
-    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+    site = find_id(model, mujoco.mjtObj.mjOBJ_SITE, name)
     if site >= 0:
         return data.site_xmat[site]
-    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+    body = find_id(model, mujoco.mjtObj.mjOBJ_BODY, name)
     if body >= 0:
         return data.xmat[body]
     known = [model.site(i).name for i in range(model.nsite)]
@@ -601,10 +602,8 @@ def _pair_names(avoid: object) -> list[tuple[str, str]]:
 
 def _collision_geoms(model: mujoco.MjModel, body: str, other: str) -> list[int]:
     """Geoms that take part in collisions, in the subtree of `body` (paired with `other`)."""
-    root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
-    if root < 0:
-        known = [model.body(i).name for i in range(model.nbody)]
-        raise unknown_name("body", body, known, where=f"the scene (avoid pair {body!r}, {other!r})")
+    where = f"the scene (avoid pair {body!r}, {other!r})"
+    root = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", body, where)
     inside = np.zeros(model.nbody, dtype=bool)
     inside[root] = True
     for b in range(root + 1, model.nbody):  # parents come before their children

@@ -14,7 +14,8 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike
 
 from ..control import CartesianVelocityController, Gripper
-from ..errors import SimulationError, SpecError, UnknownNameError, unknown_name
+from ..errors import SimulationError, SpecError, UnknownNameError
+from ..names import model_id
 from ..record import offscreen_renderer
 from ..robot import Robot
 from ..scene import Env
@@ -367,10 +368,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         return r
 
     def _camera_id(self, name: str, where: str) -> int:
-        i = mujoco.mj_name2id(self.scene.model, mujoco.mjtObj.mjOBJ_CAMERA, name)
-        if i < 0:
-            raise unknown_name("camera", name, self.scene.camera_names(), where=where)
-        return i
+        return model_id(self.scene.model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", name, where)
 
     # ------------------------------------------------------------------ episodes
 

@@ -191,11 +191,8 @@ class PhysicsRandomizer:
         if self._nominal.get("model") is not model:
             ids = []
             for i, name in enumerate(self.bodies):
-                b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-                if b < 0:
-                    known = [model.body(k).name for k in range(model.nbody)]
-                    raise unknown_name("body", str(name), known, where=f"{where}.bodies[{i}]")
-                ids.append(b)
+                body = mujoco.mjtObj.mjOBJ_BODY
+                ids.append(model_id(model, body, "body", name, f"{where}.bodies[{i}]"))
             geoms = np.flatnonzero(np.isin(model.geom_bodyid, ids))
             self._nominal.update(
                 model=model,

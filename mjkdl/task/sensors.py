@@ -19,7 +19,7 @@ from gymnasium import spaces
 
 from ..compile import euler_quat, vector
 from ..errors import SpecError
-from ..names import model_id
+from ..names import find_id, model_id
 from ..spec import ToolFrameSpec
 from .spec import ArmSpec, BodyPoseSensor, CameraSensor
 
@@ -50,7 +50,7 @@ def _box(
 
 def _frame_id(model: mujoco.MjModel, name: str, where: str) -> tuple[mujoco.mjtObj, int]:
     """A site, else a body, called `name`: (`mjOBJ_SITE` or `mjOBJ_XBODY`, id)."""
-    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) if name else -1
+    site = find_id(model, mujoco.mjtObj.mjOBJ_SITE, name)
     if site >= 0:
         return mujoco.mjtObj.mjOBJ_SITE, site
     body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "site or body", name, where)
@@ -113,10 +113,10 @@ class ArmReader(Reader):
         # The TCP's reference frame; `robot` resolved these names when it was created.
         if tool.tcp_site:
             self._ref_kind = mujoco.mjtObj.mjOBJ_SITE
-            ref = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, arm.prefix + tool.tcp_site)
+            ref = find_id(model, mujoco.mjtObj.mjOBJ_SITE, arm.prefix + tool.tcp_site)
         else:
             self._ref_kind = mujoco.mjtObj.mjOBJ_XBODY
-            ref = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, arm.prefix + arm.tip_body)
+            ref = find_id(model, mujoco.mjtObj.mjOBJ_BODY, arm.prefix + arm.tip_body)
         self._ref = ref
         self._ref_pos, self._ref_mat = _frame_views(data, self._ref_kind, ref)
         self._off_pos = vector(tool.tcp_pos, 3, f"{where}.tool.tcp_pos")

@@ -19,7 +19,8 @@ import mujoco
 import numpy as np
 
 from ..closable import Closable
-from ..errors import MjkdlError, SpecError, unknown_name
+from ..errors import MjkdlError, SpecError
+from ..names import model_id
 from ..record import VideoRecorder, offscreen_renderer
 from ..robot import Robot
 from ..scene import Env, Scene
@@ -234,15 +235,8 @@ class SimulateViewer(Closable):
         cam.fixedcamid = cid
 
     def _camera_id(self, name: str) -> int:
-        model = self._scene.model
-        cid = (
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name)
-            if isinstance(name, str)
-            else -1
-        )
-        if cid < 0:
-            raise unknown_name("camera", str(name), self._scene.camera_names(), where="the scene")
-        return cid
+        camera = mujoco.mjtObj.mjOBJ_CAMERA
+        return model_id(self._scene.model, camera, "camera", name, "the scene")
 
     # ------------------------------------------------------------------ overlays
 
