@@ -30,6 +30,7 @@ from screen import grab_window
 import mjkdl as mjk
 from mjkdl.viewer import overlays as keys
 from mjkdl.viewer import plots
+from mjkdl.viewer.pacing import Pacer
 
 Arm = tuple[mjk.Env, mjk.Robot, mjk.SimulateViewer]
 REQUIRE_DISPLAY = os.environ.get("MJKDL_REQUIRE_DISPLAY") == "1"
@@ -369,6 +370,60 @@ def test_y_axis_fits_the_data_and_shows_its_unit() -> None:
     assert long_unit.title == "pressure [newton per square millimetre %]"
     with pytest.raises(mjk.SpecError, match="1 to 999 characters"):
         signals.add("x" * 1000, lambda: [0.0])
+
+
+@pytest.mark.parametrize(
+    ("out", "shown"),
+    [(None, "None"), ("abc", "'abc'"), (["1", "2"], "['1', '2']"), ([1j], "[1j]")],
+)
+def test_a_signal_must_return_numbers(out, shown) -> None:
+    signals = plots.SignalPlots(window=1.0, points=10)
+    with pytest.raises(mjk.SpecError) as err:
+        signals.add("s", lambda: out)
+    assert str(err.value) == f"signal 's' must return numbers, got {shown}"
+    value: list[object] = [[0.5, 1.5]]
+    signals.add("ok", lambda: value[0])
+    value[0] = [True, False]  # bools plot as 0 and 1
+    signals.sample(0.0)
+    value[0] = None  # a signal that goes bad mid-run is named too
+    with pytest.raises(mjk.SpecError) as err:
+        signals.sample(1.0)
+    assert str(err.value) == "signal 'ok' must return numbers, got None"
+
+
+@pytest.mark.parametrize("labels", ["ab", [1, 2], ["a", None]])
+def test_signal_labels_must_be_strings(labels) -> None:
+    signals = plots.SignalPlots(window=1.0, points=10)
+    with pytest.raises(mjk.SpecError) as err:
+        signals.add("s", lambda: [0.0, 1.0], labels=labels)
+    assert str(err.value) == f"signal 's': labels must be a list of strings, got {labels!r}"
+    assert signals.names == []
+
+
+@pytest.mark.parametrize("name", [None, 3])
+def test_removing_a_signal_by_a_name_that_is_not_text_names_it(name) -> None:
+    signals = plots.SignalPlots(window=1.0, points=10)
+    signals.add("q", lambda: [0.0])
+    with pytest.raises(KeyError) as err:
+        signals.remove(name)
+    assert err.value.args[0] == f"no signal named '{name}' in the viewer's plots; known: q"
+
+
+@pytest.mark.parametrize("factor", ["1", True, None, [1.0], float("nan"), -1.0])
+def test_realtime_factor_must_be_a_number(factor) -> None:
+    pacer = Pacer(0.5)
+    with pytest.raises(mjk.SpecError) as err:
+        pacer.factor = factor
+    assert str(err.value) == f"realtime_factor must be a finite number >= 0, got {factor!r}"
+    assert pacer.factor == 0.5
+    pacer.factor = np.float32(2.0)
+    assert pacer.factor == 2.0
+
+
+def test_a_title_that_is_not_text_is_refused_before_a_window_opens() -> None:
+    with mjk.Scene.build(base_spec()) as scene, pytest.raises(mjk.SpecTypeError) as err:
+        mjk.viewer.SimulateViewer.open(scene, title=None)  # no display needed to refuse it
+    assert str(err.value) == "SimulateViewer.open: title must be a string, got None"
 
 
 def test_ctrl_c_ends_the_loop_and_finalises_the_recording(display: str, tmp_path: Path) -> None:

@@ -6,6 +6,7 @@ import math
 import time
 
 from ..errors import SpecError
+from ..validate import _is_real
 
 # Behind schedule by more than this (wall seconds): give up catching up and re-anchor, as
 # MuJoCo's own viewer does, instead of running flat out to recover lost time.
@@ -64,11 +65,8 @@ class Pacer:
             self._window = (now, t)
 
 
-def _check(factor: float) -> float:
-    try:
-        value = float(factor)
-    except (TypeError, ValueError):
-        value = math.nan
+def _check(factor: object) -> float:
+    value = float(factor) if _is_real(factor) else math.nan  # type: ignore[arg-type]
     if not (math.isfinite(value) and value >= 0):
         raise SpecError(f"realtime_factor must be a finite number >= 0, got {factor!r}")
     return value

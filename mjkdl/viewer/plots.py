@@ -68,7 +68,11 @@ class SignalPlots:
         if not callable(fn):
             raise SpecError(f"signal {name!r}: fn must be callable, got {fn!r}")
         n = len(_read(name, fn))
-        names = [str(x) for x in labels] if labels is not None else [str(i) for i in range(n)]
+        if labels is not None and (
+            isinstance(labels, str) or not all(isinstance(x, str) for x in labels)
+        ):
+            raise SpecError(f"signal {name!r}: labels must be a list of strings, got {labels!r}")
+        names = list(labels) if labels is not None else [str(i) for i in range(n)]
         if len(names) != n:
             raise SpecError(f"signal {name!r} has {n} values but {len(names)} labels")
         self._signals[name] = _Trace(
@@ -77,8 +81,8 @@ class SignalPlots:
 
     def remove(self, name: str) -> None:
         """Stop plotting `name`."""
-        if name not in self._signals:
-            raise unknown_name("signal", name, self._signals, where="the viewer's plots")
+        if not isinstance(name, str) or name not in self._signals:
+            raise unknown_name("signal", str(name), self._signals, where="the viewer's plots")
         del self._signals[name]
 
     def sample(self, t: float) -> None:
@@ -185,12 +189,15 @@ def _y_format(span: float, unit: str) -> str:
 
 
 def _read(name: str, fn: Signal) -> np.ndarray:
+    out = fn()
     try:
-        values = np.asarray(fn(), dtype=float)
-    except (TypeError, ValueError) as err:
-        raise SpecError(f"signal {name!r} must return numbers: {err}") from None
+        values = np.asarray(out)
+    except ValueError:  # ragged nesting
+        values = np.asarray(None)
+    if values.dtype.kind not in "biuf":  # bools plot as 0/1; no text, None or complex
+        raise SpecError(f"signal {name!r} must return numbers, got {out!r}")
     if values.ndim > 1 or values.size > mujoco.mjMAXLINE or values.size == 0:
         raise SpecError(
             f"signal {name!r} must return 1 to {mujoco.mjMAXLINE} floats, got shape {values.shape}"
         )
-    return values.reshape(-1)
+    return values.reshape(-1).astype(float)

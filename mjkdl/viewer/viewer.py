@@ -24,6 +24,7 @@ from ..names import model_id
 from ..record import VideoRecorder, offscreen_renderer
 from ..robot import Robot
 from ..scene import Env, Scene
+from ..validate import text
 from . import overlays as ov
 from .framing import frame
 from .pacing import Pacer
@@ -115,7 +116,7 @@ class SimulateViewer(Closable):
             raise SpecError(f"SimulateViewer.open takes a Robot, Scene or Env, got {kind}")
         if scene.closed:
             raise RuntimeError("SimulateViewer.open: the scene is closed")
-        return cls(scene, robot, str(title))
+        return cls(scene, robot, text(title, "SimulateViewer.open: title"))
 
     @property
     def handle(self) -> Handle:
