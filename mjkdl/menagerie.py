@@ -9,6 +9,7 @@ from pathlib import Path
 import mujoco_menagerie
 
 from .errors import ModelFileError, UnknownNameError
+from .validate import text
 
 
 def names() -> list[str]:
@@ -21,6 +22,7 @@ def model_path(name: str) -> str:
 
     Reads from `MENAGERIE_ROOT` when set, else from the package's cache (downloading once).
     """
+    text(name, "menagerie.model_path(name)")
     try:
         robot = mujoco_menagerie.get(name)
     except mujoco_menagerie.UnknownRobotError:

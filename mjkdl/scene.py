@@ -28,7 +28,7 @@ from .errors import (
 )
 from .names import COUNT_FIELD, find_id, model_id
 from .spec import ResetContext, ResetOptions, SceneObject, SceneSpec, ToolFrameSpec
-from .validate import text
+from .validate import flag, text
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -531,8 +531,9 @@ class Env(Scene):
         names = [model.key(k).name or f"#{k}" for k in range(model.nkey)]
         if isinstance(key, str):
             return self._id(mujoco.mjtObj.mjOBJ_KEY, "keyframe", key)
-        integral = isinstance(key, (int, np.integer)) and not isinstance(key, bool)
-        if integral and 0 <= key < model.nkey:
+        if not isinstance(key, (int, np.integer)) or isinstance(key, bool):
+            raise SpecTypeError(f"keyframe must be an index or a name, got {key!r}")
+        if 0 <= key < model.nkey:
             return int(key)
         raise unknown_name("keyframe", str(key), names, where=f"the scene ({model.nkey} keyframes)")
 
@@ -548,7 +549,8 @@ class Env(Scene):
         if not isinstance(opts, ResetOptions):
             raise SpecError(f"reset() takes ResetOptions, got {type(opts).__name__}")
         model, data = self.model, self.data
-        key = self.keyframe_id(opts.keyframe) if opts.use_keyframe else None
+        use = flag(opts.use_keyframe, "ResetOptions.use_keyframe")
+        key = self.keyframe_id(opts.keyframe) if use else None
         if key is None:
             mujoco.mj_resetData(model, data)
         else:

@@ -618,11 +618,18 @@ def test_keyframe_id_accepts_names_and_in_range_integers_only(tutorial_scene) ->
     assert [m.key(k).name for k in range(m.nkey)] == ["home", "retract"]
     assert env.keyframe_id("retract") == 1
     assert env.keyframe_id(np.int64(1)) == 1
-    for key in (2, -1, True, 1.0, "7"):
+    for key in (2, -1, "7"):
         with pytest.raises(mjk.UnknownNameError) as err:
             env.keyframe_id(key)
         where = " in the scene" if isinstance(key, str) else " in the scene (2 keyframes)"
         assert err.value.args[0] == f"no keyframe named '{key}'{where}; known: home, retract"
+    for key in (True, 1.0, None):
+        with pytest.raises(mjk.SpecTypeError) as err:
+            env.keyframe_id(key)
+        assert str(err.value) == f"keyframe must be an index or a name, got {key!r}"
+    with pytest.raises(mjk.SpecTypeError) as err:  # "no" is not False
+        env.reset(mjk.ResetOptions(keyframe=1, use_keyframe="no"))
+    assert str(err.value) == "ResetOptions.use_keyframe must be True or False, got 'no'"
     message = "reset() takes ResetOptions, got dict"
     with pytest.raises(mjk.SpecError, match=f"^{re.escape(message)}$"):
         env.reset({"keyframe": "home"})

@@ -55,6 +55,13 @@ def test_unknown_name_lists_close_matches():
     assert str(err.value).startswith("no MuJoCo Menagerie robot")
 
 
+@pytest.mark.parametrize("name", [None, 3, ["kinova_gen3"]])
+def test_a_name_that_is_not_text_is_refused(name):
+    with pytest.raises(mjk.SpecTypeError) as err:
+        mjk.menagerie.model_path(name)
+    assert str(err.value) == f"menagerie.model_path(name) must be a string, got {name!r}"
+
+
 def test_model_missing_under_menagerie_root(tmp_path, monkeypatch):
     monkeypatch.setenv("MENAGERIE_ROOT", str(tmp_path))
     with pytest.raises(FileNotFoundError, match="MENAGERIE_ROOT") as err:
