@@ -608,3 +608,190 @@ def test_near_singular_pose_is_damped(panda_env) -> None:
     ratio = sigma[5] ** 2 / (sigma[5] ** 2 + lam)
     assert np.linalg.norm(calm) == pytest.approx(ratio * np.linalg.norm(fast), rel=1e-6)
     assert np.linalg.norm(calm) < 0.5 * np.linalg.norm(fast)
+
+
+@pytest.mark.parametrize(
+    ("kw", "error", "message"),
+    [
+        (
+            {"posture": ["0"] * 7},
+            mjk.SpecTypeError,
+            f"posture must hold 7 numbers, got {['0'] * 7}",
+        ),
+        (
+            {"posture": [True] * 7},
+            mjk.SpecTypeError,
+            f"posture must hold 7 numbers, got {[True] * 7}",
+        ),
+        # NumPy makes [0.0, ..., True] a float64 array: the bool must be found by looking.
+        (
+            {"posture": [0.0] * 6 + [True]},
+            mjk.SpecTypeError,
+            f"posture must hold 7 numbers, got {[0.0] * 6 + [True]}",
+        ),
+        (
+            {"max_joint_velocity": ["1"] * 7},
+            mjk.SpecTypeError,
+            f"max_joint_velocity must hold 7 numbers, got {['1'] * 7}",
+        ),
+        (
+            {"max_joint_velocity": np.full(7, 1 + 1j)},
+            mjk.SpecTypeError,
+            "max_joint_velocity must hold 7 numbers, got "
+            "array([1.+1.j, 1.+1.j, 1.+1.j, 1.+1.j, 1.+1.j, 1.+1.j, 1.+1.j])",
+        ),
+        (
+            {"max_joint_velocity": True},
+            mjk.SpecTypeError,
+            "max_joint_velocity must be a finite number > 0, got True",
+        ),
+        (
+            {"max_joint_velocity": 1 + 0j},
+            mjk.SpecTypeError,
+            "max_joint_velocity must be a finite number > 0, got (1+0j)",
+        ),
+        (
+            {"min_distance": "0.05"},
+            mjk.SpecTypeError,
+            "min_distance must be a finite number >= 0, got '0.05'",
+        ),
+        ({"damping": True}, mjk.SpecTypeError, "damping must be a finite number >= 0, got True"),
+        (
+            {"collision_gain": False},
+            mjk.SpecTypeError,
+            "collision_gain must be a finite number >= 0, got False",
+        ),
+        ({"dt": True}, mjk.SpecTypeError, "dt must be a finite number > 0, got True"),
+        (
+            {"max_joint_acceleration": "10"},
+            mjk.SpecTypeError,
+            "max_joint_acceleration must be a finite number > 0, got '10'",
+        ),
+        ({"damping": 1e155}, mjk.SpecError, "damping must lie in [0, 1000], got 1e+155"),
+        (
+            {"singular_damping": 1e4},
+            mjk.SpecError,
+            "singular_damping must lie in [0, 1000], got 10000.0",
+        ),
+        (
+            {"posture": [100] * 7},
+            mjk.SpecError,
+            "posture[0] (joint 'joint1') must lie in [-2.8973, 2.8973], got 100",
+        ),
+        (
+            {"posture": [*PANDA_HOME[:3], 0.5, *PANDA_HOME[4:]]},
+            mjk.SpecError,
+            "posture[3] (joint 'joint4') must lie in [-3.0718, -0.0698], got 0.5",
+        ),
+    ],
+)
+def test_settings_that_are_not_sane_numbers_are_refused(panda_env, kw, error, message) -> None:
+    robot = panda_arm(panda_env)
+    with pytest.raises(error) as err:
+        mjk.CartesianVelocityController(robot, **kw)
+    assert type(err.value) is error
+    assert str(err.value) == message
+
+
+def test_posture_setter_checks_the_joint_limits(panda_env) -> None:
+    robot = panda_arm(panda_env)
+    ctrl = mjk.CartesianVelocityController(robot)
+    with pytest.raises(mjk.SpecError) as err:
+        ctrl.posture = [*PANDA_HOME[:6], -3.0]
+    assert str(err.value) == "posture[6] (joint 'joint7') must lie in [-2.8973, 2.8973], got -3"
+    np.testing.assert_array_equal(ctrl.posture, PANDA_HOME)  # unchanged
+
+
+@pytest.mark.parametrize("robot", [None, "link0"])
+def test_controller_needs_a_robot(robot) -> None:
+    with pytest.raises(TypeError) as err:
+        mjk.CartesianVelocityController(robot)
+    assert isinstance(err.value, mjk.SpecTypeError)
+    assert str(err.value) == f"CartesianVelocityController: robot must be a Robot, got {robot!r}"
+
+
+@pytest.mark.parametrize(
+    "value", [np.float32(0.5), np.int64(2), np.array(0.25), 0.5, 2], ids=lambda v: repr(v)
+)
+def test_one_velocity_limit_of_any_real_type_applies_to_every_joint(panda_env, value) -> None:
+    robot = panda_arm(panda_env)
+    ctrl = mjk.CartesianVelocityController(robot, max_joint_velocity=value)
+    np.testing.assert_array_equal(ctrl.velocity_limits, np.full(7, float(value)))
+
+
+@pytest.mark.parametrize(
+    "twist",
+    [
+        ["0.1", "0", "0", "0", "0", "0"],
+        [True] * 6,
+        [0.1, 0.0, 0.0, 0.0, 0.0, True],  # a float64 array to NumPy
+        np.array([None] * 6),
+        np.full(6, 0.1 + 0j),
+        np.zeros(6, dtype=bool),
+    ],
+    ids=["text", "bools", "one-bool", "objects", "complex", "bool-array"],
+)
+def test_twists_that_are_not_real_numbers_are_refused(panda_env, twist) -> None:
+    robot = panda_arm(panda_env)
+    ctrl = mjk.CartesianVelocityController(robot)
+    for call in (ctrl.solve, ctrl.command):
+        with pytest.raises(mjk.SpecTypeError) as err:
+            call(twist)
+        assert str(err.value) == f"twist must hold 6 numbers, got {twist!r}"
+
+
+@pytest.mark.parametrize("dt", ["0.01", True, 0.01j], ids=repr)
+def test_solve_period_must_be_a_real_number(panda_env, dt) -> None:
+    robot = panda_arm(panda_env)
+    ctrl = mjk.CartesianVelocityController(robot)
+    with pytest.raises(mjk.SpecTypeError) as err:
+        ctrl.solve(np.zeros(6), dt=dt)
+    assert str(err.value) == f"dt must be a finite number > 0, got {dt!r}"
+
+
+@pytest.mark.parametrize("first", ["setup", "update"])
+def test_a_qp_daqp_cannot_set_up_gives_zero_and_failed(panda_env, first) -> None:
+    """DAQP refuses a cost it cannot factor in setup() or update() (exit flag -5); solving then
+    would raise "Model has not been set up" or return NaN. The damping bound keeps such a
+    cost out of reach, so it is forced here past the checks."""
+    robot = panda_arm(panda_env)
+    ctrl = mjk.CartesianVelocityController(robot)
+    twist = np.array([0.05, 0, 0, 0, 0, 0])
+    if first == "update":
+        ctrl.solve(twist)
+    ctrl._damping = 1e155
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        qd = ctrl.solve(twist)
+    assert [str(w.message) for w in caught] == [
+        "CartesianVelocityController: no solution (failed: DAQP exit flag -5); commanding zero "
+        "joint velocity (reported in last_status, warned once)"
+    ]
+    np.testing.assert_array_equal(qd, np.zeros(7))
+    assert ctrl.last_status is mjk.SolveStatus.FAILED
+    ctrl._damping = 1e-5
+    assert np.abs(ctrl.solve(twist)).max() > 0.0
+    assert ctrl.last_status is mjk.SolveStatus.OPTIMAL
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        (
+            {"control_frame": "hand\x00junk"},
+            "no site or body named 'hand\\x00junk' in the scene (control_frame); "
+            "close matches: hand",
+        ),
+        (
+            {"avoid": [("hand\x00junk", "link0")]},
+            "no body named 'hand\\x00junk' in the scene (avoid pair 'hand\\x00junk', 'link0'); "
+            "close matches: hand",
+        ),
+    ],
+)
+def test_names_with_a_nul_byte_are_not_found(panda_env, kw, message) -> None:
+    """MuJoCo would read 'hand\\0junk' as 'hand' (C strings end at the NUL)."""
+    robot = panda_arm(panda_env)
+    with pytest.raises(mjk.UnknownNameError) as err:
+        mjk.CartesianVelocityController(robot, **kw)
+    assert str(err.value) == message

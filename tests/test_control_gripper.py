@@ -175,7 +175,7 @@ def test_bad_gripper_settings_are_named(tmp_path) -> None:
             mjk.Gripper(env, "actuator8", open=np.nan, closed=0)
         with pytest.raises(mjk.SpecError, match=r"\.closed must be a number"):
             mjk.Gripper(env, "actuator8", open=255, closed="shut")
-        with pytest.raises(mjk.SpecError, match=r"\.binary must be a bool"):
+        with pytest.raises(mjk.SpecTypeError, match=r"\.binary must be True or False, got 1"):
             mjk.Gripper(env, "actuator8", open=255, closed=0, binary=1)
     path = tmp_path / "motor.xml"
     path.write_text(two_link_arm('<actuator><motor name="m" joint="j2"/></actuator>'))
@@ -194,3 +194,44 @@ def test_closed_scene_makes_the_gripper_raise() -> None:
         hand.command(0.0)
     with pytest.raises(RuntimeError, match="closed"):
         hand.opening()
+
+
+@pytest.mark.parametrize("scene", [None, "scene"])
+def test_gripper_needs_a_scene(scene) -> None:
+    with pytest.raises(TypeError) as err:
+        mjk.Gripper(scene, "actuator8", open=255, closed=0)
+    assert isinstance(err.value, mjk.SpecTypeError)
+    assert str(err.value) == f"Gripper: scene must be a Scene or an Env, got {scene!r}"
+
+
+@pytest.mark.parametrize(
+    ("open_", "closed", "message"),
+    [
+        (
+            1000,
+            0,
+            "Gripper('actuator8').open must lie in the actuator's ctrlrange [0, 255], got 1000",
+        ),
+        (
+            255,
+            -1,
+            "Gripper('actuator8').closed must lie in the actuator's ctrlrange [0, 255], got -1",
+        ),
+    ],
+)
+def test_ends_outside_a_limited_ctrlrange_are_refused(open_, closed, message) -> None:
+    """MuJoCo clamps the control to [0, 255]: open=1000 would read 0.255 when fully open."""
+    with mjk.Env.build(panda_spec()) as env:
+        with pytest.raises(mjk.SpecError) as err:
+            mjk.Gripper(env, "actuator8", open=open_, closed=closed)
+        assert str(err.value) == message
+
+
+def test_actuator_name_with_a_nul_byte_is_not_found() -> None:
+    with mjk.Env.build(panda_spec()) as env:
+        with pytest.raises(mjk.UnknownNameError) as err:
+            mjk.Gripper(env, "actuator8\x00x", open=255, closed=0)
+        assert str(err.value) == (
+            "no actuator named 'actuator8\\x00x' in the scene; close matches: actuator8, "
+            "actuator7, actuator6, actuator5, actuator4"
+        )

@@ -21,24 +21,26 @@ import enum
 import math
 import warnings
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import daqp
 import mujoco
 import numpy as np
 from scipy.linalg.lapack import dsyev as _dsyev
 
-from ..errors import SpecError, unknown_name
+from ..errors import SpecError, SpecTypeError, unknown_name
 from ..names import find_id, model_id
+from ..robot import Robot
 from ..spec import CtrlMode
-
-if TYPE_CHECKING:
-    from ..robot import Robot
+from ..validate import real
 
 # DAQP treats bounds at or beyond this magnitude as absent.
 _INF = 1e30
 # Model velocity limits at or above this (rad/s or m/s) stand for "none".
 _NO_LIMIT = 1e6
+# Largest damping or singular_damping: beyond it the twist is barely tracked (scaled by
+# σ²/(σ² + λ) < 1e-3 for σ <= 1), and near 1e100 DAQP can no longer factor the cost.
+_MAX_DAMPING = 1e3
+_BOOLS = (bool, np.bool_)
 
 
 class SolveStatus(enum.Enum):
@@ -71,13 +73,15 @@ class CartesianVelocityController:
       its approach speed is capped at `collision_gain * (d - min_distance)`.
 
     The other terms: `damping` (λ, the weight of |qd|²) plus up to `singular_damping`
-    once the smallest singular value of J falls below `singular_threshold`; a posture task in
-    the null space of J pulling toward `posture` (default: the pose now) at `posture_gain`
-    (1/s). `influence_distance` defaults to `min_distance + 0.1`; `dt`, the period the bounds
-    are computed for, defaults to the scene's timestep. docs/control.md has the formulation.
+    once the smallest singular value of J falls below `singular_threshold` (both at most 1e3);
+    a posture task in the null space of J pulling toward `posture` (default: the pose now;
+    within the joints' position limits) at `posture_gain` (1/s). A single
+    `max_joint_velocity` applies to every joint. `influence_distance` defaults to
+    `min_distance + 0.1`; `dt`, the period the bounds are computed for, defaults to the
+    scene's timestep. docs/control.md has the formulation.
 
-    When the constraints cannot all hold (an infeasible QP), `solve` returns zero velocity,
-    sets `last_status` and warns once; it never raises for that.
+    When the constraints cannot all hold (an infeasible QP) or DAQP fails, `solve` returns
+    zero velocity, sets `last_status` and warns once; it never raises for that.
     """
 
     def __init__(
@@ -100,11 +104,15 @@ class CartesianVelocityController:
         singular_threshold: float = 0.05,
         dt: float | None = None,
     ) -> None:
+        if not isinstance(robot, Robot):
+            raise SpecTypeError(
+                f"CartesianVelocityController: robot must be a Robot, got {robot!r}"
+            )
         self._robot = robot
         n = robot.n_joints
         self._n = n
         if not isinstance(control_frame, str):
-            raise SpecError(f"control_frame must be a site or body name, got {control_frame!r}")
+            raise SpecTypeError(f"control_frame must be a site or body name, got {control_frame!r}")
         self._frame_name = control_frame
         self._min_distance = _number(min_distance, "min_distance")
         self._influence = (
@@ -123,8 +131,10 @@ class CartesianVelocityController:
             raise SpecError(f"limit_gain must be in (0, 1], got {limit_gain!r}")
         self._limit_horizon = _number(limit_horizon, "limit_horizon")
         self._posture_gain = _number(posture_gain, "posture_gain")
-        self._damping = _number(damping, "damping")
-        self._singular_damping = _number(singular_damping, "singular_damping")
+        self._damping = _at_most(_number(damping, "damping"), _MAX_DAMPING, "damping")
+        self._singular_damping = _at_most(
+            _number(singular_damping, "singular_damping"), _MAX_DAMPING, "singular_damping"
+        )
         self._singular_threshold = _number(singular_threshold, "singular_threshold", positive=True)
         self._dt = None if dt is None else _number(dt, "dt", positive=True)
         self._vmax = self._velocity_limits(max_joint_velocity)
@@ -133,12 +143,14 @@ class CartesianVelocityController:
             if max_joint_acceleration is None
             else _number(max_joint_acceleration, "max_joint_acceleration", positive=True)
         )
-        self._posture = (
-            robot.jnt_pos_msr.copy() if posture is None else _vector(posture, n, "posture")
-        )
         limits = robot.joint_limits
         self._lower, self._upper = limits[:, 0].copy(), limits[:, 1].copy()
         self._limits = np.vstack([self._upper, self._lower])
+        self._posture = (
+            np.clip(robot.jnt_pos_msr, self._lower, self._upper)  # soft limits may overshoot
+            if posture is None
+            else self._checked_posture(posture)
+        )
         self._neg_vmax = -self._vmax
         self._pairs = _pair_names(avoid)
         self._model: mujoco.MjModel | None = None
@@ -173,10 +185,12 @@ class CartesianVelocityController:
     def _velocity_limits(self, fallback: float | Sequence[float]) -> np.ndarray:
         """Per joint: the model's velocity limit where finite and positive, else `fallback`."""
         n = self._n
-        if isinstance(fallback, (int, float)):
-            default = np.full(n, _number(fallback, "max_joint_velocity", positive=True))
-        else:
+        if isinstance(fallback, (list, tuple)) or (
+            isinstance(fallback, np.ndarray) and fallback.ndim
+        ):
             default = _vector(fallback, n, "max_joint_velocity")
+        else:  # one number (Python's or NumPy's) for every joint
+            default = np.full(n, _number(fallback, "max_joint_velocity", positive=True))
         if np.any(default <= 0):
             raise SpecError(f"max_joint_velocity must be positive, got {fallback!r}")
         # The arm's entries, found by joint name: the model may hold more joints (a moving
@@ -279,7 +293,19 @@ class CartesianVelocityController:
 
     @posture.setter
     def posture(self, value: Sequence[float]) -> None:
-        self._posture = _vector(value, self._n, "posture")
+        self._posture = self._checked_posture(value)
+
+    def _checked_posture(self, value: object) -> np.ndarray:
+        """`value` as n joint positions, each within its joint's position limits."""
+        posture = _vector(value, self._n, "posture")
+        outside = np.flatnonzero((posture < self._lower) | (posture > self._upper))
+        if len(outside):
+            i = int(outside[0])
+            raise SpecError(
+                f"posture[{i}] (joint {self._robot.joint_names[i]!r}) must lie in "
+                f"[{self._lower[i]:g}, {self._upper[i]:g}], got {posture[i]:g}"
+            )
+        return posture
 
     def reset(self) -> None:
         """Forget the previous solution: the next one starts from the measured velocities.
@@ -356,10 +382,7 @@ class CartesianVelocityController:
         if isinstance(twist, np.ndarray) and twist.dtype == np.float64:
             arr = twist
         else:
-            try:
-                arr = np.asarray(twist, dtype=float)
-            except (TypeError, ValueError):
-                raise SpecError(f"twist must hold 6 numbers, got {twist!r}") from None
+            arr = _real_array(twist, "twist", 6)
         if arr.shape != (6,):
             raise SpecError(f"twist needs 6 values [vx, vy, vz, wx, wy, wz], got shape {arr.shape}")
         # One dot product is finite exactly when every entry is (barring overflow, which the
@@ -512,12 +535,20 @@ class CartesianVelocityController:
         bu[n + act] = bound
 
     def _qp(self) -> tuple[np.ndarray, int]:
+        """DAQP's solution and exit flag; a setup or update that failed (a cost DAQP cannot
+        factor) gives its own negative flag, and solving would raise or return NaN."""
         if not self._ready:
-            self._solver.setup(self._H, self._f, self._A, self._bu, self._bl)
+            exitflag, _ = self._solver.setup(self._H, self._f, self._A, self._bu, self._bl)
+            if exitflag < 0:
+                return self._zero, int(exitflag)
             self._ready = True
         else:
             A = self._A if self._rows else None  # DAQP rejects an update with no rows
-            self._solver.update(H=self._H, f=self._f, A=A, bupper=self._bu, blower=self._bl)
+            exitflag = self._solver.update(
+                H=self._H, f=self._f, A=A, bupper=self._bu, blower=self._bl
+            )
+            if exitflag < 0:
+                return self._zero, int(exitflag)
         x, _, exitflag, _ = self._solver.solve()
         return x, int(exitflag)
 
@@ -547,22 +578,48 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _number(value: object, name: str, positive: bool = False) -> float:
-    """`value` as a finite float that is >= 0 (> 0 when `positive`)."""
+    """`value` as a finite float that is >= 0 (> 0 when `positive`): a real number, Python's
+    or NumPy's (or a 0-d array of one), never text, a bool or a complex number."""
+    if isinstance(value, np.ndarray) and value.shape == ():
+        value = value[()]
+    bound = "> 0" if positive else ">= 0"
+    message = f"{name} must be a finite number {bound}, got {value!r}"
     try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        x = math.nan
-    if not math.isfinite(x) or x < 0 or (positive and x == 0):
-        bound = "> 0" if positive else ">= 0"
-        raise SpecError(f"{name} must be a finite number {bound}, got {value!r}")
+        x = real(value, name)
+    except SpecTypeError:
+        raise SpecTypeError(message) from None
+    except SpecError:  # not finite
+        raise SpecError(message) from None
+    if x < 0 or (positive and x == 0):
+        raise SpecError(message)
     return x
 
 
-def _vector(value: object, n: int, name: str) -> np.ndarray:
+def _at_most(x: float, limit: float, name: str) -> float:
+    if x > limit:
+        raise SpecError(f"{name} must lie in [0, {limit:g}], got {x!r}")
+    return x
+
+
+def _real_array(value: object, name: str, n: int) -> np.ndarray:
+    """`value` as a new float64 array, if it holds only real numbers: NumPy would convert
+    text and bools and drop imaginary parts ([True, 0.5] is even a float64 array)."""
     try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SpecError(f"{name} must hold {n} numbers, got {value!r}") from None
+        arr = np.asarray(value)
+    except (TypeError, ValueError):  # ragged nesting
+        arr = None
+    if (
+        arr is None
+        or arr.dtype.kind not in "iuf"
+        or (isinstance(value, (list, tuple)) and any(isinstance(v, _BOOLS) for v in value))
+    ):
+        raise SpecTypeError(f"{name} must hold {n} numbers, got {value!r}")
+    return arr.astype(float)
+
+
+def _vector(value: object, n: int, name: str) -> np.ndarray:
+    """`value` as n finite numbers, one per joint (a copy)."""
+    arr = _real_array(value, name, n)
     if arr.shape != (n,):
         raise SpecError(f"{name} needs {n} values (one per joint), got shape {arr.shape}")
     if not np.isfinite(arr).all():

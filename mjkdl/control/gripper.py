@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-import math
-from typing import TYPE_CHECKING
-
 import mujoco
 import numpy as np
 
-from ..errors import SpecError
-
-if TYPE_CHECKING:
-    from ..scene import Scene
+from ..errors import SpecError, SpecTypeError
+from ..scene import Scene
+from ..validate import flag, real
 
 
 class Gripper:
@@ -26,12 +22,16 @@ class Gripper:
     tendon or joint, MuJoCo's `actuator_length`) mapped linearly so that the length the servo
     holds at `closed` reads 0 and at `open` reads 1, clipped to [0, 1]. Fingers stopped by an
     object read in between. The actuator must be a position servo (MuJoCo's affine bias
-    `gain * ctrl - kp * length - kv * velocity`), as both Menagerie grippers are.
+    `gain * ctrl - kp * length - kv * velocity`), as both Menagerie grippers are. On an
+    actuator with a limited `ctrlrange`, `open` and `closed` must lie in it (MuJoCo clamps the
+    control, so the servo would never hold an end outside it).
     """
 
     def __init__(
         self, scene: Scene, actuator: str, open: float, closed: float, binary: bool = True
     ) -> None:
+        if not isinstance(scene, Scene):
+            raise SpecTypeError(f"Gripper: scene must be a Scene or an Env, got {scene!r}")
         self._scene = scene
         self._name = actuator
         self._open = _finite(open, f"Gripper({actuator!r}).open")
@@ -41,9 +41,7 @@ class Gripper:
                 f"Gripper({actuator!r}): open and closed are the same control value "
                 f"({self._open:g})"
             )
-        if not isinstance(binary, bool):
-            raise SpecError(f"Gripper({actuator!r}).binary must be a bool, got {binary!r}")
-        self._binary = binary
+        self._binary = flag(binary, f"Gripper({actuator!r}).binary")
         self._model: mujoco.MjModel | None = None
         self._bind()
 
@@ -65,6 +63,14 @@ class Gripper:
                 f"Gripper: actuator {self._name!r} is not a position servo (fixed gain, affine "
                 "bias with a negative position term), so its opening cannot be measured"
             )
+        if model.actuator_ctrllimited[a]:
+            lo, hi = model.actuator_ctrlrange[a]
+            for end, value in (("open", self._open), ("closed", self._closed)):
+                if not lo <= value <= hi:
+                    raise SpecError(
+                        f"Gripper({self._name!r}).{end} must lie in the actuator's ctrlrange "
+                        f"[{lo:g}, {hi:g}], got {value:g}"
+                    )
 
         # Length the servo settles at for control value c: gain*c + bias0 + bias1*L = 0.
         def held(c: float) -> float:
@@ -111,9 +117,4 @@ def _finite(value: object, name: str) -> float:
     """A finite real scalar (Python or NumPy number, or a 0-d array) as a float."""
     if isinstance(value, np.ndarray) and value.shape == ():
         value = value[()]
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SpecError(f"{name} must be a number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise SpecError(f"{name} must be finite, got {value!r}")
-    return x
+    return real(value, name)
