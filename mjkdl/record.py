@@ -41,9 +41,9 @@ import mujoco
 import numpy as np
 
 from .closable import Closable
-from .errors import MjkdlError, SpecError
+from .errors import MjkdlError, SimulationError, SpecError, SpecTypeError
 from .names import model_id
-from .validate import path_text
+from .validate import flag, path_text, real, text
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -54,7 +54,11 @@ if TYPE_CHECKING:
 _X264_PARAMS = ["-preset", "ultrafast", "-crf", "23"]
 _QUEUE_FRAMES = 4
 _EPS = 1e-6
+MIN_FPS = 0.01  # frames per simulated second: one per 100 s; ffmpeg's MP4 muxer fails near 1e-6
 MAX_FPS = 240.0  # frames per simulated second; beyond it a video only repeats frames
+_FREE = int(mujoco.mjtCamera.mjCAMERA_FREE)
+_TRACKING = int(mujoco.mjtCamera.mjCAMERA_TRACKING)
+_FIXED = int(mujoco.mjtCamera.mjCAMERA_FIXED)
 
 
 class RecordingError(MjkdlError, OSError):
@@ -111,6 +115,8 @@ def offscreen_renderer(
                 f"use a smaller size or raise model.vis.global_.{attr} (<visual><global "
                 f'{attr}="..."/> in MJCF)'
             )
+    shadows = flag(shadows, "shadows")
+    reflections = flag(reflections, "reflections")
     try:
         renderer = _new_renderer(model, int(width), int(height))
     except mujoco.FatalError as err:
@@ -120,9 +126,34 @@ def offscreen_renderer(
             f"{err}. On a machine without a display set MUJOCO_GL=egl (or osmesa) before "
             "importing mujoco or mjkdl."
         ) from None
-    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = bool(shadows)
-    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = bool(reflections)
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = reflections
     return renderer
+
+
+def _check_view(model: mujoco.MjModel, camera: mujoco.MjvCamera, where: str) -> None:
+    """Refuse a camera `model` cannot be seen through: MuJoCo ends the process (mju_error in
+    mjv_updateScene) on an unknown type, a fixed camera or tracked body outside the model, and
+    on mjCAMERA_USER when nothing set the scene's camera."""
+    kind = camera.type
+    if kind == _FREE:
+        return
+    if kind == _FIXED:
+        if not 0 <= camera.fixedcamid < model.ncam:
+            raise _not_in_scene(where, "fixedcamid", camera.fixedcamid, "camera", model.ncam)
+    elif kind == _TRACKING:
+        if not 0 <= camera.trackbodyid < model.nbody:
+            raise _not_in_scene(where, "trackbodyid", camera.trackbodyid, "body", model.nbody)
+    else:
+        raise SpecError(
+            f"{where}: camera.type {kind} is not mjCAMERA_FREE (0), mjCAMERA_TRACKING (1) or "
+            "mjCAMERA_FIXED (2)"
+        )
+
+
+def _not_in_scene(where: str, field: str, index: int, kind: str, count: int) -> SpecError:
+    ids = "none" if count == 0 else "1: 0" if count == 1 else f"{count}: 0..{count - 1}"
+    return SpecError(f"{where}: camera.{field} {index} is not a {kind} of the scene (it has {ids})")
 
 
 _BACKEND_LOCK = threading.Lock()
@@ -278,6 +309,7 @@ class VideoRecorder(Closable):
         self._camera = self._make_camera("")
         self._option: mujoco.MjvOption | None = None
         self._overlay: Callable[[mujoco.MjvScene], None] | None = None
+        self._following = False  # a follow_view camera, kept over rebuilds, checked per frame
         self._clock = _FrameClock(fps)
         self._frames = 0
         try:
@@ -301,8 +333,8 @@ class VideoRecorder(Closable):
         reflections: bool = True,
     ) -> Self:
         """Start an MP4 of `width`x`height` (even numbers, within the model's offscreen buffer)
-        at `fps` (at most `MAX_FPS`) frames per simulated second. The folder must exist and
-        be writable: the file is created here."""
+        at `fps` (from `MIN_FPS` to `MAX_FPS`) frames per simulated second. The folder must
+        exist and be writable: the file is created here."""
         from .scene import Scene
 
         if not isinstance(scene, Scene):
@@ -312,15 +344,17 @@ class VideoRecorder(Closable):
         for field, value in (("width", width), ("height", height)):
             if isinstance(value, (int, np.integer)) and value > 0 and value % 2:
                 raise SpecError(f"{field} must be even for H.264 yuv420p video, got {value}")
-        try:
-            rate = float(fps)
-        except (TypeError, ValueError):
-            rate = float("nan")
-        if isinstance(fps, bool) or not (math.isfinite(rate) and 0 < rate <= MAX_FPS):
-            raise SpecError(f"fps must be a positive number up to {MAX_FPS:g}, got {fps!r}")
+        rate = real(fps, "fps")
+        if not MIN_FPS <= rate <= MAX_FPS:
+            raise SpecError(
+                f"fps must be from {MIN_FPS:g} to {MAX_FPS:g} frames per simulated second, "
+                f"got {fps!r}"
+            )
+        shadows = flag(shadows, "shadows")
+        reflections = flag(reflections, "reflections")
         out, created = _output_path(path)
         try:
-            return cls(scene, out, width, height, rate, bool(shadows), bool(reflections))
+            return cls(scene, out, width, height, rate, shadows, reflections)
         except BaseException:
             if created:
                 out.unlink(missing_ok=True)
@@ -377,10 +411,11 @@ class VideoRecorder(Closable):
     def use_camera(self, name: str) -> None:
         """Record through model camera `name`; "" selects MuJoCo's free camera."""
         self._check_open()
-        self._camera = self._make_camera(name)
+        self._camera = self._make_camera(text(name, "use_camera: name"))
         self._camera_name = name
         self._option = None
         self._overlay = None
+        self._following = False
 
     def follow_view(
         self,
@@ -389,12 +424,27 @@ class VideoRecorder(Closable):
         overlay: Callable[[mujoco.MjvScene], None] | None = None,
     ) -> None:
         """Record through a live `MjvCamera` (a viewer's), with its visualisation options;
-        `overlay(scene)` may append extra geoms (a trace) after each scene update."""
+        `overlay(scene)` may append extra geoms (a trace) after each scene update.
+
+        The view is kept over rebuilds of the scene. Its camera must be one MuJoCo can render
+        in the scene (free, tracking a body, or a fixed model camera); as it is live, this is
+        checked again before every frame.
+        """
         self._check_open()
+        if not isinstance(camera, mujoco.MjvCamera):
+            raise SpecTypeError(f"follow_view: camera must be a mujoco.MjvCamera, got {camera!r}")
+        if option is not None and not isinstance(option, mujoco.MjvOption):
+            raise SpecTypeError(
+                f"follow_view: option must be a mujoco.MjvOption or None, got {option!r}"
+            )
+        if overlay is not None and not callable(overlay):
+            raise SpecTypeError(f"follow_view: overlay must be callable or None, got {overlay!r}")
+        _check_view(self._scene.model, camera, "follow_view")
         self._camera, self._option, self._overlay = camera, option, overlay
+        self._following = True
 
     def _make_camera(self, name: str) -> mujoco.MjvCamera:
-        model = self._model
+        model = self._scene.model  # newer than self._model after a rebuild not yet recorded
         cam = mujoco.MjvCamera()
         if name == "":
             mujoco.mjv_defaultFreeCamera(model, cam)
@@ -418,11 +468,21 @@ class VideoRecorder(Closable):
         data = self._scene.data
         encoder = self._encoder
         assert encoder is not None  # open: _check_open passed
-        copies = self._clock.due(float(data.time), self._frames)
+        t = float(data.time)
+        if not math.isfinite(t):
+            raise SimulationError(
+                f"record_frame: the simulation time data.time is {t}; frames are taken by "
+                "simulation time, which must be finite",
+                t,
+                {},
+            )
+        copies = self._clock.due(t, self._frames)
         if copies == 0:
             return False
         if self._scene.model is not self._model:
             self._rebind()
+        if self._following:
+            _check_view(self._model, self._camera, "record_frame")
         renderer = self._renderer
         renderer.update_scene(data, camera=self._camera, scene_option=self._option)
         if self._overlay is not None:
@@ -433,11 +493,11 @@ class VideoRecorder(Closable):
 
     def _rebind(self) -> None:
         """Follow a scene rebuilt by add_object/remove_object: new model, new GL context."""
+        if not self._following:  # a followed view is checked by record_frame
+            self._camera = self._make_camera(self._camera_name)
         self._renderer.close()
         self._model = self._scene.model
         self._renderer = offscreen_renderer(self._model, self._width, self._height, **self._flags)
-        if self._option is None:
-            self._camera = self._make_camera(self._camera_name)
 
     # ------------------------------------------------------------------ lifecycle
 

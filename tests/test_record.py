@@ -158,7 +158,7 @@ def test_sizes_beyond_the_offscreen_buffer_and_bad_numbers_are_refused(tmp_path:
             mjk.VideoRecorder.open(scene, out, 1920, 1200, 30)
         with pytest.raises(mjk.SpecError, match="must be even"):
             mjk.VideoRecorder.open(scene, out, 641, 480, 30)
-        with pytest.raises(mjk.SpecError, match="fps must be a positive number"):
+        with pytest.raises(mjk.SpecError, match=r"fps must be from 0\.01 to 240"):
             mjk.VideoRecorder.open(scene, out, 640, 480, 0)
         with pytest.raises(mjk.SpecError, match="VideoResolution"):
             mjk.VideoRecorder.open_preset(scene, out, (640, 480))
@@ -237,8 +237,8 @@ def test_timestep_longer_than_a_frame_repeats_frames(tmp_path: Path) -> None:
 
 def test_frames_per_capture_are_bounded(tmp_path: Path) -> None:
     with _ball_scene(0.01) as scene:
-        for fps in (1e6, 241, True, float("inf")):
-            with pytest.raises(mjk.SpecError, match="fps must be a positive number up to 240"):
+        for fps in (1e6, 241, 0.009):
+            with pytest.raises(mjk.SpecError, match=r"fps must be from 0\.01 to 240 frames per"):
                 mjk.VideoRecorder.open(scene, tmp_path / "fast.mp4", 320, 240, fps)
         with mjk.VideoRecorder.open(scene, tmp_path / "jump.mp4", 320, 240, 30, **FAST) as rec:
             rec.record_frame()
@@ -685,11 +685,13 @@ def test_open_checks_sizes_and_rates_with_exact_messages(tmp_path: Path) -> None
             with pytest.raises(mjk.SpecError) as err:
                 mjk.VideoRecorder.open(scene, out, width, height)
             assert str(err.value) == f"{field} must be even for H.264 yuv420p video, got {value}"
-        for fps in ("fast", None, 0, float("nan")):
+        for fps in (0, -30, 1e-300, 240.001):
             with pytest.raises(mjk.SpecError) as err:
-                mjk.VideoRecorder.open(scene, out, 160, 120, fps)  # type: ignore[arg-type]
-            assert str(err.value) == f"fps must be a positive number up to 240, got {fps!r}"
-        for fps in (0.5, 1, 240):  # the limits are inclusive where they should be
+                mjk.VideoRecorder.open(scene, out, 160, 120, fps)
+            assert str(err.value) == (
+                f"fps must be from 0.01 to 240 frames per simulated second, got {fps!r}"
+            )
+        for fps in (0.01, 0.5, 1, 240):  # the limits are inclusive
             with mjk.VideoRecorder.open(scene, out, 160, 120, fps, **FAST) as rec:
                 rec.record_frame()
             assert rec.fps == fps
@@ -698,3 +700,210 @@ def test_open_checks_sizes_and_rates_with_exact_messages(tmp_path: Path) -> None
     with pytest.raises(RuntimeError) as err:
         mjk.VideoRecorder.open(closed, out, 160, 120)
     assert str(err.value) == "VideoRecorder.open: the scene is closed"
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+FIXED, TRACKING = mujoco.mjtCamera.mjCAMERA_FIXED, mujoco.mjtCamera.mjCAMERA_TRACKING
+TWO_CAMERAS = [
+    mjk.CameraSpec(name=name, pos=[2.0, 0, 0.5], euler=[90, 90, 0], fovy=45)
+    for name in ("front", "side")
+]
+NOT_A_TYPE = "is not mjCAMERA_FREE (0), mjCAMERA_TRACKING (1) or mjCAMERA_FIXED (2)"
+
+
+def _camera(kind: int, fixedcamid: int = -1, trackbodyid: int = -1) -> mujoco.MjvCamera:
+    camera = mujoco.MjvCamera()
+    camera.type, camera.fixedcamid, camera.trackbodyid = kind, fixedcamid, trackbodyid
+    return camera
+
+
+def _two_camera_scene() -> mjk.Scene:
+    """Two model cameras (ids 0, 1) and two bodies: the world (0) and a ball (1)."""
+    ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.05], pos=[0, 0, 1], mass=1)
+    scene = mjk.Scene.build(base_spec(cameras=TWO_CAMERAS, objects=[ball]))
+    assert (scene.model.ncam, scene.model.nbody) == (2, 2)
+    return scene
+
+
+@pytest.mark.parametrize(
+    ("kind", "fixedcamid", "trackbodyid", "message"),
+    [
+        (FIXED, 50, 0, "camera.fixedcamid 50 is not a camera of the scene (it has 2: 0..1)"),
+        (FIXED, -1, 0, "camera.fixedcamid -1 is not a camera of the scene (it has 2: 0..1)"),
+        (TRACKING, 0, 999, "camera.trackbodyid 999 is not a body of the scene (it has 2: 0..1)"),
+        (TRACKING, 0, -1, "camera.trackbodyid -1 is not a body of the scene (it has 2: 0..1)"),
+        (99, 0, 0, f"camera.type 99 {NOT_A_TYPE}"),
+        (-1, 0, 0, f"camera.type -1 {NOT_A_TYPE}"),
+        (mujoco.mjtCamera.mjCAMERA_USER, 0, 0, f"camera.type 3 {NOT_A_TYPE}"),
+    ],
+)
+def test_follow_view_refuses_a_camera_mujoco_would_end_the_process_on(
+    tmp_path: Path, kind: int, fixedcamid: int, trackbodyid: int, message: str
+) -> None:
+    """mjv_updateScene calls mju_error on each of these: the interpreter would exit."""
+    scene = _two_camera_scene()
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "v.mp4", 160, 120, 10, **FAST) as rec:
+        with pytest.raises(mjk.SpecError) as err:
+            rec.follow_view(_camera(kind, fixedcamid, trackbodyid))
+        assert str(err.value) == f"follow_view: {message}"
+        assert rec.record_frame()  # still the free camera
+        for fine in (_camera(FIXED, 1), _camera(TRACKING, -1, 0), _camera(TRACKING, -1, 1)):
+            rec.follow_view(fine)  # the last camera, the world body, the last body
+            scene.data.time += 0.1
+            assert rec.record_frame()
+        assert rec.frames_written == 4
+
+
+def test_a_followed_camera_is_checked_before_every_frame_and_after_a_rebuild(
+    tmp_path: Path,
+) -> None:
+    scene = _two_camera_scene()
+    camera = _camera(TRACKING, trackbodyid=1)  # the ball
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "v.mp4", 160, 120, 10, **FAST) as rec:
+        rec.follow_view(camera)
+        assert rec.record_frame()
+        scene.remove_object("ball")  # the model shrinks: body 1 is gone
+        scene.data.time += 0.1
+        with pytest.raises(mjk.SpecError) as err:
+            rec.record_frame()
+        assert str(err.value) == (
+            "record_frame: camera.trackbodyid 1 is not a body of the scene (it has 1: 0)"
+        )
+        camera.type, camera.fixedcamid = FIXED, 7  # a live camera, edited between frames
+        with pytest.raises(mjk.SpecError) as err:
+            rec.record_frame()
+        assert str(err.value) == (
+            "record_frame: camera.fixedcamid 7 is not a camera of the scene (it has 2: 0..1)"
+        )
+        camera.fixedcamid = 1
+        assert rec.record_frame()
+        assert rec.frames_written == 2
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ((None,), "camera must be a mujoco.MjvCamera, got None"),
+        (("nope",), "camera must be a mujoco.MjvCamera, got 'nope'"),
+        ((99,), "camera must be a mujoco.MjvCamera, got 99"),
+        ((mujoco.MjvCamera(), "x"), "option must be a mujoco.MjvOption or None, got 'x'"),
+        ((mujoco.MjvCamera(), None, 5), "overlay must be callable or None, got 5"),
+    ],
+)
+def test_follow_view_checks_its_arguments(tmp_path: Path, args: tuple, message: str) -> None:
+    with (
+        _ball_scene(0.01) as scene,
+        mjk.VideoRecorder.open(scene, tmp_path / "v.mp4", 160, 120, 10, **FAST) as rec,
+    ):
+        with pytest.raises(mjk.SpecTypeError) as err:
+            rec.follow_view(*args)
+        assert str(err.value) == f"follow_view: {message}"
+        assert rec.record_frame()  # nothing was taken over
+
+
+def test_a_followed_view_without_option_survives_a_rebuild(tmp_path: Path) -> None:
+    size = (320, 240)
+    path = tmp_path / "followed.mp4"
+    view = mujoco.MjvCamera()
+    mujoco.mjv_defaultCamera(view)
+    view.lookat[:], view.distance, view.azimuth, view.elevation = [0, 0, 0.3], 3.0, 45.0, -30.0
+    scene = mjk.Scene.build(base_spec())
+    with scene, mjk.VideoRecorder.open(scene, path, *size, 10, **FAST) as rec:
+        rec.follow_view(view)  # no option: MuJoCo's default visualisation
+        scene.add_object(RED_BLOCK)
+        rec.record_frame()
+        expected = _reference(scene, size, camera=view)
+        free = _reference(scene, size)
+    frame = _bgr_to_rgb(_read_video(path)[3][0])
+    assert np.abs(frame - expected).mean() < 3.0
+    assert np.abs(frame - free).mean() > 10.0  # not MuJoCo's free camera
+
+
+@pytest.mark.parametrize("time", [float("nan"), float("inf"), float("-inf")])
+def test_a_non_finite_simulation_time_is_a_simulation_error(tmp_path: Path, time: float) -> None:
+    scene = _ball_scene(0.01)
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "t.mp4", 160, 120, 10, **FAST) as rec:
+        assert rec.record_frame()
+        scene.data.time = time
+        with pytest.raises(mjk.SimulationError) as err:
+            rec.record_frame()
+        assert str(err.value) == (
+            f"record_frame: the simulation time data.time is {time}; frames are taken by "
+            "simulation time, which must be finite"
+        )
+        assert isinstance(err.value, RuntimeError) and err.value.warnings == {}
+        assert str(err.value.time) == str(time)
+        scene.data.time = 0.1  # the clock is untouched: the next frame is due
+        assert rec.record_frame()
+        assert rec.frames_written == 2
+
+
+@pytest.mark.parametrize(
+    ("fps", "error", "message"),
+    [
+        ("30", mjk.SpecTypeError, "fps must be a number, got '30'"),
+        (True, mjk.SpecTypeError, "fps must be a number, got True"),
+        (None, mjk.SpecTypeError, "fps must be a number, got None"),
+        (float("nan"), mjk.SpecError, "fps must be finite, got nan"),
+        (float("inf"), mjk.SpecError, "fps must be finite, got inf"),
+        (
+            1e-300,
+            mjk.SpecError,
+            "fps must be from 0.01 to 240 frames per simulated second, got 1e-300",
+        ),
+        (
+            0.0099,
+            mjk.SpecError,
+            "fps must be from 0.01 to 240 frames per simulated second, got 0.0099",
+        ),
+    ],
+)
+def test_fps_is_a_number_ffmpeg_can_write(tmp_path: Path, fps, error, message) -> None:
+    out = tmp_path / "fps.mp4"
+    with _ball_scene(0.01) as scene:
+        with pytest.raises(error) as err:
+            mjk.VideoRecorder.open(scene, out, 160, 120, fps)
+        assert type(err.value) is error and str(err.value) == message
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        ({"shadows": "no"}, "shadows must be True or False, got 'no'"),
+        ({"reflections": None}, "reflections must be True or False, got None"),
+        ({"shadows": 0}, "shadows must be True or False, got 0"),
+        ({"shadows": False, "reflections": 1}, "reflections must be True or False, got 1"),
+    ],
+)
+def test_quality_flags_must_be_true_or_false(tmp_path: Path, flags: dict, message: str) -> None:
+    out = tmp_path / "flags.mp4"
+    with _ball_scene(0.01) as scene:
+        for make in (
+            lambda: mjk.VideoRecorder.open(scene, out, 160, 120, **flags),
+            lambda: mjk.VideoRecorder.open_preset(scene, out, mjk.VideoResolution.R480p, **flags),
+            lambda: mjk.record.offscreen_renderer(scene.model, 64, 48, **flags),
+        ):
+            with pytest.raises(mjk.SpecTypeError) as err:
+                make()
+            assert str(err.value) == message
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("name", "error", "message"),
+    [
+        (None, mjk.SpecTypeError, "use_camera: name must be a string, got None"),
+        (5, mjk.SpecTypeError, "use_camera: name must be a string, got 5"),
+        ("fr\x00ont", mjk.SpecError, "use_camera: name contains a NUL byte: 'fr\\x00ont'"),
+    ],
+)
+def test_use_camera_needs_a_name(tmp_path: Path, name, error, message) -> None:
+    scene = _two_camera_scene()
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "n.mp4", 160, 120, 10, **FAST) as rec:
+        with pytest.raises(error) as err:
+            rec.use_camera(name)
+        assert type(err.value) is error and str(err.value) == message
+        assert rec.record_frame()
