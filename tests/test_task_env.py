@@ -13,7 +13,16 @@ import pytest
 from conftest import menagerie
 
 import mjkdl as mjk
-from mjkdl.task import Actuation, ArmSpec, BodyPoseSensor, CameraSensor, TaskEnv, TaskSpec
+from mjkdl.task import (
+    Actuation,
+    ArmSpec,
+    BodyPoseSensor,
+    CameraSensor,
+    Lifted,
+    ReachReward,
+    TaskEnv,
+    TaskSpec,
+)
 from mjkdl.task.registry import PANDA_HOME, panda_arm, panda_reach_spec, panda_scene
 
 PANDA_FORCES = [87.0] * 4 + [12.0] * 3
@@ -504,3 +513,237 @@ def test_an_episode_records_at_real_speed(env: TaskEnv, tmp_path) -> None:
             rec.record_frame()
     frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(path))
     assert frames == 21 and seconds == pytest.approx(2.1, abs=0.05)  # one frame per step
+
+
+HOME_TEXT = [str(x) for x in PANDA_HOME]
+
+
+def _gripper(field: str, value: object):
+    return lambda s: setattr(s.arms[0].gripper, field, value)
+
+
+@pytest.mark.parametrize(
+    ("change", "error", "message"),
+    [
+        (
+            _gripper("actuator", None),
+            mjk.SpecTypeError,
+            "TaskSpec.arms[0].gripper.actuator must be a string, got None",
+        ),
+        (
+            _gripper("actuator", 8),
+            mjk.SpecTypeError,
+            "TaskSpec.arms[0].gripper.actuator must be a string, got 8",
+        ),
+        (
+            _gripper("binary", "no"),
+            mjk.SpecTypeError,
+            "TaskSpec.arms[0].gripper.binary must be True or False, got 'no'",
+        ),
+        (
+            lambda s: setattr(s.arms[0], "prefix", None),
+            mjk.SpecTypeError,
+            "TaskSpec.arms[0].prefix must be a string, got None",
+        ),
+        (
+            lambda s: setattr(s, "control_timestep", 1e7),
+            mjk.SpecError,
+            "TaskSpec.control_timestep (1e+07 s) is more than 2147483647 physics timesteps "
+            "(0.002 s), MuJoCo's limit per control step",
+        ),
+        (
+            lambda s: setattr(s.arms[0], "home", HOME_TEXT),
+            mjk.SpecTypeError,
+            f"TaskSpec.arms[0].home must be a list of numbers, got {HOME_TEXT!r}",
+        ),
+        (
+            lambda s: setattr(s.arms[0], "home", [complex(x) for x in PANDA_HOME]),
+            mjk.SpecTypeError,
+            "TaskSpec.arms[0].home must be a list of numbers, got "
+            f"{[complex(x) for x in PANDA_HOME]!r}",
+        ),
+        (
+            lambda s: setattr(s.arms[0], "home", "abcdefg"),
+            mjk.SpecTypeError,
+            "TaskSpec.arms[0].home must be a list of numbers, got 'abcdefg'",
+        ),
+        (
+            lambda s: setattr(s.arms[0], "max_linear_velocity", 1e40),
+            mjk.SpecError,
+            "TaskSpec.arms[0].max_linear_velocity must be at most 1000, got 1e+40",
+        ),
+        (
+            lambda s: setattr(s.arms[0], "max_angular_velocity", 1e39),
+            mjk.SpecError,
+            "TaskSpec.arms[0].max_angular_velocity must be at most 1000, got 1e+39",
+        ),
+        (
+            lambda s: s.sensors.append(CameraSensor("front", depth="no")),
+            mjk.SpecTypeError,
+            "TaskSpec.sensors[1].depth must be True or False, got 'no'",
+        ),
+        (
+            lambda s: s.sensors.append(CameraSensor("front", shadows="no")),
+            mjk.SpecTypeError,
+            "TaskSpec.sensors[1].shadows must be True or False, got 'no'",
+        ),
+        (
+            lambda s: s.sensors.append(CameraSensor("front", reflections=1)),
+            mjk.SpecTypeError,
+            "TaskSpec.sensors[1].reflections must be True or False, got 1",
+        ),
+        (
+            lambda s: s.sensors.append(CameraSensor("front", name=5)),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "TaskSpec.sensors[1].name must be a string, got 5",
+        ),
+        (
+            lambda s: s.sensors.append(BodyPoseSensor("ball", name=5)),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "TaskSpec.sensors[1].name must be a string, got 5",
+        ),
+    ],
+)
+def test_bad_spec_values_are_refused_by_name(change, error, message) -> None:
+    ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.03], mass=0.1)
+    spec = TaskSpec(scene=panda_scene([ball]), arms=[panda_arm()], sensors=[BodyPoseSensor("ball")])
+    change(spec)
+    with pytest.raises(error) as err:
+        TaskEnv(spec)
+    assert str(err.value) == message
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"render_width": -5}, mjk.SpecError, "render_width must be a positive integer, got -5"),
+        (
+            {"render_height": "x", "render_mode": "human"},
+            mjk.SpecTypeError,
+            "render_height must be a positive integer, got 'x'",
+        ),
+        (
+            {"render_width": 0, "render_mode": "rgb_array"},
+            mjk.SpecError,
+            "render_width must be a positive integer, got 0",
+        ),
+        (
+            {"render_width": True, "render_mode": "rgb_array"},
+            mjk.SpecTypeError,
+            "render_width must be a positive integer, got True",
+        ),
+        ({"render_camera": 3}, mjk.SpecTypeError, "render_camera must be a camera name, got 3"),
+    ],
+)
+def test_bad_render_arguments_are_refused_by_name(kwargs, error, message) -> None:
+    with pytest.raises(error) as err:
+        TaskEnv(TaskSpec(scene=panda_scene([]), arms=[panda_arm()]), **kwargs)
+    assert str(err.value) == message
+
+
+@pytest.fixture(scope="module")
+def started() -> Iterator[TaskEnv]:
+    """One env in an episode, shared by tests whose bad input changes nothing."""
+    menagerie("franka_emika_panda")
+    e = make()
+    e.reset(seed=0)
+    yield e
+    e.close()
+
+
+COMPLEX_ACTION = np.full(7, 0.1 + 1j)
+
+
+@pytest.mark.parametrize(
+    "action",
+    [
+        ["0.1"] * 7,
+        [True] * 7,
+        [0.1] * 6 + [True],
+        np.ones(7, dtype=bool),
+        COMPLEX_ACTION,
+        [0.1 + 1j] * 7,
+        [None] * 7,
+        [[0.1], [0.1, 0.2]] + [0.1] * 5,
+    ],
+)
+def test_actions_must_be_real_numbers(started: TaskEnv, action) -> None:
+    with pytest.raises(mjk.SpecTypeError) as err:
+        started.step(action)
+    assert str(err.value) == f"action must be an array of numbers, got {action!r}"
+
+
+@pytest.mark.parametrize(
+    ("field", "fn", "error", "message"),
+    [
+        ("reward", lambda o: "high", mjk.SpecTypeError, "must be a number, got 'high'"),
+        ("reward", lambda o: None, mjk.SpecTypeError, "must be a number, got None"),
+        (
+            "reward",
+            lambda o: np.zeros(2),
+            mjk.SpecTypeError,
+            "must be a number, got array([0., 0.])",
+        ),
+        ("reward", lambda o: math.nan, mjk.SpecError, "must be finite, got nan"),
+        ("reward", lambda o: True, mjk.SpecTypeError, "must be a number, got True"),
+        (
+            "terminated",
+            lambda o: np.array([True, False]),
+            mjk.SpecTypeError,
+            "must be True or False, got array([ True, False])",
+        ),
+        ("terminated", lambda o: "no", mjk.SpecTypeError, "must be True or False, got 'no'"),
+        ("terminated", lambda o: 1, mjk.SpecTypeError, "must be True or False, got 1"),
+    ],
+)
+def test_reward_and_termination_must_return_their_types(
+    started: TaskEnv, field, fn, error, message
+) -> None:
+    setattr(started.task_spec, field, fn)
+    try:
+        with pytest.raises(error) as err:
+            started.step(np.zeros(7))
+    finally:
+        setattr(started.task_spec, field, None)
+    assert str(err.value) == f"TaskSpec.{field}(obs) {message}"
+
+
+@pytest.mark.parametrize(
+    ("options", "seed", "message"),
+    [
+        ([1], 0, "reset(options=...) must be a mapping or None, got [1]"),
+        ("abc", 0, "reset(options=...) must be a mapping or None, got 'abc'"),
+        (0, 0, "reset(options=...) must be a mapping or None, got 0"),
+        (None, True, "reset(seed=...) must be an integer or None, got True"),
+        (None, np.True_, "reset(seed=...) must be an integer or None, got np.True_"),
+    ],
+)
+def test_reset_arguments_are_checked(started: TaskEnv, options, seed, message) -> None:
+    with pytest.raises(mjk.SpecTypeError) as err:
+        started.reset(seed=seed, options=options)
+    assert str(err.value) == message
+    started.reset(seed=0)  # the episode the other tests share
+
+
+@pytest.mark.parametrize(
+    ("fields", "error", "message"),
+    [
+        (
+            {"reward": ReachReward("panda_tcp_ps", "ball_pose")},
+            mjk.UnknownNameError,
+            "no observation named 'panda_tcp_ps' in TaskSpec.reward (ReachReward.a); "
+            "close matches: panda_tcp_pos, panda_tcp_vel, panda_tcp_quat, panda_joint_pos, "
+            "panda_gripper",
+        ),
+        (
+            {"terminated": Lifted("panda_gripper", rest_z=0.0, lift=0.1)},
+            mjk.SpecError,
+            "TaskSpec.terminated (Lifted.key): observation 'panda_gripper' has no x, y, z "
+            "(shape (1,))",
+        ),
+    ],
+)
+def test_reward_helpers_observations_are_checked_at_build(fields, error, message) -> None:
+    with pytest.raises(error) as err:
+        make(**fields)
+    assert str(err.value) == message

@@ -234,3 +234,113 @@ def test_a_failed_reset_leaves_no_episode_to_step() -> None:
     with pytest.raises(RuntimeError, match="before reset"):
         env.step(np.zeros(7))
     env.close()
+
+
+@pytest.fixture(scope="module")
+def props_env():
+    """An env with the props, its initializers set per test."""
+    menagerie("franka_emika_panda")
+    env = env_with()
+    yield env
+    env.close()
+
+
+BOX = ([0.4, 0.0, 0.1], [0.5, 0.1, 0.1])
+POSE = ([0.4, 0, 0.4, 180, 0, 0], [0.45, 0, 0.45, 180, 0, 0])
+
+
+@pytest.mark.parametrize(
+    ("initializer", "error", "message"),
+    [
+        (
+            PoseInitializer("panda", *POSE, max_tries=2.5),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "PoseInitializer('panda').max_tries must be a positive integer, got 2.5",
+        ),
+        (
+            PoseInitializer("panda", *POSE, max_tries=None),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "PoseInitializer('panda').max_tries must be a positive integer, got None",
+        ),
+        (
+            PoseInitializer("panda", *POSE, max_tries=0),
+            mjk.SpecError,
+            "PoseInitializer('panda').max_tries must be a positive integer, got 0",
+        ),
+        (
+            PoseInitializer("panda", *POSE, max_tries=-3),
+            mjk.SpecError,
+            "PoseInitializer('panda').max_tries must be a positive integer, got -3",
+        ),
+        (
+            PoseInitializer("panda", *POSE, max_tries=True),
+            mjk.SpecTypeError,
+            "PoseInitializer('panda').max_tries must be a positive integer, got True",
+        ),
+        (
+            PropPlacer(["prop0"], *BOX, max_tries=np.True_),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "PropPlacer.max_tries must be a positive integer, got np.True_",
+        ),
+        (
+            PropPlacer(None, *BOX),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "PropPlacer.bodies must be a list of body names, got None",
+        ),
+        (
+            PropPlacer(["prop0", 5], *BOX),  # type: ignore[list-item]
+            mjk.SpecTypeError,
+            "PropPlacer.bodies[1] must be a string, got 5",
+        ),
+        (
+            PropPlacer(["prop0"], *BOX, random_yaw="no"),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "PropPlacer.random_yaw must be True or False, got 'no'",
+        ),
+        (
+            PhysicsRandomizer(None),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "PhysicsRandomizer.bodies must be a list of body names, got None",
+        ),
+        (
+            PhysicsRandomizer("prop0"),
+            mjk.SpecTypeError,
+            "PhysicsRandomizer.bodies must be a list of body names, got 'prop0'",
+        ),
+        (
+            PhysicsRandomizer([None]),  # type: ignore[list-item]
+            mjk.SpecTypeError,
+            "PhysicsRandomizer.bodies[0] must be a string, got None",
+        ),
+        (
+            PhysicsRandomizer(["prop0"], colors="no"),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "PhysicsRandomizer.colors must be True or False, got 'no'",
+        ),
+        (
+            JointInitializer({}, [0] * 7, [0] * 7),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "JointInitializer.arm must be a string, got {}",
+        ),
+        (
+            PoseInitializer(["panda"], *POSE),  # type: ignore[arg-type]
+            mjk.SpecTypeError,
+            "PoseInitializer.arm must be a string, got ['panda']",
+        ),
+    ],
+)
+def test_initializer_fields_are_checked_by_name(props_env, initializer, error, message) -> None:
+    props_env.task_spec.initializers = [initializer]
+    with pytest.raises(error) as err:
+        props_env.reset(seed=0)
+    assert str(err.value) == message
+
+
+def test_counts_may_be_numpy_integers(props_env) -> None:
+    props_env.task_spec.initializers = [
+        PropPlacer(["prop0"], *BOX, max_tries=np.int64(5)),
+        PoseInitializer("panda", *POSE, max_tries=np.int32(20)),
+    ]
+    obs, _ = props_env.reset(seed=0)
+    assert 0.4 <= obs["panda_tcp_pos"][0] <= 0.45
+    assert 0.4 <= props_env.scene.data.xpos[props_env.scene.body_id("prop0")][0] <= 0.5

@@ -211,3 +211,93 @@ def test_user_sensors_follow_the_protocol() -> None:
     with pytest.raises(ValueError, match=r"sensors\[0\]\.read\(env\)\['ball_z'\] has shape \(1,\)"):
         bad.reset(seed=0)
     bad.close()
+
+
+@pytest.mark.parametrize(
+    ("args", "error", "message"),
+    [
+        ((0, 128, 128), mjk.SpecError, "intrinsics: fovy_deg must lie in (0, 180) degrees, got 0"),
+        (
+            (180, 128, 128),
+            mjk.SpecError,
+            "intrinsics: fovy_deg must lie in (0, 180) degrees, got 180",
+        ),
+        ((None, 128, 128), mjk.SpecTypeError, "intrinsics: fovy_deg must be a number, got None"),
+        (
+            (45, "128", 128),
+            mjk.SpecTypeError,
+            "intrinsics: width must be a positive integer, got '128'",
+        ),
+        ((45, 128, 0), mjk.SpecError, "intrinsics: height must be a positive integer, got 0"),
+        (
+            (45, 128, 12.5),
+            mjk.SpecTypeError,
+            "intrinsics: height must be a positive integer, got 12.5",
+        ),
+    ],
+)
+def test_intrinsics_bad_arguments(args, error, message) -> None:
+    with pytest.raises(error) as err:
+        intrinsics(*args)
+    assert str(err.value) == message
+
+
+class Returns:
+    """A user sensor returning `value` for a float `x` (1,) and a uint8 `n` (1,)."""
+
+    def __init__(self) -> None:
+        self.value: object = {"x": [0.0], "n": [0]}
+
+    def space(self, env: TaskEnv):
+        from gymnasium import spaces
+
+        return {"x": spaces.Box(-1.0, 1.0, (1,)), "n": spaces.Box(0, 255, (1,), np.uint8)}
+
+    def read(self, env: TaskEnv):
+        return self.value
+
+
+@pytest.mark.parametrize(
+    ("value", "error", "message"),
+    [
+        (None, mjk.SpecTypeError, " must return a mapping of names to values, got None"),
+        ([1], mjk.SpecTypeError, " must return a mapping of names to values, got [1]"),
+        (
+            {"x": ["abc"], "n": [0]},
+            mjk.SpecTypeError,
+            "['x'] holds <U3 values, which its space's float32 cannot take: ['abc']",
+        ),
+        (
+            {"x": [1 + 1j], "n": [0]},
+            mjk.SpecTypeError,
+            "['x'] holds complex128 values, which its space's float32 cannot take: [(1+1j)]",
+        ),
+        (
+            {"x": [[1], [1, 2]], "n": [0]},
+            mjk.SpecTypeError,
+            "['x'] must be an array of numbers, got [[1], [1, 2]]",
+        ),
+        (
+            {"x": [0.0], "n": [300]},
+            mjk.SpecError,
+            "['n'] holds values outside uint8's range: [300]",
+        ),
+        ({"x": [0.0], "n": [-1]}, mjk.SpecError, "['n'] holds values outside uint8's range: [-1]"),
+        (
+            {"x": [0.0], "n": [2.5]},
+            mjk.SpecTypeError,
+            "['n'] holds float64 values, which its space's uint8 cannot take: [2.5]",
+        ),
+    ],
+)
+def test_user_sensor_values_must_fit_their_space(value, error, message) -> None:
+    env = TaskEnv(TaskSpec(scene=panda_scene([]), arms=[panda_arm()], sensors=[Returns()]))
+    env.reset(seed=0)
+    env.task_spec.sensors[0].value = value
+    with pytest.raises(error) as err:
+        env.step(np.zeros(7))
+    assert str(err.value) == "TaskSpec.sensors[0].read(env)" + message
+    env.task_spec.sensors[0].value = {"x": np.float32([0.5]), "n": [7]}
+    obs, _ = env.reset(seed=0)
+    assert obs["x"].tolist() == [0.5] and obs["n"].tolist() == [7]
+    env.close()

@@ -14,16 +14,21 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike
 
 from ..control import CartesianVelocityController, Gripper
-from ..errors import SimulationError, SpecError, UnknownNameError
+from ..errors import SimulationError, SpecError, SpecTypeError, UnknownNameError
 from ..names import model_id
 from ..record import offscreen_renderer
 from ..robot import Robot
 from ..scene import Env
 from ..spec import CtrlMode, SceneSpec
+from ..validate import flag, real, text, vector
+from ._check import positive_int
+from .rewards import check_positions
 from .sensors import ArmReader, CameraReader, PoseReader, Reader
 from .spec import Actuation, ArmSpec, BodyPoseSensor, CameraSensor, GripperSpec, TaskSpec
 
 _CARTESIAN_LABELS = ("vx", "vy", "vz", "wx", "wy", "wz")
+MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
+MAX_SUBSTEPS = 2**31 - 1  # physics steps per control step (MuJoCo counts them in an int)
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
     Actuation.JOINT_VELOCITY: CtrlMode.VELOCITY,
@@ -39,8 +44,9 @@ class Sensor(Protocol):
     """A user observation source for `TaskSpec.sensors`.
 
     `space(env)` is called once, when the env is built: the observations it adds, by name.
-    `read(env)` is called at every reset and step and returns a value for each of them, of the
-    declared shape (it is copied into the observation).
+    `read(env)` is called at every reset and step and returns a mapping with a value for each
+    of them, of the declared shape, that the declared dtype holds exactly (real numbers for a
+    float Box, integers in range for an integer one); it is copied into the observation.
     """
 
     def space(self, env: TaskEnv) -> Mapping[str, spaces.Box]: ...
@@ -62,16 +68,37 @@ class UserReader(Reader):
 
     def read(self) -> None:
         values = self._sensor.read(self._env)
+        where = f"{self._where}.read(env)"
+        if not isinstance(values, Mapping):
+            raise SpecTypeError(f"{where} must return a mapping of names to values, got {values!r}")
         for key, buf in self.buffers.items():
             if key not in values:
-                raise SpecError(f"{self._where}.read(env) returned no {key!r}")
-            value = np.asarray(values[key])
+                raise SpecError(f"{where} returned no {key!r}")
+            value = _fitting(values[key], buf.dtype, f"{where}[{key!r}]")
             if value.shape != buf.shape:
                 raise SpecError(
-                    f"{self._where}.read(env)[{key!r}] has shape {value.shape}, "
-                    f"its space says {buf.shape}"
+                    f"{where}[{key!r}] has shape {value.shape}, its space says {buf.shape}"
                 )
-            np.copyto(buf, value, casting="unsafe")
+            np.copyto(buf, value, casting="unsafe")  # checked: a kind and range it takes
+
+
+def _fitting(value: object, dtype: np.dtype, field: str) -> np.ndarray:
+    """`value` as an array whose values `dtype` holds exactly as numbers of its kind: reals
+    for a float space, integers in range for an integer one, bools for a bool one."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):  # ragged nesting
+        raise SpecTypeError(f"{field} must be an array of numbers, got {value!r}") from None
+    kinds = "b" if dtype.kind == "b" else "iu" if dtype.kind in "iu" else "iuf"
+    if arr.dtype.kind not in kinds:
+        raise SpecTypeError(
+            f"{field} holds {arr.dtype} values, which its space's {dtype} cannot take: {value!r}"
+        )
+    if dtype.kind in "iu" and arr.size:
+        info = np.iinfo(dtype)
+        if arr.min() < info.min or arr.max() > info.max:
+            raise SpecError(f"{field} holds values outside {dtype}'s range: {value!r}")
+    return arr
 
 
 class _Effector:
@@ -158,6 +185,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             raise SpecError(
                 f"render_mode must be None, 'rgb_array' or 'human', got {render_mode!r}"
             )
+        render_width = positive_int(render_width, "render_width")
+        render_height = positive_int(render_height, "render_height")
+        if not isinstance(render_camera, str):
+            raise SpecTypeError(f"render_camera must be a camera name, got {render_camera!r}")
         self.task_spec = copy.deepcopy(spec)
         self.render_mode = render_mode
         self._closed = True  # until built: close() must work on a half-built env
@@ -191,12 +222,20 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 raise SpecError(f"{where}.name must be a non-empty string, got {arm.name!r}")
             if not isinstance(arm.actuation, Actuation):
                 raise SpecError(f"{where}.actuation must be an Actuation, got {arm.actuation!r}")
-            if arm.gripper is not None and not isinstance(arm.gripper, GripperSpec):
-                raise SpecError(f"{where}.gripper must be a GripperSpec or None")
+            text(arm.prefix, f"{where}.prefix")
+            if arm.gripper is not None:
+                if not isinstance(arm.gripper, GripperSpec):
+                    raise SpecError(f"{where}.gripper must be a GripperSpec or None")
+                text(arm.gripper.actuator, f"{where}.gripper.actuator")
+                flag(arm.gripper.binary, f"{where}.gripper.binary")
             for field in ("max_linear_velocity", "max_angular_velocity"):
                 value = getattr(arm, field)
                 if not _positive(value):
                     raise SpecError(f"{where}.{field} must be a positive number, got {value!r}")
+                if value > MAX_VELOCITY:
+                    raise SpecError(
+                        f"{where}.{field} must be at most {MAX_VELOCITY:g}, got {value!r}"
+                    )
             names.append(arm.name)
         if len(set(names)) != len(names):
             raise SpecError(f"TaskSpec.arms: names must be unique, got {names}")
@@ -222,6 +261,11 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     def _build(self, render_camera: str, render_width: int, render_height: int) -> None:
         spec, scene = self.task_spec, self.scene
         dt = scene.timestep()
+        if spec.control_timestep / dt > MAX_SUBSTEPS:
+            raise SpecError(
+                f"TaskSpec.control_timestep ({spec.control_timestep:g} s) is more than "
+                f"{MAX_SUBSTEPS} physics timesteps ({dt:g} s), MuJoCo's limit per control step"
+            )
         substeps = round(spec.control_timestep / dt)
         if substeps < 1 or abs(substeps * dt - spec.control_timestep) > 1e-9 * max(1.0, substeps):
             raise SpecError(
@@ -255,11 +299,13 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         )
         self._action = np.zeros(len(labels))
 
-        if not isinstance(render_camera, str):
-            raise SpecError(f"render_camera must be a camera name, got {render_camera!r}")
         self._render_camera_name = render_camera
         self._render_size = (render_width, render_height)
         self.observation_space = self._bind()
+        for field in ("reward", "terminated"):
+            check_positions(
+                getattr(spec, field), self.observation_space.spaces, f"TaskSpec.{field}"
+            )
         if self.render_mode == "rgb_array":
             self._renderer(render_width, render_height)  # size errors now, not at render()
         self._steps = 0
@@ -331,9 +377,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 raise type(err)(f"{where}.gripper: {err}") from None
             self.grippers[arm.name] = gripper
         if arm.home is not None:
+            home = vector(arm.home, robot.n_joints, f"{where}.home")
             try:
-                robot.set_joint_pos(np.asarray(arm.home, dtype=float), call_forward=False)
-            except (SpecError, ValueError, TypeError) as err:
+                robot.set_joint_pos(home, call_forward=False)
+            except SpecError as err:
                 raise SpecError(f"{where}.home: {err}") from None
         controller = None
         if arm.actuation is Actuation.CARTESIAN_VELOCITY:
@@ -378,6 +425,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         """Start an episode: MuJoCo's initial state, each arm at `home` with its gripper
         open, then the initializers in order with the env's generator (seeded by `seed`)."""
         self._check_open()
+        if options is not None and not isinstance(options, Mapping):
+            raise SpecTypeError(f"reset(options=...) must be a mapping or None, got {options!r}")
+        if isinstance(seed, (bool, np.bool_)):
+            raise SpecTypeError(f"reset(seed=...) must be an integer or None, got {seed!r}")
         if options:
             raise SpecError(f"reset(options=...): TaskEnv takes no options, got {dict(options)}")
         super().reset(seed=seed)
@@ -426,15 +477,31 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         _refresh_kinematics(self.scene.model, self.scene.data)
         obs = self._observe()
         spec = self.task_spec
-        reward = 0.0 if spec.reward is None else float(spec.reward(obs))
-        terminated = False if spec.terminated is None else bool(spec.terminated(obs))
+        reward, terminated = 0.0, False
+        if spec.reward is not None:
+            reward = spec.reward(obs)
+            if type(reward) is not float or not math.isfinite(reward):
+                reward = real(reward, "TaskSpec.reward(obs)")
+        if spec.terminated is not None:
+            terminated = spec.terminated(obs)
+            if type(terminated) is not bool:
+                terminated = flag(terminated, "TaskSpec.terminated(obs)")
         return obs, reward, terminated, truncated, {"diverged": False}
 
     def _checked_action(self, action: object) -> np.ndarray:
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise SpecError(f"action must be an array of numbers, got {action!r}") from None
+        a: Any = action
+        if type(a) is not np.ndarray or (a.dtype != np.float64 and a.dtype != np.float32):
+            try:
+                a = np.asarray(action)
+            except (TypeError, ValueError):  # ragged nesting
+                a = None
+            # No bools, text, complex numbers or objects; a list mixing bools with numbers
+            # would turn them into numbers.
+            mixed = isinstance(action, (list, tuple)) and any(
+                isinstance(v, (bool, np.bool_)) for v in action
+            )
+            if a is None or a.dtype.kind not in "iuf" or mixed:
+                raise SpecTypeError(f"action must be an array of numbers, got {action!r}")
         shape = self.action_space.shape
         if a.shape != shape:
             layout = ", ".join(self.action_labels)

@@ -19,6 +19,8 @@ import pinocchio as pin
 from ..compile import euler_quat, vector
 from ..errors import SpecError, unknown_name
 from ..names import model_id
+from ..validate import flag, text
+from ._check import names, positive_int
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -32,10 +34,13 @@ def _box(low: object, high: object, n: int, where: str) -> tuple[np.ndarray, np.
     return lo, hi
 
 
-def _robot(env: TaskEnv, arm: str, where: str) -> Robot:
-    if arm not in env.robots:
-        raise unknown_name("arm", str(arm), env.robots, where=f"{where}.arm (TaskSpec.arms)")
-    return env.robots[arm]
+def _robot(env: TaskEnv, arm: object, cls: str) -> tuple[Robot, str]:
+    """The arm called `arm` and the name of the initializer for messages, `cls('arm')`."""
+    name = text(arm, f"{cls}.arm")
+    where = f"{cls}({name!r})"
+    if name not in env.robots:
+        raise unknown_name("arm", name, env.robots, where=f"{where}.arm (TaskSpec.arms)")
+    return env.robots[name], where
 
 
 @dataclass
@@ -55,25 +60,23 @@ class PropPlacer:
     def __call__(self, env: TaskEnv, rng: np.random.Generator) -> None:
         where = "PropPlacer"
         lo, hi = _box(self.low, self.high, 3, where)
-        if isinstance(self.bodies, str):
-            raise SpecError(f"{where}.bodies must be a list of body names, got {self.bodies!r}")
-        if not isinstance(self.max_tries, int) or self.max_tries < 1:
-            raise SpecError(f"{where}.max_tries must be a positive integer, got {self.max_tries!r}")
+        bodies = names(self.bodies, f"{where}.bodies")
+        max_tries = positive_int(self.max_tries, f"{where}.max_tries")
+        random_yaw = flag(self.random_yaw, f"{where}.random_yaw")
         scene = env.scene
         model, data = scene.model, scene.data
         ids = [
-            self._free_body(model, name, f"{where}.bodies[{i}]")
-            for i, name in enumerate(self.bodies)
+            self._free_body(model, name, f"{where}.bodies[{i}]") for i, name in enumerate(bodies)
         ]
         # Geoms of each prop's subtree; contacts with props not yet placed do not count.
         owner = {g: b for b in ids for g in _subtree_geoms(model, b)}
         pending = set(ids)
-        for name, body in zip(self.bodies, ids, strict=True):
+        for name, body in zip(bodies, ids, strict=True):
             pending.discard(body)
-            for _ in range(self.max_tries):
+            for _ in range(max_tries):
                 pos = rng.uniform(lo, hi)
                 quat = None
-                if self.random_yaw:
+                if random_yaw:
                     yaw = rng.uniform(-math.pi, math.pi)
                     quat = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
                 scene.set_body_pose(name, pos.tolist(), quat)
@@ -83,7 +86,7 @@ class PropPlacer:
                     break
             else:
                 raise SpecError(
-                    f"{where}: cannot place body {name!r} without contact in {self.max_tries} "
+                    f"{where}: cannot place body {name!r} without contact in {max_tries} "
                     f"tries inside low={lo.tolist()}, high={hi.tolist()}; enlarge the box or "
                     "move it clear of the scene"
                 )
@@ -128,13 +131,13 @@ class PoseInitializer:
     max_tries: int = 20
 
     def __call__(self, env: TaskEnv, rng: np.random.Generator) -> None:
-        where = f"PoseInitializer({self.arm!r})"
+        robot, where = _robot(env, self.arm, "PoseInitializer")
         lo, hi = _box(self.low, self.high, 6, where)
-        robot = _robot(env, self.arm, where)
+        max_tries = positive_int(self.max_tries, f"{where}.max_tries")
         q0 = robot.jnt_pos_msr.copy()
         mujoco.mj_forward(env.scene.model, env.scene.data)
         best = math.inf
-        for _ in range(self.max_tries):
+        for _ in range(max_tries):
             x = rng.uniform(lo, hi)
             target = pin.SE3(pin.Quaternion(*euler_quat(x[3:], where)).matrix(), x[:3])
             result = robot.ik(target, q0)
@@ -144,7 +147,7 @@ class PoseInitializer:
             best = min(best, result.position_error)
         raise SpecError(
             f"{where}: no pose in low={lo.tolist()}, high={hi.tolist()} was reachable in "
-            f"{self.max_tries} draws (best position error {best:.3g} m); shrink the box"
+            f"{max_tries} draws (best position error {best:.3g} m); shrink the box"
         )
 
 
@@ -157,8 +160,7 @@ class JointInitializer:
     high: Sequence[float]
 
     def __call__(self, env: TaskEnv, rng: np.random.Generator) -> None:
-        where = f"JointInitializer({self.arm!r})"
-        robot = _robot(env, self.arm, where)
+        robot, where = _robot(env, self.arm, "JointInitializer")
         lo, hi = _box(self.low, self.high, robot.n_joints, where)
         limits = robot.joint_limits
         outside = (lo < limits[:, 0]) | (hi > limits[:, 1])
@@ -188,9 +190,10 @@ class PhysicsRandomizer:
         model, data = env.scene.model, env.scene.data
         mass = vector(self.mass_scale, 2, f"{where}.mass_scale", positive=True)
         friction = vector(self.friction_scale, 2, f"{where}.friction_scale", positive=True)
+        colors = flag(self.colors, f"{where}.colors")
         if self._nominal.get("model") is not model:
             ids = []
-            for i, name in enumerate(self.bodies):
+            for i, name in enumerate(names(self.bodies, f"{where}.bodies")):
                 body = mujoco.mjtObj.mjOBJ_BODY
                 ids.append(model_id(model, body, "body", name, f"{where}.bodies[{i}]"))
             geoms = np.flatnonzero(np.isin(model.geom_bodyid, ids))
@@ -210,7 +213,7 @@ class PhysicsRandomizer:
         model.geom_friction[geoms, 0] = nom["friction"] * rng.uniform(
             min(friction), max(friction), len(geoms)
         )
-        if self.colors:
+        if colors:
             model.geom_rgba[geoms, :3] = rng.uniform(0.0, 1.0, (len(geoms), 3))
         qpos, qvel = data.qpos.copy(), data.qvel.copy()
         mujoco.mj_setConst(model, data)

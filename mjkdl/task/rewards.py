@@ -10,19 +10,42 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from ..errors import SpecError, unknown_name
+from ..errors import SpecError, SpecTypeError, unknown_name
+from ..validate import real, text
+from ._check import positive
 
 
 def _position(obs: Mapping[str, np.ndarray], key: str) -> np.ndarray:
+    if type(obs) is not dict and not isinstance(obs, Mapping):
+        raise SpecTypeError(f"the observation must be a mapping of names to arrays, got {obs!r}")
+    if not isinstance(key, str):
+        raise SpecTypeError(f"an observation name must be a string, got {key!r}")
     if key not in obs:
         raise unknown_name("observation", key, obs, where="the step's observation")
     value = np.asarray(obs[key], dtype=float)
     if value.ndim != 1 or len(value) < 3:
         raise SpecError(f"observation {key!r} has no x, y, z (shape {value.shape})")
     return value[:3]
+
+
+def check_positions(fn: object, boxes: Mapping[str, Any], where: str) -> None:
+    """When `fn` is one of these helpers: each observation it reads is in `boxes` and holds
+    a position, so a misspelt name fails when the env is built, not at the first step."""
+    positions = getattr(fn, "_positions", None)
+    if positions is None:
+        return
+    for field, key in positions().items():
+        if key not in boxes:
+            raise unknown_name("observation", key, boxes, where=f"{where} ({field})")
+        shape = boxes[key].shape
+        if len(shape) != 1 or shape[0] < 3:
+            raise SpecError(
+                f"{where} ({field}): observation {key!r} has no x, y, z (shape {shape})"
+            )
 
 
 def distance(obs: Mapping[str, np.ndarray], a: str, b: str) -> float:
@@ -45,6 +68,14 @@ class ReachReward:
     b: str
     scale: float = 1.0
 
+    def __post_init__(self) -> None:
+        text(self.a, "ReachReward.a")
+        text(self.b, "ReachReward.b")
+        positive(self.scale, "ReachReward.scale")
+
+    def _positions(self) -> dict[str, str]:
+        return {"ReachReward.a": self.a, "ReachReward.b": self.b}
+
     def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
         return min(1.0, max(0.0, 1.0 - distance(obs, self.a, self.b) / self.scale))
 
@@ -56,6 +87,14 @@ class Reached:
     a: str
     b: str
     tolerance: float
+
+    def __post_init__(self) -> None:
+        text(self.a, "Reached.a")
+        text(self.b, "Reached.b")
+        positive(self.tolerance, "Reached.tolerance")
+
+    def _positions(self) -> dict[str, str]:
+        return {"Reached.a": self.a, "Reached.b": self.b}
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
         return distance(obs, self.a, self.b) <= self.tolerance
@@ -69,6 +108,14 @@ class Lifted:
     key: str
     rest_z: float
     lift: float
+
+    def __post_init__(self) -> None:
+        text(self.key, "Lifted.key")
+        real(self.rest_z, "Lifted.rest_z")
+        positive(self.lift, "Lifted.lift")
+
+    def _positions(self) -> dict[str, str]:
+        return {"Lifted.key": self.key}
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
         return height(obs, self.key) >= self.rest_z + self.lift
@@ -89,6 +136,16 @@ class LiftReward:
     rest_z: float
     lift: float
     reach_scale: float = 0.1
+
+    def __post_init__(self) -> None:
+        text(self.tcp, "LiftReward.tcp")
+        text(self.obj, "LiftReward.obj")
+        real(self.rest_z, "LiftReward.rest_z")
+        positive(self.lift, "LiftReward.lift")
+        positive(self.reach_scale, "LiftReward.reach_scale")
+
+    def _positions(self) -> dict[str, str]:
+        return {"LiftReward.tcp": self.tcp, "LiftReward.obj": self.obj}
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
         z = height(obs, self.obj)

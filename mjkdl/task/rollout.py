@@ -9,7 +9,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ..errors import SpecError
+from ..errors import SpecError, SpecTypeError
+from ..validate import text
+from ._check import is_int, positive_int, seed_int
 
 Policy = Callable[[Mapping[str, np.ndarray]], Any]
 
@@ -33,8 +35,10 @@ def run_episode(
     `policy(obs) -> action`; None samples the action space, seeded with `seed` too, so the
     episode depends on the seed alone — in any process, on any machine with the same versions.
     """
-    if max_steps is not None and (not isinstance(max_steps, int) or max_steps < 1):
-        raise SpecError(f"max_steps must be a positive integer or None, got {max_steps!r}")
+    if not isinstance(env, gym.Env):
+        raise SpecTypeError(f"env must be a gymnasium.Env, got {env!r}")
+    seed = seed_int(seed, "seed")
+    _check_run(policy, max_steps)
     obs, _ = env.reset(seed=seed)
     if policy is None:
         env.action_space.seed(seed)
@@ -46,6 +50,17 @@ def run_episode(
         total += float(reward)
         steps += 1
     return Episode(seed, steps, total, bool(terminated), bool(truncated))
+
+
+def _check_run(policy: object, max_steps: object) -> None:
+    if policy is not None and not callable(policy):
+        raise SpecTypeError(f"policy must be callable (obs -> action) or None, got {policy!r}")
+    if max_steps is not None:
+        message = f"max_steps must be a positive integer or None, got {max_steps!r}"
+        if not is_int(max_steps):
+            raise SpecTypeError(message)
+        if max_steps < 1:  # type: ignore[operator]
+            raise SpecError(message)
 
 
 def ray_collect(
@@ -64,14 +79,23 @@ def ray_collect(
     `ray.init()` (this machine) or `ray.init(address=...)` (a cluster whose nodes have mjkdl
     and the models installed); without it Ray starts a local instance. Needs `mjkdl[ray]`.
     """
+    text(env_id, "env_id")
+    if isinstance(seeds, str) or not isinstance(seeds, (Sequence, np.ndarray)):
+        raise SpecTypeError(f"seeds must be a list of non-negative integers, got {seeds!r}")
+    seeds = [seed_int(s, f"seeds[{i}]") for i, s in enumerate(seeds)]
+    actors = positive_int(actors, "actors")
+    _check_run(policy, max_steps)
+    if env_kwargs is not None and not (
+        isinstance(env_kwargs, Mapping) and all(isinstance(k, str) for k in env_kwargs)
+    ):
+        raise SpecTypeError(
+            f"env_kwargs must be a mapping of argument names or None, got {env_kwargs!r}"
+        )
+    kwargs = dict(env_kwargs or {})
     try:
         import ray
     except ImportError:
         raise ImportError("ray_collect needs Ray: pip install 'mjkdl[ray]'") from None
-    if not isinstance(actors, int) or actors < 1:
-        raise SpecError(f"actors must be a positive integer, got {actors!r}")
-    seeds = [int(s) for s in seeds]
-    kwargs = dict(env_kwargs or {})
 
     class Worker:
         def __init__(self) -> None:

@@ -21,6 +21,8 @@ from ..compile import euler_quat, vector
 from ..errors import SpecError
 from ..names import find_id, model_id
 from ..spec import ToolFrameSpec
+from ..validate import flag, real, text
+from ._check import positive_int
 from .spec import ArmSpec, BodyPoseSensor, CameraSensor
 
 if TYPE_CHECKING:
@@ -186,7 +188,7 @@ class PoseReader(Reader):
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, s: BodyPoseSensor, where: str):
         body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", s.body, f"{where}.body")
-        name = s.name or s.body
+        name = text(s.name, f"{where}.name") or s.body
         super().__init__({f"{name}_pose": _box((7,))})
         self._out = self.buffers[f"{name}_pose"]
         self._pos, self._quat = data.xpos[body], data.xquat[body]
@@ -205,6 +207,13 @@ def intrinsics(fovy_deg: float, width: int, height: int) -> np.ndarray:
     camera-frame points with x right, y down, z forward (MuJoCo's camera looks along its -z,
     with y up).
     """
+    fovy = real(fovy_deg, "intrinsics: fovy_deg")
+    if not 0.0 < fovy < 180.0:
+        raise SpecError(f"intrinsics: fovy_deg must lie in (0, 180) degrees, got {fovy_deg!r}")
+    width, height = (
+        positive_int(width, "intrinsics: width"),
+        positive_int(height, "intrinsics: height"),
+    )
     f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
     return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
 
@@ -224,14 +233,12 @@ class CameraReader(Reader):
         where: str,
     ) -> None:
         cam = model_id(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", s.camera, f"{where}.camera")
-        for field in ("width", "height"):
-            value = getattr(s, field)
-            if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value <= 0:
-                raise SpecError(f"{where}.{field} must be a positive integer, got {value!r}")
-        name = s.name or s.camera
-        h, w = int(s.height), int(s.width)
+        w, h = positive_int(s.width, f"{where}.width"), positive_int(s.height, f"{where}.height")
+        depth = flag(s.depth, f"{where}.depth")
+        flags = (flag(s.shadows, f"{where}.shadows"), flag(s.reflections, f"{where}.reflections"))
+        name = text(s.name, f"{where}.name") or s.camera
         boxes = {f"{name}_rgb": _box((h, w, 3), 0, 255, np.uint8)}
-        if s.depth:
+        if depth:
             boxes[f"{name}_depth"] = _box((h, w), 0.0, _INF, np.float32)
         boxes[f"{name}_intrinsics"] = _box((3, 3))
         super().__init__(boxes)
@@ -240,7 +247,7 @@ class CameraReader(Reader):
         except SpecError as err:
             raise SpecError(f"{where}: {err}") from None
         self._data, self._cam = data, cam
-        self._flags = (bool(s.shadows), bool(s.reflections))
+        self._flags = flags
         self._rgb = self.buffers[f"{name}_rgb"]
         self._depth = self.buffers.get(f"{name}_depth")
         self.buffers[f"{name}_intrinsics"][:] = intrinsics(float(model.cam_fovy[cam]), w, h)

@@ -47,7 +47,8 @@ class ArmSpec:
     the tool's names and the gripper actuator omit the robot's `prefix`, as in
     `Scene.create_robot`; `control_frame` is a full site or body name ("" = world).
     `home` (joint positions, chain order) is where every episode starts, before initializers;
-    None keeps the model's `qpos0`. The velocity limits bound the Cartesian action.
+    None keeps the model's `qpos0`. The velocity limits bound the Cartesian action (positive,
+    at most 1000 m/s and rad/s: the action space is float32).
     """
 
     name: str
@@ -97,7 +98,8 @@ class TaskSpec:
     `control_timestep` must be a whole number of physics timesteps. `sensors` are
     `CameraSensor`, `BodyPoseSensor` or any object following `mjkdl.task.Sensor`.
     `initializers` run in order at every reset with the env's seeded generator; any callable
-    `(env, rng)` works. `reward(obs)` and `terminated(obs)` see the observation of the step.
+    `(env, rng)` works. `reward(obs)` and `terminated(obs)` see the observation of the step and
+    return a finite real number and `True`/`False` (NumPy scalars too); anything else raises.
     """
 
     scene: SceneSpec

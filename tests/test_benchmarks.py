@@ -1,0 +1,61 @@
+"""Every benchmark still runs, at a few steps, and prints its figures (not their values:
+timing belongs to the benchmarks themselves, run on a quiet machine)."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import subprocess
+import sys
+
+import pytest
+from conftest import ROOT, menagerie
+
+BENCHMARKS = ROOT / "benchmarks"
+NUMBER = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _models() -> None:
+    for name in ("kinova_gen3", "robotiq_2f85", "franka_emika_panda"):
+        menagerie(name)
+
+
+def run_benchmark(name: str, *args: str) -> str:
+    """Run `benchmarks/<name>.py *args` from its folder in a fresh interpreter; its stdout."""
+    env = dict(os.environ, MUJOCO_GL="egl", LP_NUM_THREADS="0")
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    proc = subprocess.run(
+        [sys.executable, f"{name}.py", *args],
+        cwd=BENCHMARKS,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, f"{name} exited {proc.returncode}\n{proc.stdout}\n{proc.stderr}"
+    return proc.stdout
+
+
+@pytest.mark.parametrize(
+    ("name", "args", "figure"),
+    [
+        ("control_loop", (), r"seed settled\s+ratio to raw: median"),
+        ("cartesian_velocity", ("--steps", "20"), r"Panda \+ hand, POSITION\s+"),
+        ("ik", ("--targets", "10", "--repeat", "1"), r"first pass:\s+median"),
+        ("step_check", ("--blocks", "2", "--steps", "50"), r"scene\.step\(\) / raw mj_step:"),
+        ("record", ("--frames", "4", "--rounds", "1"), r"\n\s+off"),
+        (
+            "task_env",
+            ("--blocks", "1", "--camera-blocks", "1", "--vector-seconds", "0.5"),
+            r"async vector env, 1 sub-env\(s\):",
+        ),
+    ],
+)
+def test_benchmark_runs_and_prints_its_figures(name, args, figure) -> None:
+    out = run_benchmark(name, *args)
+    found = re.search(figure + r"\s*" + NUMBER, out)
+    assert found, f"no {figure!r} followed by a number in the output of {name}:\n{out}"
+    value = float(found.group(1))
+    assert math.isfinite(value) and value > 0
