@@ -20,7 +20,7 @@ from .ik import IKResult, IKSolver
 from .names import model_id
 from .scene import AuthoredActuators, Scene, register_robot_factory
 from .spec import CtrlMode, ForceTorqueSensorSpec, SceneSpec, ToolFrameSpec
-from .validate import check_tool, flag, real
+from .validate import check_tool, flag, real, real_array
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # Default servo bandwidth for joints whose actuators are plain motors (URDF robots).
@@ -428,13 +428,7 @@ class Robot:
         if not self._open:
             self._check_open()
         if type(value) is not np.ndarray or value.dtype != np.float64:
-            try:
-                arr: np.ndarray | None = np.asarray(value)
-            except (TypeError, ValueError):  # ragged nesting
-                arr = None
-            if arr is None or arr.dtype.kind not in "iuf":  # no bools, text, complex, objects
-                raise SpecError(f"{name} must hold real numbers, got {value!r}")
-            value = arr.astype(float)
+            value = real_array(value, name)
         if value.shape != (self._n,):
             raise SpecError(
                 f"{name} needs {self._n} values (one per joint), got shape {value.shape}"

@@ -144,6 +144,23 @@ def vector(value: object, n: int | Sequence[int], field: str, positive: bool = F
     return arr
 
 
+def real_array(value: object, field: str) -> np.ndarray:
+    """`value` as a new float64 array, of any shape, when it holds only real numbers: NumPy
+    would turn text and bools into numbers (``[True, 0.5]`` is even a float64 array) and
+    drop imaginary parts."""
+    arr: np.ndarray | None
+    if isinstance(value, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in value):
+        arr = None
+    else:
+        try:
+            arr = np.asarray(value)
+        except (TypeError, ValueError):  # ragged nesting
+            arr = None
+    if arr is None or arr.dtype.kind not in "iuf":
+        raise SpecTypeError(f"{field} must hold real numbers, got {value!r}")
+    return arr.astype(np.float64)
+
+
 def _is_real(value: object) -> bool:
     kind = type(value)
     if kind is float or kind is int:  # the common case, without the slower ABC check

@@ -26,7 +26,15 @@ HOME = [0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708]
 
 # ---------------------------------------------------------------------- nothing written here
 
-_NOT_CHECKED = {".git", "__pycache__", ".pytest_cache", ".ruff_cache", ".mypy_cache", "mutants"}
+_NOT_CHECKED = {
+    ".git",
+    "__pycache__",
+    ".pytest_cache",
+    ".ruff_cache",
+    ".mypy_cache",
+    ".hypothesis",
+    "mutants",
+}
 _files_at_start: set[Path] = set()
 
 

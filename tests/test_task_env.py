@@ -670,7 +670,7 @@ COMPLEX_ACTION = np.full(7, 0.1 + 1j)
 def test_actions_must_be_real_numbers(started: TaskEnv, action) -> None:
     with pytest.raises(mjk.SpecTypeError) as err:
         started.step(action)
-    assert str(err.value) == f"action must be an array of numbers, got {action!r}"
+    assert str(err.value) == f"action must hold real numbers, got {action!r}"
 
 
 @pytest.mark.parametrize(

@@ -31,7 +31,7 @@ from ..errors import SpecError, SpecTypeError, unknown_name
 from ..names import find_id, model_id
 from ..robot import Robot
 from ..spec import CtrlMode
-from ..validate import real
+from ..validate import real, real_array
 
 # DAQP treats bounds at or beyond this magnitude as absent.
 _INF = 1e30
@@ -40,7 +40,6 @@ _NO_LIMIT = 1e6
 # Largest damping or singular_damping: beyond it the twist is barely tracked (scaled by
 # σ²/(σ² + λ) < 1e-3 for σ <= 1), and near 1e100 DAQP can no longer factor the cost.
 _MAX_DAMPING = 1e3
-_BOOLS = (bool, np.bool_)
 
 
 class SolveStatus(enum.Enum):
@@ -382,7 +381,7 @@ class CartesianVelocityController:
         if isinstance(twist, np.ndarray) and twist.dtype == np.float64:
             arr = twist
         else:
-            arr = _real_array(twist, "twist", 6)
+            arr = real_array(twist, "twist")
         if arr.shape != (6,):
             raise SpecError(f"twist needs 6 values [vx, vy, vz, wx, wy, wz], got shape {arr.shape}")
         # One dot product is finite exactly when every entry is (barring overflow, which the
@@ -601,25 +600,9 @@ def _at_most(x: float, limit: float, name: str) -> float:
     return x
 
 
-def _real_array(value: object, name: str, n: int) -> np.ndarray:
-    """`value` as a new float64 array, if it holds only real numbers: NumPy would convert
-    text and bools and drop imaginary parts ([True, 0.5] is even a float64 array)."""
-    try:
-        arr = np.asarray(value)
-    except (TypeError, ValueError):  # ragged nesting
-        arr = None
-    if (
-        arr is None
-        or arr.dtype.kind not in "iuf"
-        or (isinstance(value, (list, tuple)) and any(isinstance(v, _BOOLS) for v in value))
-    ):
-        raise SpecTypeError(f"{name} must hold {n} numbers, got {value!r}")
-    return arr.astype(float)
-
-
 def _vector(value: object, n: int, name: str) -> np.ndarray:
     """`value` as n finite numbers, one per joint (a copy)."""
-    arr = _real_array(value, name, n)
+    arr = real_array(value, name)
     if arr.shape != (n,):
         raise SpecError(f"{name} needs {n} values (one per joint), got shape {arr.shape}")
     if not np.isfinite(arr).all():

@@ -20,7 +20,7 @@ from ..record import offscreen_renderer
 from ..robot import Robot
 from ..scene import Env
 from ..spec import CtrlMode, SceneSpec
-from ..validate import flag, real, text, vector
+from ..validate import flag, real, real_array, text, vector
 from ._check import positive_int
 from .rewards import check_positions
 from .sensors import ArmReader, CameraReader, PoseReader, Reader
@@ -491,17 +491,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     def _checked_action(self, action: object) -> np.ndarray:
         a: Any = action
         if type(a) is not np.ndarray or (a.dtype != np.float64 and a.dtype != np.float32):
-            try:
-                a = np.asarray(action)
-            except (TypeError, ValueError):  # ragged nesting
-                a = None
-            # No bools, text, complex numbers or objects; a list mixing bools with numbers
-            # would turn them into numbers.
-            mixed = isinstance(action, (list, tuple)) and any(
-                isinstance(v, (bool, np.bool_)) for v in action
-            )
-            if a is None or a.dtype.kind not in "iuf" or mixed:
-                raise SpecTypeError(f"action must be an array of numbers, got {action!r}")
+            a = real_array(action, "action")
         shape = self.action_space.shape
         if a.shape != shape:
             layout = ", ".join(self.action_labels)
