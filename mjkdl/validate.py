@@ -83,7 +83,7 @@ def validate_scene_spec(spec: SceneSpec) -> None:
 
 def real(value: object, field: str) -> float:
     """`value` as a finite float; it must be a real number (an int or float, not a bool)."""
-    if not _is_real(value):
+    if not is_real(value):
         raise SpecTypeError(f"{field} must be a number, got {value!r}")
     out = float(value)  # type: ignore[arg-type]
     if not math.isfinite(out):
@@ -130,7 +130,7 @@ def vector(value: object, n: int | Sequence[int], field: str, positive: bool = F
     elif isinstance(value, (list, tuple)):
         if any(isinstance(v, (list, tuple, np.ndarray)) for v in value):
             raise SpecTypeError(f"{field} must be a flat list of {want} numbers, got {value!r}")
-        if not all(_is_real(v) for v in value):
+        if not all(is_real(v) for v in value):
             raise SpecTypeError(f"{field} must be a list of numbers, got {value!r}")
         arr = np.array(value, dtype=float)
     else:
@@ -161,7 +161,8 @@ def real_array(value: object, field: str) -> np.ndarray:
     return arr.astype(np.float64)
 
 
-def _is_real(value: object) -> bool:
+def is_real(value: object) -> bool:
+    """Whether `value` is a real number: an int or float, Python's or NumPy's, not a bool."""
     kind = type(value)
     if kind is float or kind is int:  # the common case, without the slower ABC check
         return True
@@ -243,7 +244,7 @@ def _check_object(obj: SceneObject, field: str) -> None:
     flag(obj.fixed, f"{field}.fixed")
     path = path_text(obj.mjcf_path, f"{field}.mjcf_path")
     if path:
-        primitive = not isinstance(obj.size, list) or obj.size or not _is_real(obj.mass)
+        primitive = not isinstance(obj.size, list) or obj.size or not is_real(obj.mass)
         if obj.shape is not None or primitive or obj.mass != 0:
             raise SpecError(
                 f"{field}: give either mjcf_path or a primitive (shape, size, mass), not both"

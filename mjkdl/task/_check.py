@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -15,21 +16,14 @@ def is_int(value: object) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
-def positive_int(value: object, field: str) -> int:
-    """`value` as a positive int (a NumPy integer is fine; bools, floats and text are not)."""
+def integer(value: object, field: str, least: Literal[0, 1] = 1) -> int:
+    """`value` as an int of at least `least` (1: counts and sizes, 0: seeds); a NumPy integer
+    is fine, bools, floats and text are not."""
+    what = "a positive integer" if least == 1 else "a non-negative integer"
     if not is_int(value):
-        raise SpecTypeError(f"{field} must be a positive integer, got {value!r}")
-    if value < 1:  # type: ignore[operator]
-        raise SpecError(f"{field} must be a positive integer, got {value!r}")
-    return int(value)  # type: ignore[call-overload]
-
-
-def seed_int(value: object, field: str) -> int:
-    """`value` as a non-negative int seed (a NumPy integer is fine; bools are not)."""
-    if not is_int(value):
-        raise SpecTypeError(f"{field} must be a non-negative integer, got {value!r}")
-    if value < 0:  # type: ignore[operator]
-        raise SpecError(f"{field} must be a non-negative integer, got {value!r}")
+        raise SpecTypeError(f"{field} must be {what}, got {value!r}")
+    if value < least:  # type: ignore[operator]
+        raise SpecError(f"{field} must be {what}, got {value!r}")
     return int(value)  # type: ignore[call-overload]
 
 

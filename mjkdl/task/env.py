@@ -21,7 +21,7 @@ from ..robot import Robot
 from ..scene import Env
 from ..spec import CtrlMode, SceneSpec
 from ..validate import flag, real, real_array, text, vector
-from ._check import positive_int
+from ._check import integer
 from .rewards import check_positions
 from .sensors import ArmReader, CameraReader, PoseReader, Reader
 from .spec import Actuation, ArmSpec, BodyPoseSensor, CameraSensor, GripperSpec, TaskSpec
@@ -185,8 +185,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             raise SpecError(
                 f"render_mode must be None, 'rgb_array' or 'human', got {render_mode!r}"
             )
-        render_width = positive_int(render_width, "render_width")
-        render_height = positive_int(render_height, "render_height")
+        render_width = integer(render_width, "render_width")
+        render_height = integer(render_height, "render_height")
         if not isinstance(render_camera, str):
             raise SpecTypeError(f"render_camera must be a camera name, got {render_camera!r}")
         self.task_spec = copy.deepcopy(spec)

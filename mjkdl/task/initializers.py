@@ -20,7 +20,7 @@ from ..compile import euler_quat, vector
 from ..errors import SpecError, unknown_name
 from ..names import model_id
 from ..validate import flag, text
-from ._check import names, positive_int
+from ._check import integer, names
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -61,7 +61,7 @@ class PropPlacer:
         where = "PropPlacer"
         lo, hi = _box(self.low, self.high, 3, where)
         bodies = names(self.bodies, f"{where}.bodies")
-        max_tries = positive_int(self.max_tries, f"{where}.max_tries")
+        max_tries = integer(self.max_tries, f"{where}.max_tries")
         random_yaw = flag(self.random_yaw, f"{where}.random_yaw")
         scene = env.scene
         model, data = scene.model, scene.data
@@ -133,7 +133,7 @@ class PoseInitializer:
     def __call__(self, env: TaskEnv, rng: np.random.Generator) -> None:
         robot, where = _robot(env, self.arm, "PoseInitializer")
         lo, hi = _box(self.low, self.high, 6, where)
-        max_tries = positive_int(self.max_tries, f"{where}.max_tries")
+        max_tries = integer(self.max_tries, f"{where}.max_tries")
         q0 = robot.jnt_pos_msr.copy()
         mujoco.mj_forward(env.scene.model, env.scene.data)
         best = math.inf

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import SpecError, SpecTypeError
 from ..validate import text
-from ._check import is_int, positive_int, seed_int
+from ._check import integer, is_int
 
 Policy = Callable[[Mapping[str, np.ndarray]], Any]
 
@@ -37,7 +37,7 @@ def run_episode(
     """
     if not isinstance(env, gym.Env):
         raise SpecTypeError(f"env must be a gymnasium.Env, got {env!r}")
-    seed = seed_int(seed, "seed")
+    seed = integer(seed, "seed", least=0)
     _check_run(policy, max_steps)
     obs, _ = env.reset(seed=seed)
     if policy is None:
@@ -82,8 +82,8 @@ def ray_collect(
     text(env_id, "env_id")
     if isinstance(seeds, str) or not isinstance(seeds, (Sequence, np.ndarray)):
         raise SpecTypeError(f"seeds must be a list of non-negative integers, got {seeds!r}")
-    seeds = [seed_int(s, f"seeds[{i}]") for i, s in enumerate(seeds)]
-    actors = positive_int(actors, "actors")
+    seeds = [integer(s, f"seeds[{i}]", least=0) for i, s in enumerate(seeds)]
+    actors = integer(actors, "actors")
     _check_run(policy, max_steps)
     if env_kwargs is not None and not (
         isinstance(env_kwargs, Mapping) and all(isinstance(k, str) for k in env_kwargs)

@@ -22,7 +22,7 @@ from ..errors import SpecError
 from ..names import find_id, model_id
 from ..spec import ToolFrameSpec
 from ..validate import flag, real, text
-from ._check import positive_int
+from ._check import integer
 from .spec import ArmSpec, BodyPoseSensor, CameraSensor
 
 if TYPE_CHECKING:
@@ -211,8 +211,8 @@ def intrinsics(fovy_deg: float, width: int, height: int) -> np.ndarray:
     if not 0.0 < fovy < 180.0:
         raise SpecError(f"intrinsics: fovy_deg must lie in (0, 180) degrees, got {fovy_deg!r}")
     width, height = (
-        positive_int(width, "intrinsics: width"),
-        positive_int(height, "intrinsics: height"),
+        integer(width, "intrinsics: width"),
+        integer(height, "intrinsics: height"),
     )
     f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
     return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
@@ -233,7 +233,7 @@ class CameraReader(Reader):
         where: str,
     ) -> None:
         cam = model_id(model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", s.camera, f"{where}.camera")
-        w, h = positive_int(s.width, f"{where}.width"), positive_int(s.height, f"{where}.height")
+        w, h = integer(s.width, f"{where}.width"), integer(s.height, f"{where}.height")
         depth = flag(s.depth, f"{where}.depth")
         flags = (flag(s.shadows, f"{where}.shadows"), flag(s.reflections, f"{where}.reflections"))
         name = text(s.name, f"{where}.name") or s.camera

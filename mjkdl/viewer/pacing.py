@@ -6,7 +6,7 @@ import math
 import time
 
 from ..errors import SpecError
-from ..validate import _is_real
+from ..validate import is_real
 
 # Behind schedule by more than this (wall seconds): give up catching up and re-anchor, as
 # MuJoCo's own viewer does, instead of running flat out to recover lost time.
@@ -66,7 +66,7 @@ class Pacer:
 
 
 def _check(factor: object) -> float:
-    value = float(factor) if _is_real(factor) else math.nan  # type: ignore[arg-type]
+    value = float(factor) if is_real(factor) else math.nan  # type: ignore[arg-type]
     if not (math.isfinite(value) and value >= 0):
         raise SpecError(f"realtime_factor must be a finite number >= 0, got {factor!r}")
     return value
