@@ -336,10 +336,11 @@ def test_chains_pinocchio_cannot_model_are_refused_by_name(xml, args, error, mes
     assert str(err.value) == message
 
 
-def test_unknown_body_lists_the_models_bodies():
+@pytest.mark.parametrize(("base", "tip"), [("nosuch", "m1"), ("mbase", "nosuch")])
+def test_unknown_body_lists_the_models_bodies(base, tip):
     m = _compile(MOCAP_BASE)
     with pytest.raises(UnknownNameError) as err:
-        Chain(m, "nosuch", "m1")
+        Chain(m, base, tip)
     assert str(err.value) == "no body named 'nosuch' in the model; known: world, mbase, m1"
 
 
