@@ -732,6 +732,7 @@ def _two_camera_scene() -> mjk.Scene:
     [
         (FIXED, 50, 0, "camera.fixedcamid 50 is not a camera of the scene (it has 2: 0..1)"),
         (FIXED, -1, 0, "camera.fixedcamid -1 is not a camera of the scene (it has 2: 0..1)"),
+        (FIXED, 2, 0, "camera.fixedcamid 2 is not a camera of the scene (it has 2: 0..1)"),
         (TRACKING, 0, 999, "camera.trackbodyid 999 is not a body of the scene (it has 2: 0..1)"),
         (TRACKING, 0, -1, "camera.trackbodyid -1 is not a body of the scene (it has 2: 0..1)"),
         (99, 0, 0, f"camera.type 99 {NOT_A_TYPE}"),
@@ -749,11 +750,47 @@ def test_follow_view_refuses_a_camera_mujoco_would_end_the_process_on(
             rec.follow_view(_camera(kind, fixedcamid, trackbodyid))
         assert str(err.value) == f"follow_view: {message}"
         assert rec.record_frame()  # still the free camera
-        for fine in (_camera(FIXED, 1), _camera(TRACKING, -1, 0), _camera(TRACKING, -1, 1)):
-            rec.follow_view(fine)  # the last camera, the world body, the last body
+        fine = (_camera(FIXED, 0), _camera(FIXED, 1), _camera(TRACKING, -1, 0))
+        for camera in (*fine, _camera(TRACKING, -1, 1)):  # first and last camera and body
+            rec.follow_view(camera)
             scene.data.time += 0.1
             assert rec.record_frame()
-        assert rec.frames_written == 4
+        assert rec.frames_written == 5
+
+
+def test_a_fixed_camera_in_a_scene_without_cameras_is_refused(tmp_path: Path) -> None:
+    scene = _ball_scene(0.01)
+    assert scene.model.ncam == 0
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "v.mp4", 160, 120, 10, **FAST) as rec:
+        with pytest.raises(mjk.SpecError) as err:
+            rec.follow_view(_camera(FIXED, 0))
+        assert str(err.value) == (
+            "follow_view: camera.fixedcamid 0 is not a camera of the scene (it has none)"
+        )
+        assert rec.record_frame()  # still the free camera
+
+
+def test_a_named_camera_is_found_again_when_a_rebuild_renumbers_it(tmp_path: Path) -> None:
+    eye = tmp_path / "eye.xml"
+    eye.write_text(
+        '<mujoco><worldbody><body name="post" pos="0 0 0.2">'
+        '<geom type="box" size="0.1 0.1 0.2" rgba="0 1 0 1"/>'
+        '<camera name="eye" pos="0 -1.5 0.3" euler="80 0 0"/></body></worldbody></mujoco>'
+    )
+    posts = [
+        mjk.SceneObject(name=n, mjcf_path=eye, pos=[x, 0, 0]) for n, x in (("a", -1), ("b", 1))
+    ]
+    size = (160, 120)
+    path = tmp_path / "renumbered.mp4"
+    scene = mjk.Scene.build(base_spec(objects=posts))
+    assert scene.camera_names() == ["a/eye", "b/eye"]
+    with scene, mjk.VideoRecorder.open(scene, path, *size, 10, **FAST) as rec:
+        rec.use_camera("b/eye")
+        scene.remove_object("a")  # b/eye is camera 0 now, and the only one
+        rec.record_frame()
+        expected = _reference(scene, size, camera="b/eye")
+    frame = _bgr_to_rgb(_read_video(path)[3][0])
+    assert np.abs(frame - expected).mean() < 3.0
 
 
 def test_a_followed_camera_is_checked_before_every_frame_and_after_a_rebuild(
