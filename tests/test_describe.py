@@ -135,9 +135,7 @@ def test_prefixed_second_arm() -> None:
     with mjk.Scene.build(base_spec(robots=[first, second])) as scene:
         bare, tooled = suggest(scene.model, scene.spec)
         assert bare == RobotSuggestion("", "base_link", "bracelet_link", "", "pinch_site")
-        assert tooled == RobotSuggestion(
-            "r2_", "base_link", "bracelet_link", "g_base", "g_pinch"
-        )
+        assert tooled == RobotSuggestion("r2_", "base_link", "bracelet_link", "g_base", "g_pinch")
         assert '└─ r2_base_link  [robot 1 (gen3.xml, prefix "r2_")]' in scene.describe()
         robot = _build(scene, tooled)
         assert robot.joint_names[0] == "r2_joint_1"

@@ -187,8 +187,9 @@ def test_random_agent() -> None:
 def test_ray_rollouts() -> None:
     menagerie("franka_emika_panda")
     pytest.importorskip("ray")
-    out = run_example("ray_rollouts", "--episodes", "4", "--actors", "2", "--duration", "0.3",
-                      "--verify")
+    out = run_example(
+        "ray_rollouts", "--episodes", "4", "--actors", "2", "--duration", "0.3", "--verify"
+    )
     assert number("episodes:", out) == 4
     assert numbers(r"steps", out)[:4] == [3, 3, 3, 3]
     assert "matches sequential: True" in out

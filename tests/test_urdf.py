@@ -452,8 +452,7 @@ SWING = (
     "</collision>"
 )
 PLATE = (
-    '<collision><origin xyz="0 0 -0.1"/><geometry><box size="0.6 0.6 0.2"/></geometry>'
-    "</collision>"
+    '<collision><origin xyz="0 0 -0.1"/><geometry><box size="0.6 0.6 0.2"/></geometry></collision>'
 )
 
 
@@ -663,6 +662,8 @@ def test_root_links_are_the_compiled_roots(relative: str, roots: list[str]) -> N
     model = _compile(relative)
     compiled = [model.body(b).name for b in range(1, model.nbody) if model.body_parentid[b] == 0]
     assert root_links(example_robot_data_path(relative)) == compiled == roots
+
+
 def test_link_without_inertial_has_no_mass(tmp_path) -> None:
     """URDF: a link with geometry but no <inertial> has no mass (not one from its geoms)."""
     box = '<collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision>'
