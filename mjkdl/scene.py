@@ -149,6 +149,7 @@ _FAULTS = tuple(
 if sorted(_FAULTS) != [1, 2, 3, 4, 5, 6]:  # `_fault_counters` slices them directly
     raise ImportError(f"mjkdl does not know this MuJoCo's warning numbering: {_FAULTS}")
 _AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+MAX_STEPS = 2**31 - 1  # mj_step's nstep is a C int
 # Scene.step compares MuJoCo's fault counters (warning numbers 1-6) with zeros in one go.
 _NO_FAULTS = np.zeros(len(_FAULTS), dtype=np.int32).data
 
@@ -251,6 +252,11 @@ class Scene(Closable):
             mujoco.mj_step(self._model, self._data, n)
         except mujoco.FatalError as err:
             raise self._fatal(err) from None
+        except TypeError:  # the binding takes a C int: n is a checked count, only too large
+            raise SpecError(
+                f"step(n): n must be at most {MAX_STEPS} (MuJoCo counts steps in a C int), "
+                f"got {n!r}; step in several calls"
+            ) from None
         if self._faults != _NO_FAULTS:
             self._raise_faults()
 

@@ -52,6 +52,18 @@ def test_clock(tutorial_scene):
     assert scene.time() == pytest.approx(14 * 0.002, abs=1e-12)
 
 
+@pytest.mark.parametrize("n", [2**31, np.int64(2**40)])
+def test_step_refuses_more_steps_than_mujoco_counts(n):
+    with _small_scene() as scene:
+        with pytest.raises(mjk.SpecError) as err:
+            scene.step(n)
+        assert str(err.value) == (
+            f"step(n): n must be at most 2147483647 (MuJoCo counts steps in a C int), got {n!r}; "
+            "step in several calls"
+        )
+        assert scene.time() == 0.0
+
+
 @pytest.mark.parametrize("n", [-1, 2.5, "3", 2.0, 1.0])
 def test_step_rejects_bad_counts(n):
     message = f"step(n): n must be a non-negative integer, got {n!r}"

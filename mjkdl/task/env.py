@@ -18,7 +18,7 @@ from ..errors import SimulationError, SpecError, SpecTypeError, UnknownNameError
 from ..names import model_id
 from ..record import offscreen_renderer
 from ..robot import Robot
-from ..scene import Env
+from ..scene import MAX_STEPS, Env
 from ..spec import CtrlMode, SceneSpec
 from ..validate import flag, real, real_array, text, vector
 from ._check import integer
@@ -28,7 +28,6 @@ from .spec import Actuation, ArmSpec, BodyPoseSensor, CameraSensor, GripperSpec,
 
 _CARTESIAN_LABELS = ("vx", "vy", "vz", "wx", "wy", "wz")
 MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
-MAX_SUBSTEPS = 2**31 - 1  # physics steps per control step (MuJoCo counts them in an int)
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
     Actuation.JOINT_VELOCITY: CtrlMode.VELOCITY,
@@ -261,10 +260,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     def _build(self, render_camera: str, render_width: int, render_height: int) -> None:
         spec, scene = self.task_spec, self.scene
         dt = scene.timestep()
-        if spec.control_timestep / dt > MAX_SUBSTEPS:
+        if spec.control_timestep / dt > MAX_STEPS:
             raise SpecError(
                 f"TaskSpec.control_timestep ({spec.control_timestep:g} s) is more than "
-                f"{MAX_SUBSTEPS} physics timesteps ({dt:g} s), MuJoCo's limit per control step"
+                f"{MAX_STEPS} physics timesteps ({dt:g} s), MuJoCo's limit per control step"
             )
         substeps = round(spec.control_timestep / dt)
         if substeps < 1 or abs(substeps * dt - spec.control_timestep) > 1e-9 * max(1.0, substeps):
