@@ -134,20 +134,26 @@ def offscreen_renderer(
 def _check_view(model: mujoco.MjModel, camera: mujoco.MjvCamera, where: str) -> None:
     """Refuse a camera `model` cannot be seen through: MuJoCo ends the process (mju_error in
     mjv_updateScene) on an unknown type, a fixed camera or tracked body outside the model, and
-    on mjCAMERA_USER when nothing set the scene's camera."""
+    on mjCAMERA_USER when nothing set the scene's camera; a free or tracking camera placed by
+    a NaN or infinity renders black frames."""
     kind = camera.type
-    if kind == _FREE:
-        return
     if kind == _FIXED:
         if not 0 <= camera.fixedcamid < model.ncam:
             raise _not_in_scene(where, "fixedcamid", camera.fixedcamid, "camera", model.ncam)
-    elif kind == _TRACKING:
+        return
+    if kind == _TRACKING:
         if not 0 <= camera.trackbodyid < model.nbody:
             raise _not_in_scene(where, "trackbodyid", camera.trackbodyid, "body", model.nbody)
-    else:
+    elif kind != _FREE:
         raise SpecError(
             f"{where}: camera.type {kind} is not mjCAMERA_FREE (0), mjCAMERA_TRACKING (1) or "
             "mjCAMERA_FIXED (2)"
+        )
+    lookat = camera.lookat.tolist()
+    if not all(map(math.isfinite, (*lookat, camera.distance, camera.azimuth, camera.elevation))):
+        raise SpecError(
+            f"{where}: the camera's lookat {lookat}, distance {camera.distance}, azimuth "
+            f"{camera.azimuth} and elevation {camera.elevation} must be finite"
         )
 
 

@@ -758,6 +758,43 @@ def test_follow_view_refuses_a_camera_mujoco_would_end_the_process_on(
         assert rec.frames_written == 5
 
 
+@pytest.mark.parametrize("kind", [mujoco.mjtCamera.mjCAMERA_FREE, TRACKING])
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("lookat", [float("nan"), 0.0, 0.3]),
+        ("distance", float("inf")),
+        ("azimuth", float("nan")),
+        ("elevation", float("-inf")),
+    ],
+)
+def test_a_camera_placed_by_a_nan_is_refused_not_recorded_black(
+    tmp_path: Path, kind: int, field: str, value: object
+) -> None:
+    scene = _two_camera_scene()
+    camera = _camera(kind, trackbodyid=1)
+    camera.lookat[:], camera.distance, camera.azimuth, camera.elevation = [0, 0, 0.3], 3, 45, -30
+    with scene, mjk.VideoRecorder.open(scene, tmp_path / "v.mp4", 160, 120, 10, **FAST) as rec:
+        rec.follow_view(camera)
+        assert rec.record_frame()
+        if field == "lookat":
+            camera.lookat[:] = value
+        else:
+            setattr(camera, field, value)
+        pose = [camera.lookat.tolist(), camera.distance, camera.azimuth, camera.elevation]
+        message = (
+            "the camera's lookat {}, distance {}, azimuth {} and elevation {} must be finite"
+        ).format(*pose)
+        scene.data.time += 0.1
+        with pytest.raises(mjk.SpecError) as err:  # live: checked before the next frame
+            rec.record_frame()
+        assert str(err.value) == f"record_frame: {message}"
+        with pytest.raises(mjk.SpecError) as err:
+            rec.follow_view(camera)
+        assert str(err.value) == f"follow_view: {message}"
+        assert rec.frames_written == 1
+
+
 def test_a_fixed_camera_in_a_scene_without_cameras_is_refused(tmp_path: Path) -> None:
     scene = _ball_scene(0.01)
     assert scene.model.ncam == 0
