@@ -193,8 +193,8 @@ class PhysicsRandomizer:
         colors = flag(self.colors, f"{where}.colors")
         if self._nominal.get("model") is not model:
             ids = []
+            body = mujoco.mjtObj.mjOBJ_BODY
             for i, name in enumerate(names(self.bodies, f"{where}.bodies")):
-                body = mujoco.mjtObj.mjOBJ_BODY
                 ids.append(model_id(model, body, "body", name, f"{where}.bodies[{i}]"))
             geoms = np.flatnonzero(np.isin(model.geom_bodyid, ids))
             self._nominal.update(
