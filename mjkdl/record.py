@@ -121,6 +121,13 @@ def offscreen_renderer(
     can be made.
     """
     check_offscreen_size(model, width, height)
+    if _EGL_INHERITED:
+        raise OffscreenRenderError(
+            "this process was forked from one that had already rendered through EGL, and an "
+            "OpenGL context does not survive a fork; render in the parent only after starting "
+            "the workers, or start them with 'spawn' or 'forkserver' (gymnasium.make_vec(..., "
+            "vector_kwargs={'context': 'spawn'}), multiprocessing.get_context('spawn'))"
+        )
     shadows = flag(shadows, "shadows")
     reflections = flag(reflections, "reflections")
     try:
@@ -169,6 +176,24 @@ def _not_in_scene(where: str, field: str, index: int, kind: str, count: int) -> 
 
 
 _BACKEND_LOCK = threading.Lock()
+
+
+# Set in a child process forked after its parent had opened MuJoCo's EGL display: OpenGL
+# does not survive a fork (Mesa's llvmpipe loses its rendering threads and the child hangs
+# at its first frame; NVIDIA's EGL reports an incomplete framebuffer), so offscreen
+# rendering there is refused with the fix instead.
+_EGL_INHERITED = False
+
+
+def _note_fork() -> None:
+    global _EGL_INHERITED
+    egl = sys.modules.get("mujoco.egl")
+    if egl is not None and getattr(egl, "EGL_DISPLAY", None) is not None:
+        _EGL_INHERITED = True
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_note_fork)
 
 
 def _new_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:

@@ -82,7 +82,7 @@ def test_spaces_follow_the_spec_exactly(env: TaskEnv) -> None:
     ]
     obs, info = env.reset(seed=0)
     assert list(obs) == list(obs_space) and env.observation_space.contains(obs)
-    assert info == {"diverged": False}
+    assert info == {"is_success": False, "diverged": False}
 
 
 def test_joint_actuation_bounds_come_from_the_model() -> None:
@@ -220,7 +220,9 @@ def test_tcp_observations_match_pinocchio(env: TaskEnv) -> None:
 
 def test_gripper_observation_follows_the_action(env: TaskEnv) -> None:
     obs, _ = env.reset(seed=0)
-    assert obs["panda_gripper"][0] == pytest.approx(0.0, abs=0.05)  # qpos0: fingers shut
+    # Open from the first observation, although MuJoCo's qpos0 has the fingers shut.
+    assert obs["panda_gripper"][0] == pytest.approx(1.0, abs=0.002)
+    assert env.scene.data.time == 0.0
     for _ in range(10):
         obs, *_ = env.step(np.zeros(7))  # 0: open
     assert obs["panda_gripper"][0] == pytest.approx(1.0, abs=0.02)
@@ -388,6 +390,8 @@ def test_rgb_array_render_shows_the_named_camera() -> None:
     img = env.render()
     assert img.shape == (120, 160, 3) and img.dtype == np.uint8
     ref = mujoco.Renderer(env.scene.model, 120, 160)
+    for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
+        ref.scene.flags[flag] = 0  # off unless render_shadows=True
     ref.update_scene(env.scene.data, camera="front")
     np.testing.assert_array_equal(img, ref.render())
     ref.close()
@@ -470,6 +474,7 @@ def test_a_scene_that_raises_on_divergence_ends_the_episode(env: TaskEnv, monkey
     obs, reward, terminated, truncated, info = env.step(np.zeros(7))
     assert reward == 0.0 and not truncated
     assert terminated and info == {
+        "is_success": False,
         "diverged": True,
         "error": "the simulation failed by t = 0.05 s: NaN in QACC",
     }
