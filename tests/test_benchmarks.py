@@ -49,7 +49,7 @@ def run_benchmark(name: str, *args: str) -> str:
         (
             "task_env",
             ("--blocks", "1", "--camera-blocks", "1", "--vector-seconds", "0.5"),
-            r"async vector env, 1 sub-env\(s\):",
+            r"async vector env, 128x128 camera, 1 sub-env\(s\):",
         ),
     ],
 )

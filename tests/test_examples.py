@@ -162,10 +162,10 @@ def test_rl_environment() -> None:
     out = run_example("rl_environment", "--duration", "4")
     assert "wrist_cam_depth: (64, 64) float32" in out and "goal_pose: (7,) float64" in out
     assert number("simulated:", out) == pytest.approx(4.0)
-    # The agent hovers 0.1 m above the ball: ReachReward's 0.5 * (1 - tanh(d / 0.1)).
+    # The agent hovers 0.1 m above the ball: ReachReward's 0.5 * (1 - tanh(d / 0.25)).
     distance = number("distance:", out)
     assert distance == pytest.approx(0.1, abs=0.01)
-    assert number("reward:", out) == pytest.approx(0.5 * (1 - math.tanh(distance / 0.1)), abs=2e-4)
+    assert number("reward:", out) == pytest.approx(0.5 * (1 - math.tanh(distance / 0.25)), abs=2e-4)
     near, far = numbers(r"wrist depth:", out)[0], number(r"\.\. ", out)
     assert 0.0 < near < far < 1.0
 

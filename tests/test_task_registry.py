@@ -96,7 +96,7 @@ def test_reach_succeeds_within_the_success_distance() -> None:
         d = np.linalg.norm(obs["goal_pose"][:3] - obs["panda_tcp_pos"])
         assert info["is_success"] is bool(d <= 0.08) is expected
         assert not terminated  # Reach goes on unless terminate_on_success
-        assert reward == pytest.approx(0.5 * (1 - math.tanh(d / 0.1)) + 0.5 * expected)
+        assert reward == pytest.approx(0.5 * (1 - math.tanh(d / 0.25)) + 0.5 * expected)
     env.close()
 
 

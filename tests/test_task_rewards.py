@@ -36,8 +36,8 @@ def test_distance_and_height() -> None:
 
 def test_reach_reward_halves_closeness_and_success() -> None:
     r = ReachReward("tcp_pos", "cube_pose")
-    assert r(obs([0, 0, 0], [0.3, 0.4, 0])) == pytest.approx(0.5 * (1 - math.tanh(5.0)))
-    assert r(obs([0, 0, 0], [0.03, 0.04, 0])) == pytest.approx(0.5 * (1 - math.tanh(0.5)) + 0.5)
+    assert r(obs([0, 0, 0], [0.3, 0.4, 0])) == pytest.approx(0.5 * (1 - math.tanh(2.0)))
+    assert r(obs([0, 0, 0], [0.03, 0.04, 0])) == pytest.approx(0.5 * (1 - math.tanh(0.2)) + 0.5)
     assert r(obs([1, 1, 1], [1, 1, 1])) == 1.0
     wide = ReachReward("tcp_pos", "cube_pose", success_distance=0.6, scale=1.0)
     assert wide(obs([0, 0, 0], [0.3, 0.4, 0])) == pytest.approx(0.5 * (1 - math.tanh(0.5)) + 0.5)
