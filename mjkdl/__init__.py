@@ -19,7 +19,7 @@ from .record import (
     VideoResolution,
     VideoWriteError,
 )
-from .robot import Robot
+from .robot import IgnoredCommandWarning, Robot
 from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_log_path, mujoco_version
 from .spec import (
     AttachKind,
@@ -55,6 +55,7 @@ __all__ = [
     "ForceTorqueSensorSpec",
     "Gripper",
     "IKResult",
+    "IgnoredCommandWarning",
     "MjkdlError",
     "ModelFileError",
     "NoDisplayError",
