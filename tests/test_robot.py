@@ -1304,7 +1304,7 @@ def test_a_rebuild_applies_the_commands_at_the_new_state(tmp_path) -> None:
     ],
 )
 def test_a_port_the_mode_ignores_warns_once_at_the_step(gen3, mode, port, acting) -> None:
-    scene, robot = gen3
+    _, robot = gen3
     robot.ctrl_mode = mjk.CtrlMode[mode]
     robot.update()
     value = np.full(7, 0.1)
