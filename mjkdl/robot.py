@@ -9,6 +9,7 @@ import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from types import FrameType
 
 import mujoco
 import numpy as np
@@ -1072,7 +1073,7 @@ def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
 
 def _caller_stacklevel() -> int:
     """The `warnings.warn` stacklevel of the first frame outside mjkdl (the user's call)."""
-    frame = sys._getframe(1)
+    frame: FrameType | None = sys._getframe(1)
     level = 1
     while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE):
         frame = frame.f_back
