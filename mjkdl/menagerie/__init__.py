@@ -8,7 +8,6 @@ cache, which downloads each model once. `python -m mjkdl.menagerie` lists what i
 from __future__ import annotations
 
 import difflib
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
