@@ -13,11 +13,13 @@ from .errors import (
 )
 from .ik import IKResult
 from .record import (
+    ImageWriteError,
     OffscreenRenderError,
     RecordingError,
     VideoRecorder,
     VideoResolution,
     VideoWriteError,
+    save_image,
 )
 from .robot import IgnoredCommandWarning, Robot
 from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_log_path, mujoco_version
@@ -55,6 +57,7 @@ __all__ = [
     "ForceTorqueSensorSpec",
     "Gripper",
     "IKResult",
+    "ImageWriteError",
     "IgnoredCommandWarning",
     "MjkdlError",
     "ModelFileError",
@@ -85,5 +88,6 @@ __all__ = [
     "menagerie",
     "mujoco_log_path",
     "mujoco_version",
+    "save_image",
     "scene_object_site_name",
 ]
