@@ -24,7 +24,9 @@ class AttachTarget:
     """A mount point: a body, site or frame by name (names inside a robot omit its prefix)."""
 
     kind: AttachKind = AttachKind.Site
+    """Whether `name` is a body, a site or a frame (default: a site)."""
     name: str = ""
+    """The element's name; inside a robot without the robot's prefix. Required (no default)."""
 
 
 class Shape(enum.Enum):
@@ -55,10 +57,15 @@ class AttachmentSpec:
     """An MJCF model (gripper, sensor, tool) mounted on a robot, offset by `pos`/`euler`."""
 
     mjcf_path: str | Path = ""
+    """The MJCF file to mount. Required."""
     attach_to: AttachTarget | None = None
+    """Where on the robot it goes (names without the robot's prefix). Required."""
     prefix: str = ""
+    """Added to every name of the mounted model (after the robot's own prefix)."""
     pos: list[float] = field(default_factory=_zeros3)
+    """Offset from `attach_to`, metres."""
     euler: list[float] = field(default_factory=_zeros3)
+    """Rotation from `attach_to`: intrinsic xyz Euler angles, degrees."""
 
 
 @dataclass
@@ -70,13 +77,23 @@ class RobotSpec:
     """
 
     path: str | Path = ""
+    """The robot's MJCF or URDF file. Required."""
     prefix: str = ""
+    """Added to every name of the robot (bodies, joints, actuators, ...), e.g. "left/"."""
     attach_to: AttachTarget | None = None
+    """Where to mount the robot (a body, site or frame of an object or an earlier robot); None: the
+    world."""
     pos: list[float] = field(default_factory=_zeros3)
+    """Position of the robot's root in the world or in `attach_to`, metres."""
     euler: list[float] = field(default_factory=_zeros3)
+    """Orientation of the robot's root: intrinsic xyz Euler angles, degrees."""
     attachments: list[AttachmentSpec] = field(default_factory=list)
+    """Tools mounted on the robot, in order (each may mount on what an earlier one added)."""
     srdf: str | Path = ""
+    """URDF only: an SRDF whose `disable_collisions` pairs are excluded ("": one next to the URDF,
+    if any)."""
     floating: bool = False
+    """URDF only: give the root link a free joint (a mobile or floating base)."""
 
 
 @dataclass
@@ -86,16 +103,28 @@ class SceneObject:
     `fixed`."""
 
     name: str = ""
+    """Unique body name of the object (MJCF objects' inner names get `name/` in front). Required."""
     mjcf_path: str | Path = ""
+    """An MJCF file for the object; "" for a primitive (then `shape` is required)."""
     shape: Shape | None = None
+    """The primitive's shape; required when there is no `mjcf_path`."""
     size: list[float] = field(default_factory=list)
+    """The primitive's size in MuJoCo's geom convention (half-sizes for a box, radius for a sphere,
+    ...), metres."""
     rgba: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.5, 1.0])
+    """The primitive's colour, red, green, blue, alpha in [0, 1]."""
     mass: float = 0.0
+    """The primitive's mass in kg; required (> 0) unless `fixed`."""
     friction: list[float] = field(default_factory=lambda: [1.0, 0.005, 0.0001])
+    """The primitive's sliding, torsional and rolling friction (MuJoCo's default)."""
     condim: Condim = Condim.Sliding
+    """The primitive's contact dimensionality."""
     pos: list[float] = field(default_factory=_zeros3)
+    """Position in the world, metres."""
     euler: list[float] = field(default_factory=_zeros3)
+    """Orientation: intrinsic xyz Euler angles, degrees."""
     fixed: bool = False
+    """Welded to the world; otherwise the object gets a free joint."""
 
 
 @dataclass
@@ -107,10 +136,16 @@ class CameraSpec:
     """
 
     name: str = ""
+    """Unique camera name (`Scene.camera_names()`, `use_camera`). Required."""
     pos: list[float] | None = None
+    """Position in the world (or in `attach_to`), metres. Required (no default)."""
     euler: list[float] = field(default_factory=_zeros3)
+    """Orientation: intrinsic xyz Euler angles, degrees; all zero looks along -z (down) with +y up
+    in the image."""
     fovy: float | None = None
+    """Vertical field of view, degrees. Required (no default)."""
     attach_to: AttachTarget | None = None
+    """A body or site the camera moves with (a wrist camera); None: fixed in the world."""
 
 
 @dataclass
@@ -118,8 +153,11 @@ class ForceTorqueSensorSpec:
     """A force/torque sensor pair (MuJoCo `force` and `torque` sensor names)."""
 
     name: str = ""
+    """The name `Robot.ft_sensor(name)` takes. Required."""
     force_sensor: str = ""
+    """MuJoCo `force` sensor name (without the robot's prefix). Required."""
     torque_sensor: str = ""
+    """MuJoCo `torque` sensor name (without the robot's prefix). Required."""
 
 
 @dataclass
@@ -131,10 +169,16 @@ class ToolFrameSpec:
     """
 
     tool_body: str = ""
+    """Root body of the tool subtree below the tip (its inertia and joints join the robot's model);
+    "": none."""
     tcp_site: str = ""
+    """Site of the tool centre point; "": the tip body's frame."""
     tcp_pos: list[float] = field(default_factory=_zeros3)
+    """Offset of the TCP from `tcp_site` (or the tip body), metres."""
     tcp_euler: list[float] = field(default_factory=_zeros3)
+    """Rotation of the TCP from `tcp_site` (or the tip body): xyz Euler angles, degrees."""
     ft_sensors: list[ForceTorqueSensorSpec] = field(default_factory=list)
+    """Force/torque sensors of the tool, read with `Robot.ft_sensor(name)`."""
 
 
 @dataclass
@@ -142,12 +186,21 @@ class SceneSpec:
     """A whole scene. `timestep`, `add_floor` and `add_skybox` must be set explicitly."""
 
     timestep: float | None = None
+    """Physics timestep in seconds. Required: None means unset, and building refuses it naming this
+    field (no invented default)."""
     add_floor: bool | None = None
+    """Add a floor plane at z = 0. Required: None means unset, and building refuses it."""
     add_skybox: bool | None = None
+    """Add a sky texture (rendering only). Required: None means unset, and building refuses it."""
     gravity_z: float = -9.81
+    """Gravity along world z, m/s²."""
     robots: list[RobotSpec] = field(default_factory=list)
+    """Robots, built after the objects in this order (a robot may mount on an object or an earlier
+    robot)."""
     objects: list[SceneObject] = field(default_factory=list)
+    """Objects, built first, in this order."""
     cameras: list[CameraSpec] = field(default_factory=list)
+    """Cameras, added last."""
 
 
 @dataclass
@@ -155,7 +208,9 @@ class ResetOptions:
     """How `Env.reset` starts: from MuJoCo's defaults or from a keyframe (index or name)."""
 
     keyframe: int | str = 0
+    """The keyframe to reset to, by index or name (only with `use_keyframe`)."""
     use_keyframe: bool = False
+    """Reset to `keyframe` instead of MuJoCo's defaults (`qpos0`, zero velocities)."""
 
 
 @dataclass
@@ -163,9 +218,13 @@ class ResetContext:
     """What a reset hook receives."""
 
     env: Any
+    """The `Env` being reset."""
     model: mujoco.MjModel
+    """Its MuJoCo model (edits to it last until the next rebuild)."""
     data: mujoco.MjData
+    """Its MuJoCo data, already reset; the hook may write qpos, qvel, ctrl."""
     options: ResetOptions
+    """The options `reset` was called with."""
 
 
 class CtrlMode(enum.Enum):
