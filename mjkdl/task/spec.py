@@ -34,9 +34,13 @@ class GripperSpec:
     """
 
     actuator: str
+    """The gripper's actuator, without the arm's prefix. Required."""
     open: float
+    """The actuator's ctrl value that opens the gripper (action 0). Required."""
     closed: float
+    """The actuator's ctrl value that closes the gripper (action 1). Required."""
     binary: bool = True
+    """Open below 0.5, close from 0.5 on; False: ctrl linear in the action."""
 
 
 @dataclass
@@ -52,16 +56,27 @@ class ArmSpec:
     """
 
     name: str
+    """Prefix of the arm's observations and action labels (`{name}_joint_pos`). Required."""
     base_body: str
+    """First body of the chain, without `prefix` (as in `Scene.create_robot`). Required."""
     tip_body: str
+    """Last body of the chain, without `prefix`. Required."""
     prefix: str = ""
+    """The robot's prefix in the scene (`RobotSpec.prefix`)."""
     tool: ToolFrameSpec | None = None
+    """The tool and TCP below the tip; None: the TCP is the tip body."""
     actuation: Actuation = Actuation.CARTESIAN_VELOCITY
+    """What the arm's part of the action commands."""
     control_frame: str = ""
+    """Site or body (full name) whose axes the Cartesian action is along; "": the world."""
     gripper: GripperSpec | None = None
+    """The gripper, which adds one action entry; None: no gripper."""
     home: list[float] | None = None
+    """Joint positions (chain order) at every reset; None keeps the model's `qpos0`."""
     max_linear_velocity: float = 0.5
+    """TCP speed at action ±1, m/s (Cartesian velocity)."""
     max_angular_velocity: float = 1.0
+    """TCP angular speed at action ±1, rad/s (Cartesian velocity)."""
 
 
 @dataclass
@@ -75,12 +90,19 @@ class CameraSensor:
     """
 
     camera: str
+    """The scene camera's name. Required."""
     width: int = 128
+    """Image width, pixels."""
     height: int = 128
+    """Image height, pixels."""
     depth: bool = False
+    """Also observe `{name}_depth` (metres along the optical axis)."""
     name: str = ""
+    """Observation prefix; "": the camera's name."""
     shadows: bool = False
+    """Render shadows (much slower on software OpenGL)."""
     reflections: bool = False
+    """Render reflections (much slower on software OpenGL)."""
 
 
 @dataclass
@@ -88,7 +110,9 @@ class BodyPoseSensor:
     """World pose of a body: `{name}_pose` = [x, y, z, qw, qx, qy, qz]; `name` defaults to it."""
 
     body: str
+    """The body's full name. Required."""
     name: str = ""
+    """Observation prefix; "": the body's name."""
 
 
 @dataclass
@@ -103,10 +127,18 @@ class TaskSpec:
     """
 
     scene: SceneSpec
+    """The scene the task runs in. Required."""
     arms: list[ArmSpec]
+    """The controlled arms, in action order. Required."""
     control_timestep: float = 0.1
+    """Seconds each action is held: a whole number of physics timesteps."""
     time_limit: float = 10.0
+    """Episode length in seconds; reaching it sets `truncated`."""
     sensors: Sequence[Any] = field(default_factory=list)
+    """`CameraSensor`, `BodyPoseSensor` or any `mjkdl.task.Sensor`."""
     initializers: Sequence[Initializer] = field(default_factory=list)
+    """Callables `(env, rng)` run in order at every reset, after `home`."""
     reward: Callable[[Observation], float] | None = None
+    """`reward(obs)` -> a finite real number; None: reward 0."""
     terminated: Callable[[Observation], bool] | None = None
+    """`terminated(obs)` -> True/False; None: never terminated."""
