@@ -86,10 +86,12 @@ class VideoResolution(enum.Enum):
 
     @property
     def width(self) -> int:
+        """Frame width, pixels."""
         return self.value[0]
 
     @property
     def height(self) -> int:
+        """Frame height, pixels."""
         return self.value[1]
 
 

@@ -449,10 +449,21 @@ class Robot:
         return self._stamp
 
     jnt_pos_cmd = _Command("Joint position command (POSITION mode).")
+    """Joint position command, radians or metres in chain order: what POSITION mode's servos
+    track (plus gravity feed-forward). Reads as a read-only array; assign a whole vector
+    (`robot.jnt_pos_cmd = q`), checked for length, finiteness and magnitude (at most 1e10);
+    it applies at the next `step()`. Other modes ignore it (and warn once,
+    `IgnoredCommandWarning`)."""
     jnt_vel_cmd = _Command("Joint velocity command (VELOCITY mode).")
+    """Joint velocity command in chain order: what VELOCITY mode's servos track (plus gravity
+    feed-forward). Assigned and checked like `jnt_pos_cmd`; other modes ignore it (and warn
+    once)."""
     jnt_trq_cmd = _Command(
         "Joint torque command (TORQUE mode; on top of gravity with gravity_compensation)."
     )
+    """Joint torque command (N·m or N) in chain order: TORQUE mode applies it as it is, or on
+    top of the gravity torques with `gravity_compensation`; the actuators' `forcerange` still
+    limits it. Assigned and checked like `jnt_pos_cmd`; other modes ignore it (and warn once)."""
 
     def _vector(self, value: object, name: str, bound: float = math.inf) -> np.ndarray:
         """`value` checked to be n finite numbers, as a float64 array (no copy if it is one).

@@ -15,8 +15,11 @@ class AttachKind(enum.Enum):
     """What kind of MuJoCo element a model is mounted on."""
 
     Body = "body"
+    """A body: the mounted model's root becomes its child."""
     Site = "site"
+    """A site: the mounted model takes the site's pose (the usual tool flange)."""
     Frame = "frame"
+    """An MJCF `<frame>`."""
 
 
 @dataclass
@@ -33,19 +36,28 @@ class Shape(enum.Enum):
     """Primitive geom shapes; `size` follows MuJoCo's geom size convention for each."""
 
     BOX = "box"
+    """`size`: three half-lengths."""
     SPHERE = "sphere"
+    """`size`: the radius."""
     CYLINDER = "cylinder"
+    """`size`: radius and half-height."""
     CAPSULE = "capsule"
+    """`size`: radius and half-height of the cylindrical part."""
     ELLIPSOID = "ellipsoid"
+    """`size`: three radii."""
 
 
 class Condim(enum.IntEnum):
     """MuJoCo contact dimensionality."""
 
     Frictionless = 1
+    """Normal force only."""
     Sliding = 3
+    """Plus tangential (sliding) friction: MuJoCo's default."""
     Torsional = 4
+    """Plus torsional friction: grasped objects do not spin about the contact normal."""
     Rolling = 6
+    """Plus rolling friction."""
 
 
 def _zeros3() -> list[float]:
@@ -231,8 +243,11 @@ class CtrlMode(enum.Enum):
     """How `Robot.update()` drives the joints."""
 
     POSITION = "position"
+    """Position servos track `jnt_pos_cmd` (gravity feed-forward added)."""
     VELOCITY = "velocity"
+    """Velocity servos track `jnt_vel_cmd` (gravity feed-forward added)."""
     TORQUE = "torque"
+    """Motors apply `jnt_trq_cmd` (plus gravity with `gravity_compensation`)."""
 
 
 def scene_object_site_name(obj: SceneObject, site: str) -> str:

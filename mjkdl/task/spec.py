@@ -20,9 +20,14 @@ class Actuation(enum.Enum):
     """What an arm's part of the action commands."""
 
     JOINT_POSITION = "joint_position"
+    """One joint position per joint (POSITION mode), within the joint limits."""
     JOINT_VELOCITY = "joint_velocity"
+    """One joint velocity per joint (VELOCITY mode), within the model's velocity limits."""
     JOINT_TORQUE = "joint_torque"
+    """One torque per joint on top of gravity compensation (TORQUE mode)."""
     CARTESIAN_VELOCITY = "cartesian_velocity"
+    """A TCP twist `[vx, vy, vz, wx, wy, wz]` along the control frame, bounded by the arm's
+    maximum velocities."""
 
 
 @dataclass
@@ -74,9 +79,10 @@ class ArmSpec:
     home: list[float] | None = None
     """Joint positions (chain order) at every reset; None keeps the model's `qpos0`."""
     max_linear_velocity: float = 0.5
-    """TCP speed at action ±1, m/s (Cartesian velocity)."""
+    """Bound of the Cartesian action's linear part, m/s."""
     max_angular_velocity: float = 1.0
-    """TCP angular speed at action ±1, rad/s (Cartesian velocity)."""
+    """Bound of the Cartesian action's angular part, rad/s (and of the joint velocity
+    action where the model has no velocity limit)."""
 
 
 @dataclass
