@@ -12,6 +12,7 @@ import pytest
 from conftest import (
     PANDA_HOME,
     PANDA_TCP,
+    ROOT,
     base_spec,
     gripper,
     menagerie,
@@ -261,3 +262,23 @@ def test_closed_scene() -> None:
     with pytest.raises(RuntimeError, match="closed"):
         scene.describe()
     assert str(scene) == "Scene (closed)"
+
+
+def test_one_panda_recipe_everywhere() -> None:
+    """The docs, the examples, the registered tasks and the tests use the call describe()
+    suggests for Menagerie's Panda."""
+    from mjkdl.task.registry import panda_arm  # the task layer, imported only here
+
+    tip, tcp = _DOCUMENTED_TCPS["franka_emika_panda/panda.xml"]
+    arm = panda_arm()
+    assert (arm.base_body, arm.tip_body, tuple(arm.tool.tcp_pos)) == ("link0", tip, tcp)
+    assert tuple(PANDA_TCP) == tcp
+    common = (ROOT / "examples" / "common.py").read_text()
+    assert f"PANDA_TCP = {list(tcp)}" in common and 'tip: str = "hand"' in common
+    calls = re.findall(
+        r'create_robot\("link0", "(\w+)", tool=mjk\.ToolFrameSpec\(tcp_pos=\[([^\]]*)\]\)\)',
+        (ROOT / "docs" / "control.md").read_text(),
+    )
+    assert calls and all(
+        t == tip and tuple(float(v) for v in pos.split(",")) == tcp for t, pos in calls
+    )
