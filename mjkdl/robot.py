@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import sys
 import warnings
 import xml.etree.ElementTree as ET
@@ -42,7 +43,7 @@ _MODE_PORT = {
     CtrlMode.TORQUE: "jnt_trq_cmd",
 }
 _PORT_MODE = {port: mode for mode, port in _MODE_PORT.items()}
-_PACKAGE = str(Path(__file__).resolve().parent)
+_PACKAGE = str(Path(__file__).resolve().parent) + os.sep  # frames inside mjkdl
 
 
 @dataclass
@@ -687,6 +688,7 @@ class Robot:
         ready = (
             self._open
             and self._active
+            and not self._stray  # the general path applies, and warns about, stray writes
             and self._plain_read
             and self._mode is self._applied_mode
             and (self._motors or self._servos)

@@ -1394,3 +1394,14 @@ def test_last_update_time_stamps_the_measured_ports(gen3) -> None:
     assert scene.time() - robot.last_update_time == pytest.approx(5 * scene.timestep())
     robot.update()
     assert robot.last_update_time == scene.time()
+
+
+def test_a_stray_write_warns_even_when_the_mode_is_set_again(gen3) -> None:
+    _, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.update()
+    robot.jnt_pos_cmd = np.array(HOME)
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE  # the same mode: update() could take its fast path
+    with pytest.warns(mjk.IgnoredCommandWarning, match="^jnt_pos_cmd was written"):
+        robot.update()  # applies the commands, so it is the one that warns
+        robot.step()
