@@ -64,6 +64,18 @@ def _zeros3() -> list[float]:
     return [0.0, 0.0, 0.0]
 
 
+class _Required:
+    """The default of a field that must be set: building a spec that still holds it raises,
+    naming the field (there is no invented default)."""
+
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+
+REQUIRED: Any = _Required()
+"""Marks a required field of a description: `SceneSpec(timestep=REQUIRED)` is unset."""
+
+
 @dataclass
 class AttachmentSpec:
     """An MJCF model (gripper, sensor, tool) mounted on a robot, offset by `pos`/`euler`."""
@@ -149,13 +161,13 @@ class CameraSpec:
 
     name: str = ""
     """Unique camera name (`Scene.camera_names()`, `use_camera`). Required."""
-    pos: list[float] | None = None
-    """Position in the world (or in `attach_to`), metres. Required (no default)."""
+    pos: list[float] = REQUIRED
+    """Position in the world (or in `attach_to`), metres. Required."""
     euler: list[float] = field(default_factory=_zeros3)
     """Orientation: intrinsic xyz Euler angles, degrees; all zero looks along -z (down) with +y up
     in the image."""
-    fovy: float | None = None
-    """Vertical field of view, degrees. Required (no default)."""
+    fovy: float = REQUIRED
+    """Vertical field of view, degrees. Required."""
     attach_to: AttachTarget | None = None
     """A body or site the camera moves with (a wrist camera); None: fixed in the world."""
 
@@ -197,13 +209,12 @@ class ToolFrameSpec:
 class SceneSpec:
     """A whole scene. `timestep`, `add_floor` and `add_skybox` must be set explicitly."""
 
-    timestep: float | None = None
-    """Physics timestep in seconds. Required: None means unset, and building refuses it naming this
-    field (no invented default)."""
-    add_floor: bool | None = None
-    """Add a floor plane at z = 0. Required: None means unset, and building refuses it."""
-    add_skybox: bool | None = None
-    """Add a sky texture (rendering only). Required: None means unset, and building refuses it."""
+    timestep: float = REQUIRED
+    """Physics timestep in seconds. Required: building without it raises, naming it."""
+    add_floor: bool = REQUIRED
+    """Add a floor plane at z = 0. Required: building without it raises, naming it."""
+    add_skybox: bool = REQUIRED
+    """Add a sky texture (rendering only). Required: building without it raises, naming it."""
     gravity_z: float = -9.81
     """Gravity along world z, m/s²."""
     robots: list[RobotSpec] = field(default_factory=list)
