@@ -29,6 +29,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
+from tqdm import tqdm
 
 import mjkdl as mjk
 from mjkdl.task import CameraSensor, TaskEnv  # importing mjkdl.task registers the tasks
@@ -96,7 +97,7 @@ def interleaved(
     for reset, run in loops.values():  # warm up: caches, renderer, QP solver
         reset()
         run(3)
-    for _ in range(blocks):
+    for _ in tqdm(range(blocks), desc="blocks", disable=None, leave=False):
         for name, (reset, run) in loops.items():
             reset()
             t0, c0 = time.perf_counter(), time.process_time()

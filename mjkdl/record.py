@@ -69,6 +69,10 @@ class VideoWriteError(RecordingError):
     """The video cannot be written: missing folder, no permission, or the encoder failed."""
 
 
+class ImageWriteError(MjkdlError, OSError):
+    """An image cannot be written: missing folder, no permission, or no writer for its type."""
+
+
 class OffscreenRenderError(MjkdlError, RuntimeError):
     """No OpenGL context for offscreen rendering could be created on this machine."""
 
@@ -82,10 +86,12 @@ class VideoResolution(enum.Enum):
 
     @property
     def width(self) -> int:
+        """Frame width, pixels."""
         return self.value[0]
 
     @property
     def height(self) -> int:
+        """Frame height, pixels."""
         return self.value[1]
 
 
@@ -242,6 +248,44 @@ def _output_path(path: str | os.PathLike[str]) -> tuple[Path, bool]:
     except OSError as err:
         raise VideoWriteError(f"cannot write video {str(p)!r}: {err.strerror}") from None
     return p, not existed
+
+
+def save_image(path: str | os.PathLike[str], rgb: np.ndarray) -> Path:
+    """Write an RGB image (H×W×3 uint8, as `mujoco.Renderer.render()` and camera observations
+    give it) or a grey one (H×W uint8) to `path`; the suffix picks the format (.png, .jpg).
+
+    Through OpenCV, which mjkdl depends on; `cv2.imwrite` itself expects BGR, this does not.
+    """
+    p = Path(path_text(path, "save_image(path)")).expanduser()
+    if not isinstance(rgb, np.ndarray):
+        raise SpecTypeError(f"save_image(rgb) must be a NumPy array, got {type(rgb).__name__}")
+    if rgb.dtype != np.uint8 or not (rgb.ndim == 2 or (rgb.ndim == 3 and rgb.shape[2] == 3)):
+        raise SpecError(
+            f"save_image(rgb) must be uint8 of shape (H, W, 3) or (H, W), got {rgb.dtype} of "
+            f"shape {rgb.shape} (a depth image: scale it to 0..255 and cast it to uint8 first)"
+        )
+    if rgb.size == 0:
+        raise SpecError(f"save_image(rgb) is empty (shape {rgb.shape})")
+    import cv2  # only here: importing OpenCV takes a noticeable fraction of a second
+
+    if not cv2.haveImageWriter(str(p)):
+        raise ImageWriteError(
+            f"cannot write image {str(p)!r}: no image writer for suffix {p.suffix!r}; use .png "
+            "(lossless) or .jpg"
+        )
+    folder = p.parent.resolve()
+    if not folder.is_dir():
+        raise ImageWriteError(
+            f"cannot write image {str(p)!r}: folder {str(folder)!r} does not exist"
+        )
+    image = rgb if rgb.ndim == 2 else np.ascontiguousarray(rgb[:, :, ::-1])  # OpenCV's BGR
+    try:
+        written = cv2.imwrite(str(p), image)
+    except cv2.error as err:  # a directory of that name, among others
+        raise ImageWriteError(f"cannot write image {str(p)!r}: {err.msg or err}") from None
+    if not written:
+        raise ImageWriteError(f"cannot write image {str(p)!r}: permission denied or disk full")
+    return p
 
 
 class _FrameClock:

@@ -37,13 +37,14 @@ def _models() -> None:
     menagerie("robotiq_2f85")
 
 
-def run_example(name: str, *args: str, timeout: float = 120.0) -> str:
-    """Run `examples/<name>.py --headless *args` in a fresh interpreter; return its stdout."""
+def run_example(name: str, *args: str, timeout: float = 120.0, cwd: Path = ROOT) -> str:
+    """Run `examples/<name>.py --headless *args` in a fresh interpreter (in `cwd`); return
+    its stdout."""
     env = dict(os.environ, MUJOCO_GL="egl")
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     proc = subprocess.run(
         [sys.executable, str(EXAMPLES / f"{name}.py"), "--headless", *args],
-        cwd=ROOT,
+        cwd=cwd,
         env=env,
         capture_output=True,
         text=True,
@@ -144,7 +145,7 @@ def test_record_video(tmp_path: Path) -> None:
     video = tmp_path / "pick_place.mp4"
     out = run_example(
         "record_video",
-        *("--output", str(video), "--width", "320", "--height", "240", "--fps", "20", "--preview"),
+        *("--out", str(video), "--width", "320", "--height", "240", "--fps", "20"),
     )
     assert "result: success" in out
     assert video.is_file() and video.stat().st_size > 10_000
@@ -152,6 +153,18 @@ def test_record_video(tmp_path: Path) -> None:
     simulated = number(r"fps, ", out)
     assert seconds == pytest.approx(simulated, abs=0.2)
     assert frames == pytest.approx(20 * simulated, abs=3)
+
+
+def test_record_video_writes_into_the_current_directory(tmp_path: Path) -> None:
+    import imageio_ffmpeg
+
+    out = run_example(
+        "record_video", *("--width", "160", "--height", "120", "--duration", "0.5"), cwd=tmp_path
+    )
+    # 0.5 s of the task, then the 0.5 s tail
+    assert "\nvideo: pick_place.mp4 (160x120 at 30 fps, 1.00 s simulated" in out
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(tmp_path / "pick_place.mp4"))
+    assert frames == pytest.approx(30, abs=1)
 
 
 # ---------------------------------------------------------------------- task environments
