@@ -137,7 +137,7 @@ class PickCubeExpert:
         square = _yaw(o["cube_pose"][3:])
         if self.phase is _Phase.LIFT and not held and cube[2] < CUBE_HALF + 0.01:
             self.phase = _Phase.ABOVE  # dropped: try again
-        target = cube + [0.0, 0.0, self._hover]
+        target = cube + np.array([0.0, 0.0, self._hover])
         close = False
         if self.phase is _Phase.ABOVE:
             err = target - tcp
@@ -161,7 +161,7 @@ class PickCubeExpert:
             if "desired_goal" in o:
                 target = o["desired_goal"] + (tcp - cube)
             else:
-                target = self._lift_from + [0.0, 0.0, LIFT + 0.03]
+                target = self._lift_from + np.array([0.0, 0.0, LIFT + 0.03])
         twist = np.zeros(6)
         # Lift gently: MuJoCo's soft friction lets a fast-lifted cube creep out of the grip.
         gain = self._gain if self.phase is not _Phase.LIFT else 0.5 * self._gain
@@ -184,7 +184,7 @@ def expert_for(env: gym.Env) -> Expert:
     inner = env.unwrapped
     for env_id, cls in TASKS.items():
         if type(inner) is cls:
-            return _EXPERTS[env_id](inner)  # type: ignore[no-any-return]
+            return _EXPERTS[env_id](inner)
     raise UnknownNameError(
         f"no expert for {type(inner).__name__}; experts exist for {', '.join(_EXPERTS)}"
     )
