@@ -2,6 +2,7 @@
 
 from ..errors import PlanningError
 from .collision import CollisionChecker
+from .follower import TrajectoryFollower
 from .planner import DATASHEET_LIMITS, PLANNERS, MotionPlanner
 from .trajectory import JointTrajectory, TimeParametrizer
 
@@ -13,4 +14,5 @@ __all__ = [
     "MotionPlanner",
     "PlanningError",
     "TimeParametrizer",
+    "TrajectoryFollower",
 ]

@@ -249,7 +249,7 @@ class MotionPlanner:
         try:
             q0 = self._start(start)
             q1 = self._goal(goal, q0)
-            waypoints = self._search(q0, q1, budget - (time.perf_counter() - began))
+            waypoints = self._search(q0, q1, budget, began)
             return self._timed(waypoints)
         finally:
             if carry is not None:
@@ -386,8 +386,9 @@ class MotionPlanner:
             f"error {best_error:.3g} m)"
         )
 
-    def _search(self, q0: np.ndarray, q1: np.ndarray, budget: float) -> np.ndarray:
-        """OMPL's path from q0 to q1, simplified, as waypoints (k×n)."""
+    def _search(self, q0: np.ndarray, q1: np.ndarray, budget: float, began: float) -> np.ndarray:
+        """OMPL's path from q0 to q1, simplified, as waypoints (k×n); `budget` seconds from
+        `began` (a `perf_counter` time)."""
         from ompl import geometric as og
         from ompl import util as ou
 
@@ -407,7 +408,7 @@ class MotionPlanner:
         level = ou.getLogLevel()
         ou.setLogLevel(ou.LOG_NONE)
         try:
-            status = setup.solve(max(budget, 1e-3))
+            status = setup.solve(max(budget - (time.perf_counter() - began), 1e-3))
             solved = setup.haveExactSolutionPath()
             t_simplify = time.perf_counter()
             if solved:

@@ -1,8 +1,9 @@
 """Time-parametrised joint trajectories: toppra's time-optimal timing of a geometric path.
 
 A `JointTrajectory` holds knots (time, position, velocity, acceleration) and samples between
-them with quintic Hermite polynomials, so positions, velocities and accelerations are
-continuous and agree with each other. A `TimeParametrizer` times a path of joint waypoints
+them: positions and velocities on cubic Hermite polynomials, accelerations linearly. toppra's
+accelerations jump at its grid points; a polynomial through them would ring past the limits
+(a quintic by up to 20% in tests), linear interpolation never leaves the knots' range. A `TimeParametrizer` times a path of joint waypoints
 under per-joint velocity and acceleration limits with toppra (TOPP-RA): a cubic spline through
 the waypoints is followed as fast as the limits allow, at rest at both ends.
 """
@@ -29,7 +30,8 @@ class JointTrajectory:
     """Joint positions, velocities and accelerations at increasing `times` (from 0).
 
     Arrays: `times` (k,), `positions`, `velocities`, `accelerations` (k, n). `sample(t)`
-    interpolates between the knots; before 0 and after `duration` it holds the ends.
+    interpolates between the knots (cubic Hermite positions and velocities, linear
+    accelerations); before 0 and after `duration` it holds the ends.
     """
 
     times: np.ndarray
@@ -59,7 +61,7 @@ class JointTrajectory:
         for name, arr in (("times", times), *arrays.items()):
             arr.flags.writeable = False
             object.__setattr__(self, name, arr)
-        object.__setattr__(self, "_coeffs", _quintic(times, *arrays.values()))
+        object.__setattr__(self, "_coeffs", _cubic(times, *arrays.values()))
         object.__setattr__(self, "_list", times.tolist())
 
     @property
@@ -95,12 +97,11 @@ class JointTrajectory:
         i = bisect.bisect_right(times, t) - 1
         h = times[i + 1] - times[i]
         s = (t - times[i]) / h
-        c = self._coeffs[i]  # (6, n): polynomial coefficients in s
-        s2, s3 = s * s, s * s * s
-        np.dot((1.0, s, s2, s3, s2 * s2, s3 * s2), c, out=q)
-        np.dot((0.0, 1.0 / h, 2.0 * s / h, 3.0 * s2 / h, 4.0 * s3 / h, 5.0 * s2 * s2 / h), c, out=qd)
-        h2 = h * h
-        np.dot((0.0, 0.0, 2.0 / h2, 6.0 * s / h2, 12.0 * s2 / h2, 20.0 * s3 / h2), c, out=qdd)
+        c = self._coeffs[i]  # (6, n): cubic coefficients in s, then the two accelerations
+        s2 = s * s
+        np.dot((1.0, s, s2, s2 * s, 0.0, 0.0), c, out=q)
+        np.dot((0.0, 1.0 / h, 2.0 * s / h, 3.0 * s2 / h, 0.0, 0.0), c, out=qd)
+        np.dot((0.0, 0.0, 0.0, 0.0, 1.0 - s, s), c, out=qdd)
 
 
 def _array(value: object, name: str, ndim: int) -> np.ndarray:
@@ -115,19 +116,15 @@ def _array(value: object, name: str, ndim: int) -> np.ndarray:
     return arr
 
 
-def _quintic(
-    times: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray
-) -> np.ndarray:
-    """Per segment, the coefficients c0..c5 (in s = (t - t_i) / h) of the quintic that meets
-    position, velocity and acceleration at both of its knots."""
+def _cubic(times: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Per segment: c0..c3 of the cubic (in s = (t - t_i) / h) meeting position and velocity
+    at both knots, then the accelerations at its two knots."""
     h = np.diff(times)[:, None]
     p0, p1, v0, v1 = p[:-1], p[1:], v[:-1] * h, v[1:] * h
-    a0, a1 = a[:-1] * h * h, a[1:] * h * h
     dp = p1 - p0
-    c3 = 10.0 * dp - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1
-    c4 = -15.0 * dp + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1
-    c5 = 6.0 * dp - 3.0 * v0 - 3.0 * v1 - 0.5 * a0 + 0.5 * a1
-    return np.stack([p0, v0, 0.5 * a0, c3, c4, c5], axis=1)
+    c2 = 3.0 * dp - 2.0 * v0 - v1
+    c3 = -2.0 * dp + v0 + v1
+    return np.stack([p0, v0, c2, c3, a[:-1], a[1:]], axis=1)
 
 
 class TimeParametrizer:
