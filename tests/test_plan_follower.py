@@ -39,10 +39,14 @@ def eight(robot: mjk.Robot) -> tuple[JointTrajectory, callable]:
         positions.append(q)
     positions = np.array(positions)
     velocities = np.gradient(positions, times, axis=0)
-    return JointTrajectory(times, positions, velocities, np.gradient(velocities, times, axis=0)), path
+    return JointTrajectory(
+        times, positions, velocities, np.gradient(velocities, times, axis=0)
+    ), path
 
 
-def tcp_error(env: mjk.Env, robot: mjk.Robot, mode: mjk.CtrlMode, feedforward: bool = True) -> float:
+def tcp_error(
+    env: mjk.Env, robot: mjk.Robot, mode: mjk.CtrlMode, feedforward: bool = True
+) -> float:
     """The largest distance of the measured TCP from the eight over one lap."""
     traj, path = eight(robot)
     follower = TrajectoryFollower(robot)
@@ -50,7 +54,9 @@ def tcp_error(env: mjk.Env, robot: mjk.Robot, mode: mjk.CtrlMode, feedforward: b
     t0, worst = env.time(), 0.0
     while not follower.finished:
         robot.update()
-        worst = max(worst, float(np.linalg.norm(robot.fk_frame().translation - path(env.time() - t0))))
+        worst = max(
+            worst, float(np.linalg.norm(robot.fk_frame().translation - path(env.time() - t0)))
+        )
         follower.command()
         if not feedforward:  # the plain setpoint, as a position controller would send it
             robot.jnt_pos_cmd = traj.sample(env.time() - t0)[0]
@@ -95,7 +101,9 @@ def test_bad_use_is_refused_by_name(env) -> None:
     q = robot.jnt_pos_msr
     traj = JointTrajectory([0.0, 1.0], [q, q], np.zeros((2, 7)), np.zeros((2, 7)))
     follower = TrajectoryFollower(robot)
-    with pytest.raises(mjk.SpecError, match=r"needs the robot in POSITION or TORQUE mode, not VELOCITY"):
+    with pytest.raises(
+        mjk.SpecError, match=r"needs the robot in POSITION or TORQUE mode, not VELOCITY"
+    ):
         follower.start(traj)
     robot.ctrl_mode = mjk.CtrlMode.POSITION
     with pytest.raises(RuntimeError, match=r"call start\(trajectory\) first"):
@@ -103,7 +111,9 @@ def test_bad_use_is_refused_by_name(env) -> None:
     short = JointTrajectory([0.0, 1.0], [q[:6], q[:6]], np.zeros((2, 6)), np.zeros((2, 6)))
     with pytest.raises(mjk.SpecError, match=r"the trajectory has 6 joints, the robot 7 \(joint1, "):
         follower.start(short)
-    far = JointTrajectory([0.0, 1.0], [q + [0, 0, 0.2, 0, 0, 0, 0], q], np.zeros((2, 7)), np.zeros((2, 7)))
+    far = JointTrajectory(
+        [0.0, 1.0], [q + np.array([0, 0, 0.2, 0, 0, 0, 0]), q], np.zeros((2, 7)), np.zeros((2, 7))
+    )
     with pytest.raises(mjk.SpecError, match=r"starts 0.2 rad from the robot at joint 'joint3'"):
         follower.start(far)
     with pytest.raises(mjk.SpecTypeError, match=r"expected a JointTrajectory"):

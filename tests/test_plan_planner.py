@@ -47,7 +47,7 @@ def panda(scene):
 
 
 def test_plan_around_the_wall_keeps_the_margin_and_the_limits(panda) -> None:
-    env, robot, q_a, q_b = panda
+    _env, robot, q_a, q_b = panda
     planner = MotionPlanner(robot)
     traj = planner.plan(q_b)
     assert np.abs(traj.positions[0] - q_a).max() < 1e-12
@@ -56,7 +56,9 @@ def test_plan_around_the_wall_keeps_the_margin_and_the_limits(panda) -> None:
     # The straight joint-space line goes through the wall; the plan does not.
     line = [q_a + s * (q_b - q_a) for s in np.linspace(0, 1, 50)]
     assert not all(planner.checker.valid(q) for q in line)
-    clearance = [planner.checker.clearance(traj.sample(t)[0]) for t in np.arange(0, traj.duration, 0.002)]
+    clearance = [
+        planner.checker.clearance(traj.sample(t)[0]) for t in np.arange(0, traj.duration, 0.002)
+    ]
     assert min(clearance) >= planner.margin
     # toppra's limits, sampled between the knots too
     samples = [traj.sample(t) for t in np.linspace(0, traj.duration, 700)]
@@ -68,7 +70,7 @@ def test_plan_around_the_wall_keeps_the_margin_and_the_limits(panda) -> None:
 
 
 def test_plan_to_a_pose_reaches_it_and_the_executed_motion_is_collision_free(panda) -> None:
-    env, robot, q_a, _ = panda
+    env, robot, _q_a, _ = panda
     planner = MotionPlanner(robot)
     traj = planner.plan(ABOVE_B)
     end = robot.fk_frame(traj.positions[-1])
@@ -87,16 +89,18 @@ def test_plan_to_a_pose_reaches_it_and_the_executed_motion_is_collision_free(pan
 
 @pytest.mark.parametrize("name", ["RRTConnect", "RRT", "BKPIECE1"])
 def test_planners_are_chosen_by_name(panda, name: str) -> None:
-    env, robot, q_a, q_b = panda
+    _env, robot, _q_a, q_b = panda
     traj = MotionPlanner(robot, planner=name).plan(q_b, timeout=5.0)
     assert np.abs(traj.positions[-1] - q_b).max() < 1e-12
 
 
 def test_plan_cartesian_follows_a_straight_line(panda) -> None:
-    env, robot, q_a, _ = panda
-    target = pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + [0.0, 0.0, -0.12])
+    _env, robot, _q_a, _ = panda
+    target = pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + np.array([0.0, 0.0, -0.12]))
     traj = MotionPlanner(robot).plan_cartesian(target, step=0.005)
-    line = np.array([robot.fk_frame(traj.sample(t)[0]).translation for t in np.linspace(0, traj.duration, 60)])
+    line = np.array(
+        [robot.fk_frame(traj.sample(t)[0]).translation for t in np.linspace(0, traj.duration, 60)]
+    )
     off = np.linalg.norm(line[:, :2] - ABOVE_A.translation[:2], axis=1)
     assert off.max() < 0.001
     assert np.all(np.diff(line[:, 2]) <= 1e-6)  # straight down, never back up
@@ -104,9 +108,13 @@ def test_plan_cartesian_follows_a_straight_line(panda) -> None:
 
 
 def test_plan_cartesian_into_the_shelf_names_the_collision(panda) -> None:
-    env, robot, *_ = panda
-    target = pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + [0.0, 0.0, -0.2])
-    with pytest.raises(PlanningError, match=r"plan_cartesian: the pose at \d+% .* collision: bodies '(shelf_a|\w+_finger)' and '(shelf_a|\w+_finger)'"):
+    _env, robot, *_ = panda
+    target = pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + np.array([0.0, 0.0, -0.2]))
+    with pytest.raises(
+        PlanningError,
+        match=r"plan_cartesian: the pose at \d+% .* collision: bodies '(shelf_a|\w+_finger)' "
+        r"and '(shelf_a|\w+_finger)'",
+    ):
         MotionPlanner(robot).plan_cartesian(target)
 
 
@@ -114,23 +122,25 @@ def test_plan_cartesian_into_the_shelf_names_the_collision(panda) -> None:
 
 
 def test_start_in_collision_names_the_two_bodies(panda) -> None:
-    env, robot, q_a, q_b = panda
-    low = robot.ik(pin.SE3(ABOVE_A.rotation, ABOVE_A.translation - [0, 0, 0.2]), q_a).q
-    with pytest.raises(PlanningError, match=r"the start is in collision: bodies '\w+' and '\w+'") as error:
+    _env, robot, q_a, q_b = panda
+    low = robot.ik(pin.SE3(ABOVE_A.rotation, ABOVE_A.translation - np.array([0, 0, 0.2])), q_a).q
+    with pytest.raises(
+        PlanningError, match=r"the start is in collision: bodies '\w+' and '\w+'"
+    ) as error:
         MotionPlanner(robot).plan(q_b, start=low)
     assert "shelf_a" in str(error.value)
     assert isinstance(error.value, mjk.MjkdlError)
 
 
 def test_goal_in_collision_names_the_two_bodies(panda) -> None:
-    env, robot, q_a, _ = panda
+    _env, robot, _q_a, _ = panda
     inside = robot.ik(pin.SE3(np.array(DOWN), np.array([0.45, 0.0, 0.5])), HOME).q
     with pytest.raises(PlanningError, match=r"the goal is in collision: bodies .*'wall'"):
         MotionPlanner(robot).plan(inside)
 
 
 def test_pose_goal_in_collision_and_unreachable(panda) -> None:
-    env, robot, *_ = panda
+    _env, robot, *_ = panda
     planner = MotionPlanner(robot, ik_attempts=4)
     with pytest.raises(PlanningError, match=r"every IK solution is in collision .*'wall'"):
         planner.plan(pin.SE3(np.array(DOWN), np.array([0.45, 0.0, 0.5])))
@@ -144,18 +154,24 @@ def test_timeout_says_what_was_tried(tmp_path) -> None:
     path.write_text(two_link_arm())
     walls = [
         mjk.SceneObject(
-            name=f"wall_{side}", shape=mjk.Shape.BOX, size=[0.4, 0.01, 0.5],
-            pos=[side * 0.55, 0.0, 0.5], fixed=True,
+            name=f"wall_{side}",
+            shape=mjk.Shape.BOX,
+            size=[0.4, 0.01, 0.5],
+            pos=[side * 0.55, 0.0, 0.5],
+            fixed=True,
         )
         for side in (-1, 1)
     ]
-    with mjk.Scene.build(base_spec(add_floor=False, robots=[mjk.RobotSpec(path=str(path))], objects=walls)) as scene:
+    with mjk.Scene.build(
+        base_spec(add_floor=False, robots=[mjk.RobotSpec(path=str(path))], objects=walls)
+    ) as scene:
         arm = scene.create_robot("base", "l2")
         arm.set_joint_pos([np.pi / 2, 0.0])
         planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
         with pytest.raises(
             PlanningError,
-            match=r"RRTConnect found no collision-free path within 0.2 s \(\d+ states checked, status Approximate solution",
+            match=r"RRTConnect found no collision-free path within 0.2 s \(\d+ states checked, "
+            r"status Approximate solution",
         ):
             planner.plan([-np.pi / 2, 0.0], timeout=0.2)
 
@@ -164,27 +180,47 @@ def test_timeout_says_what_was_tried(tmp_path) -> None:
     ("kwargs", "message"),
     [
         ({"velocity_limits": [1.0] * 6}, r"velocity_limits needs 7 values"),
-        ({"velocity_limits": [1.0] * 6 + [0.0]}, r"velocity_limits\[6\] \(joint 'joint7'\) must be positive"),
-        ({"acceleration_limits": [-1.0] * 7}, r"acceleration_limits\[0\] \(joint 'joint1'\) must be positive"),
-        ({"acceleration_limits": [1.0, "a"] + [1.0] * 5}, r"acceleration_limits must hold real numbers"),
-        ({"planner": "RRTConect"}, r"planner must be one of OMPL's RRTConnect, .*; got 'RRTConect'"),
+        (
+            {"velocity_limits": [1.0] * 6 + [0.0]},
+            r"velocity_limits\[6\] \(joint 'joint7'\) must be positive",
+        ),
+        (
+            {"acceleration_limits": [-1.0] * 7},
+            r"acceleration_limits\[0\] \(joint 'joint1'\) must be positive",
+        ),
+        (
+            {"acceleration_limits": [1.0, "a"] + [1.0] * 5},
+            r"acceleration_limits must hold real numbers",
+        ),
+        (
+            {"planner": "RRTConect"},
+            r"planner must be one of OMPL's RRTConnect, .*; got 'RRTConect'",
+        ),
         ({"margin": -0.01}, r"margin must be a finite number >= 0"),
-        ({"allowed_contacts": [("hand", "shelf")]}, r"no body named 'shelf' in allowed_contacts\[0\]; close matches: shelf_b, shelf_a"),
-        ({"allowed_contacts": "hand"}, r"allowed_contacts must be a sequence of \(body_a, body_b\) pairs"),
+        (
+            {"allowed_contacts": [("hand", "shelf")]},
+            r"no body named 'shelf' in allowed_contacts\[0\]; close matches: shelf_b, shelf_a",
+        ),
+        (
+            {"allowed_contacts": "hand"},
+            r"allowed_contacts must be a sequence of \(body_a, body_b\) pairs",
+        ),
     ],
 )
 def test_bad_settings_are_refused_by_name(panda, kwargs, message) -> None:
-    env, robot, *_ = panda
+    _env, robot, *_ = panda
     with pytest.raises((mjk.SpecError, mjk.UnknownNameError), match=message):
         MotionPlanner(robot, **kwargs)
 
 
 def test_bad_goals_are_refused_by_name(panda) -> None:
-    env, robot, q_a, _ = panda
+    _env, robot, q_a, _ = panda
     planner = MotionPlanner(robot)
     with pytest.raises(mjk.SpecError, match=r"goal needs 7 values"):
         planner.plan([0.0] * 6)
-    with pytest.raises(PlanningError, match=r"goal: joint 'joint4' at 0.5 is outside \[-3.0718, -0.0698\]"):
+    with pytest.raises(
+        PlanningError, match=r"goal: joint 'joint4' at 0.5 is outside \[-3.0718, -0.0698\]"
+    ):
         planner.plan([0.0, 0.0, 0.0, 0.5, 0.0, 1.0, 0.0])
     with pytest.raises(mjk.SpecError, match=r"timeout must be a finite number > 0"):
         planner.plan(q_a, timeout=0.0)
@@ -200,5 +236,9 @@ def test_limits_default_to_the_datasheet_and_unknown_arms_must_give_them(tutoria
     assert planner.acceleration_limits.tolist() == [8.6] * 7
     # A chain that is neither a Panda nor a Gen3, and whose model has no limits.
     part = env.create_robot("base_link", "forearm_link")
-    with pytest.raises(mjk.SpecError, match=r"velocity_limits: the model has none for joints joint_1, joint_2, joint_3, joint_4 .*pass velocity_limits=\[...\] \(4 values\)"):
+    with pytest.raises(
+        mjk.SpecError,
+        match=r"velocity_limits: the model has none for joints joint_1, joint_2, joint_3, "
+        r"joint_4 .*pass velocity_limits=\[...\] \(4 values\)",
+    ):
         MotionPlanner(part)

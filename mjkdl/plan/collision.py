@@ -58,8 +58,10 @@ class CollisionChecker:
         model = copy.copy(source)
         self._model = model
         self._data = mujoco.MjData(model)
-        joints = [model_id(model, mujoco.mjtObj.mjOBJ_JOINT, "joint", j, "the robot")
-                  for j in self._robot.joint_names]
+        joints = [
+            model_id(model, mujoco.mjtObj.mjOBJ_JOINT, "joint", j, "the robot")
+            for j in self._robot.joint_names
+        ]
         self._qadr = np.array([model.jnt_qposadr[j] for j in joints])
         self._tip = int(model.jnt_bodyid[joints[-1]])
         self._moving = _subtree(model, int(model.jnt_bodyid[joints[0]]))
@@ -110,10 +112,7 @@ class CollisionChecker:
         if body is not None:
             b = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", body, "the scene (carry)")
             joint = int(model.body_jntadr[b])
-            if (
-                model.body_jntnum[b] != 1
-                or model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE
-            ):
+            if model.body_jntnum[b] != 1 or model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
                 raise SpecError(f"carry: body {body!r} is not a free body (it needs a free joint)")
             if self._moving[b]:
                 raise SpecError(f"carry: body {body!r} already moves with the arm")
@@ -192,6 +191,7 @@ class CollisionChecker:
         """The pairs of bodies closer than `reach` at `q`, nearest first: (body, body, m)."""
         self._place(q)
         model, data = self._model, self._data
+        assert model is not None
         out = []
         for i in self._counted().tolist():
             c = data.contact[i]
@@ -219,7 +219,9 @@ class CollisionChecker:
         keep = collide & (self._arm_body[b1] | self._arm_body[b2]) & (con.dist < self._reach)
         if self._allowed:
             lo, hi = np.minimum(b1, b2), np.maximum(b1, b2)
-            keep &= np.array([(x, y) not in self._allowed for x, y in zip(lo, hi)], dtype=bool)
+            keep &= np.array(
+                [(x, y) not in self._allowed for x, y in zip(lo, hi, strict=True)], dtype=bool
+            )
         return np.flatnonzero(keep)
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -105,9 +106,7 @@ class MotionPlanner:
         self._resolution = _number(resolution, "resolution", positive=True)
         self._padding = _number(padding, "padding")
         if not isinstance(planner, str) or planner not in PLANNERS:
-            raise SpecError(
-                f"planner must be one of OMPL's {', '.join(PLANNERS)}; got {planner!r}"
-            )
+            raise SpecError(f"planner must be one of OMPL's {', '.join(PLANNERS)}; got {planner!r}")
         self._planner_name = planner
         if isinstance(ik_attempts, bool) or not isinstance(ik_attempts, int) or ik_attempts < 1:
             raise SpecError(f"ik_attempts must be a positive integer, got {ik_attempts!r}")
@@ -174,7 +173,7 @@ class MotionPlanner:
         model = self._robot.scene.model
         return [model.body(model.joint(j).bodyid[0]).name for j in self._robot.joint_names]
 
-    def _ompl_space(self) -> object:
+    def _ompl_space(self) -> Any:
         from ompl import base as ob
 
         space = ob.RealVectorStateSpace(self._n)
@@ -316,11 +315,7 @@ class MotionPlanner:
     # ------------------------------------------------------------------ steps
 
     def _start(self, start: Sequence[float] | None) -> np.ndarray:
-        q = (
-            self._robot.jnt_pos_msr.copy()
-            if start is None
-            else _vector(start, self._n, "start")
-        )
+        q = self._robot.jnt_pos_msr.copy() if start is None else _vector(start, self._n, "start")
         self._inside(q, "start")
         self._in_collision(q, "the start")
         return q
@@ -332,7 +327,11 @@ class MotionPlanner:
             raise PlanningError(
                 f"{what}: joint {self._robot.joint_names[i]!r} at {q[i]:g} is outside "
                 f"[{self._lower[i]:g}, {self._upper[i]:g}]"
-                + (" (unlimited joints are planned within ±2π)" if self._upper[i] == UNLIMITED_RANGE else "")
+                + (
+                    " (unlimited joints are planned within ±2π)"
+                    if self._upper[i] == UNLIMITED_RANGE
+                    else ""
+                )
             )
 
     def _in_collision(self, q: np.ndarray, what: str) -> None:
@@ -502,6 +501,8 @@ def _interpolate(a: pin.SE3, b: pin.SE3, s: float) -> pin.SE3:
 def _datasheet(links: list[str]) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
     """The datasheet limits of the arm whose links are named `links` (any prefix)."""
     for names, limits in DATASHEET_LIMITS.items():
-        if len(names) == len(links) and all(a.endswith(b) for a, b in zip(links, names)):
+        if len(names) == len(links) and all(
+            a.endswith(b) for a, b in zip(links, names, strict=True)
+        ):
             return limits
     return None

@@ -3,9 +3,11 @@
 A `JointTrajectory` holds knots (time, position, velocity, acceleration) and samples between
 them: positions and velocities on cubic Hermite polynomials, accelerations linearly. toppra's
 accelerations jump at its grid points; a polynomial through them would ring past the limits
-(a quintic by up to 20% in tests), linear interpolation never leaves the knots' range. A `TimeParametrizer` times a path of joint waypoints
-under per-joint velocity and acceleration limits with toppra (TOPP-RA): a cubic spline through
-the waypoints is followed as fast as the limits allow, at rest at both ends.
+(a quintic by up to 20% in tests), linear interpolation never leaves the knots' range.
+
+A `TimeParametrizer` times a path of joint waypoints under per-joint velocity and acceleration
+limits with toppra (TOPP-RA): a cubic spline through the waypoints is followed as fast as the
+limits allow, at rest at both ends.
 """
 
 from __future__ import annotations
