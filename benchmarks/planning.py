@@ -179,7 +179,8 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
     print(f"  straight line enough:  {np.mean(np.array(search) == 0) * 100:.0f} % of solved")
     print(f"  trajectory duration:   median {np.median([t.duration for t in trajectories]):.2f} s")
     print(
-        f"  validity check:        {check * 1e6:.1f} us = {check / step:.2f} x mj_step ({step * 1e6:.1f} us)"
+        f"  validity check:        {check * 1e6:.1f} us = {check / step:.2f} x mj_step "
+        f"({step * 1e6:.1f} us)"
     )
     print(
         f"  executed:              {len(closest)} trajectories, closest approach "
