@@ -24,6 +24,8 @@ def test_sample_reproduces_a_cubic_and_holds_the_ends() -> None:
         assert np.allclose(q, cubic(np.array(t)), atol=1e-12)
         assert np.allclose(qd, speed(np.array(t)), atol=1e-12)
         assert np.allclose(qdd, accel(np.array(t)), atol=1e-12)  # linear in t: exact
+    many = traj.positions_at(np.array([-1.0, 0.1, 0.42, 1.0, 2.0]))
+    assert np.allclose(many, [traj.sample(t)[0] for t in (0.0, 0.1, 0.42, 1.0, 1.0)], atol=1e-14)
     assert np.array_equal(traj.sample(-1.0)[0], traj.positions[0])
     assert np.array_equal(traj.sample(5.0)[1], traj.velocities[-1])
     with pytest.raises(ValueError, match="read-only"):

@@ -64,6 +64,10 @@ class CollisionChecker:
         ]
         self._qadr = np.array([model.jnt_qposadr[j] for j in joints])
         self._tip = int(model.jnt_bodyid[joints[-1]])
+        first, count = int(self._qadr[0]), len(self._qadr)
+        # A view of the arm's qpos, written per check, when the joints are consecutive.
+        consecutive = np.array_equal(self._qadr, np.arange(first, first + count))
+        self._arm_qpos = self._data.qpos[first : first + count] if consecutive else None
         self._moving = _subtree(model, int(model.jnt_bodyid[joints[0]]))
         # Bodies the arm moves, numbered by the last arm joint between them and the base.
         self._groups = np.full(model.nbody, -1)
@@ -160,10 +164,13 @@ class CollisionChecker:
 
     # ------------------------------------------------------------------ checks
 
-    def _place(self, q: np.ndarray) -> None:
+    def _place(self, q: np.ndarray | Sequence[float]) -> None:
         model, data = self._model, self._data
-        data.qpos[self._qadr] = q
-        mujoco.mj_kinematics(model, data)
+        if self._arm_qpos is not None:
+            self._arm_qpos[...] = q
+        else:
+            data.qpos[self._qadr] = q
+        _kinematics(model, data)
         if self._carried >= 0:
             tip_mat = data.xmat[self._tip].reshape(3, 3)
             adr = self._carry_qadr
@@ -171,13 +178,13 @@ class CollisionChecker:
             mujoco.mju_mat2Quat(self._quat, (tip_mat @ self._rel_mat).ravel())
             data.qpos[adr + 3 : adr + 7] = self._quat
             mujoco.mj_kinematics(model, data)
-        mujoco.mj_collision(model, data)
+        _collision(model, data)
 
-    def valid(self, q: np.ndarray) -> bool:
+    def valid(self, q: np.ndarray | Sequence[float]) -> bool:
         """Whether the arm at `q` keeps the margin from everything (itself included)."""
         return self.clearance(q) >= self._margin
 
-    def clearance(self, q: np.ndarray) -> float:
+    def clearance(self, q: np.ndarray | Sequence[float]) -> float:
         """The smallest distance (m) between a geom the arm moves and another geom, at `q`;
         inf when nothing is within `reach` (negative: penetration)."""
         self._place(q)
@@ -187,7 +194,7 @@ class CollisionChecker:
         counted = self._counted()
         return float(data.contact.dist[counted].min()) if len(counted) else math.inf
 
-    def contacts(self, q: np.ndarray) -> list[tuple[str, str, float]]:
+    def contacts(self, q: np.ndarray | Sequence[float]) -> list[tuple[str, str, float]]:
         """The pairs of bodies closer than `reach` at `q`, nearest first: (body, body, m)."""
         self._place(q)
         model, data = self._model, self._data
@@ -223,6 +230,9 @@ class CollisionChecker:
                 [(x, y) not in self._allowed for x, y in zip(lo, hi, strict=True)], dtype=bool
             )
         return np.flatnonzero(keep)
+
+
+_kinematics, _collision = mujoco.mj_kinematics, mujoco.mj_collision
 
 
 def _subtree(model: mujoco.MjModel, root: int) -> np.ndarray:

@@ -62,6 +62,8 @@ PLANNERS = (
 )
 # Within this distance (rad, any joint) of the start or goal the search needs only `margin`.
 ESCAPE = 0.2
+# Near obstacles the timed trajectory is checked this many times more finely.
+FINE = 4
 # OMPL's cheap simplification passes (simplifyMax shortens paths ~25% at 5x the cost).
 SIMPLIFY = ("reduceVertices", "collapseCloseVertices")
 # Joints without position limits are planned within this range (rad).
@@ -93,7 +95,7 @@ class MotionPlanner:
         velocity_limits: Sequence[float] | None = None,
         acceleration_limits: Sequence[float] | None = None,
         allowed_contacts: Sequence[tuple[str, str]] = (),
-        resolution: float = 0.03,
+        resolution: float = 0.05,
         padding: float = 0.005,
         ik_attempts: int = 20,
         seed: int = 0,
@@ -123,7 +125,6 @@ class MotionPlanner:
         limits = robot.joint_limits
         self._lower = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -UNLIMITED_RANGE)
         self._upper = np.where(np.isfinite(limits[:, 1]), limits[:, 1], UNLIMITED_RANGE)
-        self._q = np.zeros(self._n)
         self._ends = np.zeros((2, self._n))  # start and goal of the search under way
         self.checks = 0  # validity checks since the planner was made
         # Seconds the last plan spent searching and simplifying (0 for a straight line).
@@ -183,11 +184,10 @@ class MotionPlanner:
             bounds.setHigh(i, float(self._upper[i]))
         space.setBounds(bounds)
         si = ob.SpaceInformation(space)
-        n, q = self._n, self._q
+        n, search_valid = self._n, self._search_valid
 
-        def valid(state: object) -> bool:
-            q[:] = state[0:n]  # type: ignore[index]
-            return self._search_valid(q)
+        def valid(state: Any) -> bool:
+            return search_valid(state[0:n])
 
         si.setStateValidityChecker(valid)
         si.setStateValidityCheckingResolution(self._resolution / space.getMaximumExtent())
@@ -248,8 +248,18 @@ class MotionPlanner:
         try:
             q0 = self._start(start)
             q1 = self._goal(goal, q0)
-            waypoints = self._search(q0, q1, budget, began)
-            return self._timed(waypoints)
+            straight = True
+            while True:  # a path whose timing cuts into the margin is searched again
+                waypoints = self._search(q0, q1, budget, began, straight)
+                trajectory = self._timed(waypoints)
+                if trajectory is not None:
+                    return trajectory
+                straight = False
+                if time.perf_counter() - began > budget:
+                    raise PlanningError(
+                        f"{self._planner_name}: every path found within {budget:g} s came "
+                        "closer than the margin once timed; raise the timeout or the padding"
+                    )
         finally:
             if carry is not None:
                 self._checker.carry(None)
@@ -307,7 +317,13 @@ class MotionPlanner:
                 q = result.q
                 self._in_collision(q, f"plan_cartesian: the pose {where}")
                 waypoints.append(q)
-            return self._timed(np.array(waypoints))
+            trajectory = self._timed(np.array(waypoints))
+            if trajectory is None:
+                raise PlanningError(
+                    "plan_cartesian: the timed line comes closer than the margin between its "
+                    "IK steps; lower `step` or the margin"
+                )
+            return trajectory
         finally:
             if carry is not None:
                 self._checker.carry(None)
@@ -385,16 +401,18 @@ class MotionPlanner:
             f"error {best_error:.3g} m)"
         )
 
-    def _search(self, q0: np.ndarray, q1: np.ndarray, budget: float, began: float) -> np.ndarray:
+    def _search(
+        self, q0: np.ndarray, q1: np.ndarray, budget: float, began: float, straight: bool = True
+    ) -> np.ndarray:
         """OMPL's path from q0 to q1, simplified, as waypoints (k×n); `budget` seconds from
-        `began` (a `perf_counter` time)."""
+        `began` (a `perf_counter` time). `straight`: try the straight segment first."""
         from ompl import geometric as og
         from ompl import util as ou
 
         si = self._space_info
         self._ends[0], self._ends[1] = q0, q1
         self.last_stats.update(search=0.0, simplify=0.0)
-        if self._straight(q0, q1):
+        if straight and self._straight(q0, q1):
             return np.array([q0, q1])
         setup = og.SimpleSetup(si)
         planner = getattr(og, self._planner_name)(si)
@@ -430,7 +448,7 @@ class MotionPlanner:
         n = self._n
         return np.array([state[0:n] for state in path.getStates()])
 
-    def _search_valid(self, q: np.ndarray) -> bool:
+    def _search_valid(self, q: np.ndarray | list[float]) -> bool:
         """The search's test: `margin + padding` clear, or `margin` within `ESCAPE` of the
         start or goal (which may themselves be closer than the padding to something)."""
         self.checks += 1
@@ -439,48 +457,56 @@ class MotionPlanner:
             return True
         if d < self._margin:
             return False
-        return bool(np.abs(self._ends - q).max(axis=1).min() < ESCAPE)
+        return bool(np.abs(self._ends - np.asarray(q)).max(axis=1).min() < ESCAPE)
 
     def _straight(self, q0: np.ndarray, q1: np.ndarray) -> bool:
         """Whether the straight joint-space segment q0 -> q1 passes the search's test."""
         count = max(1, math.ceil(float(np.linalg.norm(q1 - q0)) / self._resolution))
         return all(self._search_valid(q0 + (q1 - q0) * (k / count)) for k in range(1, count))
 
-    def _timed(self, waypoints: np.ndarray) -> JointTrajectory:
+    def _timed(self, waypoints: np.ndarray) -> JointTrajectory | None:
         """toppra's timing of the path, checked; when the spline cuts a corner into a
-        collision, the path is subdivided (the spline then hugs it) and timed again."""
-        for _ in range(4):
+        collision, the path is subdivided (the spline then hugs it) and timed again. None
+        when that does not help: the path itself grazes the margin between its checks."""
+        for _ in range(3):
             trajectory = self._timing(waypoints)
             if self._trajectory_ok(trajectory):
                 return trajectory
             waypoints = _subdivide(waypoints)
-        raise PlanningError(
-            "the timed trajectory leaves the collision-free path even through "
-            f"{len(waypoints)} waypoints; lower the resolution or raise the margin"
-        )
+        return None
 
     def _trajectory_ok(self, trajectory: JointTrajectory) -> bool:
-        """Whether the trajectory keeps the margin, checked at its knots (10 ms apart) no more
-        than `resolution` apart, and in between where knots are further apart."""
-        positions, times = trajectory.positions, trajectory.times
-        checker = self._checker
-        q, qd, qdd = np.empty(self._n), np.empty(self._n), np.empty(self._n)
-        gaps = np.abs(np.diff(positions, axis=0)).max(axis=1)
-        travelled = 0.0
-        for i, gap in enumerate(gaps.tolist()):
-            travelled += gap
-            if travelled < self._resolution and i + 1 < len(gaps):
-                continue
-            travelled = 0.0
-            count = math.ceil(gap / self._resolution)
-            for k in range(1, count):  # a gap wider than the resolution: look in between
-                trajectory.sample_into(times[i] + (times[i + 1] - times[i]) * k / count, q, qd, qdd)
-                self.checks += 1
-                if not checker.valid(q):
-                    return False
-            self.checks += 1
-            if not checker.valid(positions[i + 1]):
+        """Whether the trajectory keeps the margin: checked every `resolution` (rad, any
+        joint) and, on both sides of a state closer than `margin + padding` to something,
+        every quarter of it."""
+        fine = self._resolution / FINE
+        times, positions = trajectory.times, trajectory.positions
+        # A time grid whose steps move no joint more than `fine`.
+        splits = np.maximum(1, np.ceil(np.abs(np.diff(positions, axis=0)).max(axis=1) / fine))
+        counts = splits.astype(int)
+        start = np.repeat(times[:-1], counts)
+        frac = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        grid = np.append(start + np.repeat(np.diff(times) / splits, counts) * frac, times[-1])
+        q = trajectory.positions_at(grid)
+        travelled = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(q, axis=0)).max(axis=1))])
+        marks = np.floor(travelled / self._resolution)
+        coarse = np.flatnonzero(np.diff(marks, prepend=-1.0) > 0).tolist()
+        if coarse[-1] != len(grid) - 1:
+            coarse.append(len(grid) - 1)
+        clearance, margin, reach = self._checker.clearance, self._margin, self._checker.reach
+        near = []
+        for k in coarse:
+            d = clearance(q[k])
+            if d < margin:
                 return False
+            near.append(d < reach)
+        self.checks += len(coarse)
+        for j in range(len(coarse) - 1):
+            if near[j] or near[j + 1]:
+                between = range(coarse[j] + 1, coarse[j + 1])
+                self.checks += len(between)
+                if any(clearance(q[k]) < margin for k in between):
+                    return False
         return True
 
 

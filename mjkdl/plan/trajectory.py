@@ -105,6 +105,14 @@ class JointTrajectory:
         np.dot((0.0, 1.0 / h, 2.0 * s / h, 3.0 * s2 / h, 0.0, 0.0), c, out=qd)
         np.dot((0.0, 0.0, 0.0, 0.0, 1.0 - s, s), c, out=qdd)
 
+    def positions_at(self, times: np.ndarray) -> np.ndarray:
+        """Positions at many `times` at once (len(times)×n), as `sample` gives them."""
+        t = np.clip(np.asarray(times, dtype=float), 0.0, self.duration)
+        i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
+        s = ((t - self.times[i]) / (self.times[i + 1] - self.times[i]))[:, None]
+        c = self._coeffs[i]
+        return c[:, 0] + s * (c[:, 1] + s * (c[:, 2] + s * c[:, 3]))
+
 
 def _array(value: object, name: str, ndim: int) -> np.ndarray:
     try:
