@@ -292,6 +292,6 @@ def test_plan_shelves() -> None:
         "back around the wall",
     ]
     assert max(float(leg[2]) for leg in legs) < 5.0  # the follower tracks within 5 mrad
-    assert numbers("cube at z", out)[3] > 0.45  # carried high, over or around the wall
+    assert numbers("cube at z", out)[2] > 0.45  # carried high, over or around the wall
     assert number("place error:", out) < 0.02
     assert "result: success" in out
