@@ -242,3 +242,17 @@ def test_limits_default_to_the_datasheet_and_unknown_arms_must_give_them(tutoria
         r"joint_4 .*pass velocity_limits=\[...\] \(4 values\)",
     ):
         MotionPlanner(part)
+
+
+def test_unlimited_joints_are_planned_beyond_pi(tutorial_scene) -> None:
+    """The Gen3's joint_3 rests at 3.14 rad (home); a goal a turn and a half away is reached."""
+    env = tutorial_scene(mjk.Env)
+    gen3 = env.create_robot("base_link", "bracelet_link")
+    home = np.array([0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708])
+    gen3.set_joint_pos(home)
+    gen3.update()
+    goal = home + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.5])  # joint_7 to 6.07 rad
+    traj = MotionPlanner(gen3).plan(goal)
+    assert np.abs(traj.positions[-1] - goal).max() < 1e-12
+    with pytest.raises(PlanningError, match=r"joint 'joint_7' at 7.5708 is outside .* ±2π"):
+        MotionPlanner(gen3).plan(home + np.array([0.0] * 6 + [6.0]))

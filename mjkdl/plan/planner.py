@@ -129,7 +129,8 @@ class MotionPlanner:
         self.checks = 0  # validity checks since the planner was made
         # Seconds the last plan spent searching and simplifying (0 for a straight line).
         self.last_stats: dict[str, float] = {"search": 0.0, "simplify": 0.0}
-        self._space_info = self._ompl_space()
+        self._unlimited = ~np.isfinite(limits).all(axis=1)
+        self._space_info = self._ompl_space(self._lower, self._upper)
 
     # ------------------------------------------------------------------ setup
 
@@ -174,14 +175,15 @@ class MotionPlanner:
         model = self._robot.scene.model
         return [model.body(model.joint(j).bodyid[0]).name for j in self._robot.joint_names]
 
-    def _ompl_space(self) -> Any:
+    def _ompl_space(self, lower: np.ndarray, upper: np.ndarray) -> Any:
+        """OMPL's space information: joint positions within [lower, upper], our checks."""
         from ompl import base as ob
 
         space = ob.RealVectorStateSpace(self._n)
         bounds = ob.RealVectorBounds(self._n)
         for i in range(self._n):
-            bounds.setLow(i, float(self._lower[i]))
-            bounds.setHigh(i, float(self._upper[i]))
+            bounds.setLow(i, float(lower[i]))
+            bounds.setHigh(i, float(upper[i]))
         space.setBounds(bounds)
         si = ob.SpaceInformation(space)
         n, search_valid = self._n, self._search_valid
@@ -410,6 +412,14 @@ class MotionPlanner:
         from ompl import util as ou
 
         si = self._space_info
+        if self._unlimited.any():
+            # An unlimited joint is searched within half a turn beyond the start and goal,
+            # not over the whole ±2π: a quarter of the volume per joint, or less.
+            lower, upper = self._lower.copy(), self._upper.copy()
+            free = self._unlimited
+            lower[free] = np.minimum(q0, q1)[free] - math.pi
+            upper[free] = np.maximum(q0, q1)[free] + math.pi
+            si = self._ompl_space(lower, upper)
         self._ends[0], self._ends[1] = q0, q1
         self.last_stats.update(search=0.0, simplify=0.0)
         if straight and self._straight(q0, q1):
