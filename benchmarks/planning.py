@@ -9,6 +9,8 @@ timeout=1.0)` (RRTConnect): success within the timeout, planning time (everythin
 simplification, toppra, the final check) and the search alone, as median and 90th percentile.
 
 Then, in the same process:
+  * each query's planning time in mj_steps of the same model, timed just before it (the
+    shared machine's speed drifts);
   * the cost of one validity check (`CollisionChecker.valid`) on random configurations, as a
     ratio to one raw `mj_step` of the same model;
   * every planned trajectory is executed in the simulation (`TrajectoryFollower`, POSITION
@@ -124,8 +126,16 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
     configs = queries(planner, args.queries, rng)
     planner.plan(configs[1], start=configs[0])  # warm-up (imports, first IK)
 
-    total, search, trajectories, failures = [], [], [], []
+    # Each query is also timed in mj_steps of the same model, measured just before it: the
+    # shared machine's speed drifts by 2x and more within minutes.
+    scratch = mujoco.MjData(env.model)
+    mujoco.mj_copyData(scratch, env.model, env.data)
+    total, search, steps, trajectories, failures = [], [], [], [], []
     for start, goal in itertools.pairwise(configs):
+        t0 = time.perf_counter()
+        for _ in range(20):
+            mujoco.mj_step(env.model, scratch)
+        step_now = (time.perf_counter() - t0) / 20
         t0 = time.perf_counter()
         try:
             traj = planner.plan(goal, start=start, timeout=args.timeout)
@@ -133,12 +143,11 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
             failures.append(str(error).split(":")[0])
             continue
         total.append(time.perf_counter() - t0)
+        steps.append(total[-1] / step_now)
         search.append(planner.last_stats["search"] + planner.last_stats["simplify"])
         trajectories.append(traj)
 
     # One validity check against one raw mj_step (on a scratch copy of the same state).
-    scratch = mujoco.MjData(env.model)
-    mujoco.mj_copyData(scratch, env.model, env.data)
     samples = rng.uniform(-1.0, 1.0, (1000, robot.n_joints)) * 0.5 + np.array(home)
     index = iter(range(10**9))
     check = per_call(lambda: planner.checker.valid(samples[next(index) % 1000]), 1000)
@@ -171,6 +180,10 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
     print(
         f"  planning time:         median {np.median(ms_total):.1f} ms, "
         f"p90 {np.percentile(ms_total, 90):.1f} ms (search + simplification + toppra + check)"
+    )
+    print(
+        f"  planning time / step:  median {np.median(steps):.0f} mj_steps, "
+        f"p90 {np.percentile(steps, 90):.0f} (each against a step timed just before it)"
     )
     print(
         f"  search + simplify:     median {np.median(ms_search):.1f} ms, "
