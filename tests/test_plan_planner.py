@@ -256,3 +256,37 @@ def test_unlimited_joints_are_planned_beyond_pi(tutorial_scene) -> None:
     assert np.abs(traj.positions[-1] - goal).max() < 1e-12
     with pytest.raises(PlanningError, match=r"joint 'joint_7' at 7.5708 is outside .* ±2π"):
         MotionPlanner(gen3).plan(home + np.array([0.0] * 6 + [6.0]))
+
+
+def test_a_carried_body_moves_with_the_hand_in_the_checks() -> None:
+    menagerie("franka_emika_panda")
+    cube = mjk.SceneObject(
+        name="cube", shape=mjk.Shape.BOX, size=[0.02] * 3, pos=[0.0, 0.0, 0.02], mass=0.05
+    )
+    with mjk.Env.build(panda_spec(objects=[*shelf_objects(), cube])) as env:
+        arm = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
+        q_a = arm.ik(ABOVE_A, HOME).q
+        arm.set_joint_pos(q_a)
+        # Hanging 10 cm below the TCP, its bottom 3 cm above shelf A.
+        env.set_body_pose("cube", ABOVE_A.translation - np.array([0.0, 0.0, 0.1]))
+        env.forward()
+        lower = arm.ik(
+            pin.SE3(ABOVE_A.rotation, ABOVE_A.translation - np.array([0, 0, 0.03])), q_a
+        ).q
+        checker = CollisionChecker(arm, 0.005)
+        assert checker.valid(lower)  # the cube stays where it is: nothing touches
+        checker.carry("cube")
+        assert [pair[:2] for pair in checker.contacts(lower)] == [("shelf_a", "cube")]
+        wide = CollisionChecker(arm, 0.005, reach=0.05)  # measures distances up to 5 cm
+        wide.carry("cube")
+        gaps = [d for a, b, d in wide.contacts(q_a) if "cube" in (a, b)]
+        assert gaps == [pytest.approx(0.03, abs=2e-4)]  # the cube's bottom above shelf A
+        assert env.data.body("cube").xpos[2] == pytest.approx(0.35)  # the scene's did not move
+        checker.carry(None)
+        assert checker.valid(lower)
+        with pytest.raises(mjk.SpecError, match=r"carry: body 'wall' is not a free body"):
+            checker.carry("wall")
+        with pytest.raises(
+            mjk.UnknownNameError, match=r"no body named 'cub' in the scene \(carry\)"
+        ):
+            checker.carry("cub")

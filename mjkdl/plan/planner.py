@@ -4,9 +4,10 @@
 joint vector or a TCP pose with one of OMPL's geometric planners, every state checked by a
 `CollisionChecker` (MuJoCo's collision detection with `margin` clearance) and every edge at
 `resolution` radians. The path is shortened with OMPL's simplifier, timed with toppra under
-velocity and acceleration limits, and the timed trajectory is checked once more at the same
-resolution (the spline through the waypoints may cut a corner). `plan_cartesian(pose)` follows
-a straight TCP line instead, through IK at every `step`.
+velocity and acceleration limits, and the timed trajectory is checked once more, finely next
+to obstacles (the spline through the waypoints may cut a corner). `plan_cartesian(pose)`
+follows a straight TCP line instead, through IK at every `step`. docs/motion.md has the
+details and the figures.
 """
 
 from __future__ import annotations
@@ -83,7 +84,9 @@ class MotionPlanner:
     joint-space distance (rad) between two checks along an edge. `padding` (m): the search
     keeps `margin + padding` clear where it can (away from the start and goal), so the motion
     between checked states and the timed spline keep `margin`. `ik_attempts`: seeds tried
-    for a pose goal. Everything the arm does not move is taken where it is when `plan` starts.
+    for a pose goal, drawn from `seed` (OMPL's own sampling is seeded process-wide:
+    `ompl.util.RNG.setSeed`). Everything the arm does not move is taken where it is when
+    `plan` starts.
     """
 
     def __init__(
