@@ -123,7 +123,7 @@ class OperationalSpaceController:
         if not math.isfinite(e.dot(e)):
             raise SpecError(f"target must be finite, got {target}")
         accel = self._kp * e - self._kd * (J @ qd)
-        M = self._symmetric(data.M[arm, arm])
+        M = self._symmetric(data.M[self._block])
         jm = _solve(M, J.T).T  # J M⁻¹ (M is symmetric)
         inertia_inv = jm @ J.T
         inertia = _damped_inverse(inertia_inv)  # Λ = (J M⁻¹ Jᵀ)⁻¹
@@ -161,6 +161,9 @@ class OperationalSpaceController:
         self._data = self._model.createData()
         self._frame = robot.tcp_frame_id
         self._arm = robot.arm_v
+        # The arm's block of M: a slice pair, or an open mesh when the arm is not contiguous.
+        arm = self._arm
+        self._block = (arm, arm) if isinstance(arm, slice) else np.ix_(arm, arm)
         self._n = robot.n_joints
         self._lower_idx = np.tril_indices(self._n, -1)
 
