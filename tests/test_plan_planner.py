@@ -290,3 +290,13 @@ def test_a_carried_body_moves_with_the_hand_in_the_checks() -> None:
             mjk.UnknownNameError, match=r"no body named 'cub' in the scene \(carry\)"
         ):
             checker.carry("cub")
+
+
+def test_collision_checker_settings_are_refused_by_name(panda) -> None:
+    env, robot, *_ = panda
+    with pytest.raises(mjk.SpecError, match=r"margin must be a finite number >= 0"):
+        CollisionChecker(robot, -0.001)
+    with pytest.raises(mjk.SpecTypeError, match=r"reach must be a finite number >= 0"):
+        CollisionChecker(robot, 0.005, reach="far")
+    with pytest.raises(mjk.SpecTypeError, match=r"CollisionChecker: robot must be a Robot"):
+        CollisionChecker(env, 0.005)

@@ -19,9 +19,13 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from ..errors import SpecError
+from ..control.cartesian import _number, _pair_names
+from ..errors import SpecError, SpecTypeError
 from ..names import model_id
 from ..robot import Robot
+
+# Each group of arm links gets one of MuJoCo's 32 contype bits (the sign bit left alone).
+_MAX_GROUPS = 31
 
 
 class CollisionChecker:
@@ -40,10 +44,12 @@ class CollisionChecker:
         allowed_contacts: Sequence[tuple[str, str]] = (),
         reach: float | None = None,
     ) -> None:
+        if not isinstance(robot, Robot):
+            raise SpecTypeError(f"CollisionChecker: robot must be a Robot, got {robot!r}")
         self._robot = robot
-        self._margin = float(margin)
-        self._reach = max(self._margin, float(reach if reach is not None else margin))
-        self._allowed_names = list(allowed_contacts)
+        self._margin = _number(margin, "margin")
+        self._reach = max(self._margin, _number(reach, "reach") if reach is not None else 0.0)
+        self._allowed_names = _pair_names(allowed_contacts, "allowed_contacts")
         self._model: mujoco.MjModel | None = None
         self._carry_name: str | None = None
         self._bind()
@@ -63,6 +69,11 @@ class CollisionChecker:
             for j in self._robot.joint_names
         ]
         self._qadr = np.array([model.jnt_qposadr[j] for j in joints])
+        if len(joints) > _MAX_GROUPS:
+            raise SpecError(
+                f"CollisionChecker: {len(joints)} joints; MuJoCo's 32 contype bits give "
+                f"groups for {_MAX_GROUPS} at most"
+            )
         self._tip = int(model.jnt_bodyid[joints[-1]])
         first, count = int(self._qadr[0]), len(self._qadr)
         # A view of the arm's qpos, written per check, when the joints are consecutive.
@@ -112,7 +123,7 @@ class CollisionChecker:
         model = self._model
         assert model is not None
         moving = self._moving.copy()
-        self._carried, self._carry_qadr = -1, -1
+        carried, qadr = -1, -1
         if body is not None:
             b = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", body, "the scene (carry)")
             joint = int(model.body_jntadr[b])
@@ -120,8 +131,9 @@ class CollisionChecker:
                 raise SpecError(f"carry: body {body!r} is not a free body (it needs a free joint)")
             if self._moving[b]:
                 raise SpecError(f"carry: body {body!r} already moves with the arm")
-            self._carried, self._carry_qadr = b, int(model.jnt_qposadr[joint])
+            carried, qadr = b, int(model.jnt_qposadr[joint])
             moving[b] = True
+        self._carried, self._carry_qadr = carried, qadr
         self._carry_name = body
         self._masks(moving)
         self.sync()

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..control.cartesian import _number, _pair_names, _vector
+from ..control.cartesian import _number, _vector
 from ..errors import PlanningError, SpecError, SpecTypeError
 from ..robot import Robot
 from .collision import CollisionChecker
@@ -121,7 +121,7 @@ class MotionPlanner:
         self._checker = CollisionChecker(
             robot,
             self._margin,
-            _pair_names(allowed_contacts, "allowed_contacts"),
+            allowed_contacts,
             reach=self._margin + self._padding,
         )
         self._rng = np.random.default_rng(seed)
