@@ -232,3 +232,24 @@ def deadline(seconds: float, what: str) -> Iterator[None]:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+# ---------------------------------------------------------------------- Panda, two shelves, a wall
+
+SHELF_TOP = 0.30  # m, the shelves' upper surface
+DOWN = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]  # TCP z pointing down
+
+
+def shelf_objects() -> list[mjk.SceneObject]:
+    """Two shelves either side of the Panda's x axis and a wall between them, 0.7 m tall."""
+
+    def board(name: str, size: list[float], pos: list[float]) -> mjk.SceneObject:
+        return mjk.SceneObject(
+            name=name, shape=mjk.Shape.BOX, size=size, pos=pos, fixed=True, rgba=[0.6, 0.5, 0.4, 1]
+        )
+
+    return [
+        board("shelf_a", [0.12, 0.12, 0.01], [0.45, 0.35, SHELF_TOP - 0.01]),
+        board("shelf_b", [0.12, 0.12, 0.01], [0.45, -0.35, SHELF_TOP - 0.01]),
+        board("wall", [0.25, 0.01, 0.35], [0.55, 0.0, 0.35]),
+    ]

@@ -47,6 +47,11 @@ def run_benchmark(name: str, *args: str) -> str:
         ("step_check", ("--blocks", "2", "--steps", "50"), r"scene\.step\(\) / raw mj_step:"),
         ("record", ("--frames", "4", "--rounds", "1"), r"\n\s+off"),
         (
+            "planning",
+            ("--queries", "3", "--execute", "1"),
+            r"Gen3 \+ 2F-85: 3 random queries.*\n\s+solved:",
+        ),
+        (
             "task_env",
             ("--blocks", "1", "--camera-blocks", "1", "--vector-seconds", "0.5"),
             r"async vector env, 128x128 camera, 1 sub-env\(s\):",

@@ -291,3 +291,21 @@ def test_multiple_robots() -> None:
     ):
         assert re.search(rf"{name}: base at {pose} deg, 7 joints, QP optimal", out), out
     assert number("max difference between the motions in the base frames:", out) < 0.002
+
+
+@pytest.mark.usefixtures("_panda")
+def test_plan_shelves() -> None:
+    out = run_example("plan_shelves")
+    legs = re.findall(r"^(.+): planned in \d+ ms, ([\d.]+) s, max error ([\d.]+) mrad", out, re.M)
+    assert [leg[0] for leg in legs] == [
+        "down to the cube",
+        "lift",
+        "around the wall to shelf B",
+        "down to shelf B",
+        "retreat",
+        "back around the wall",
+    ]
+    assert max(float(leg[2]) for leg in legs) < 5.0  # the follower tracks within 5 mrad
+    assert numbers("cube at z", out)[2] > 0.45  # carried high, over or around the wall
+    assert number("place error:", out) < 0.02
+    assert "result: success" in out
