@@ -137,6 +137,12 @@ def ppo_reach(steps: int) -> None:
     save("ppo-reach", record)
 
 
+# rl-zoo's settings for goal-conditioned reaching (a shorter horizon, faster targets): with
+# SB3's defaults (gamma 0.99, learning rate 3e-4, tau 0.005) SAC + HER was still at 0 % after
+# 16k steps here.
+HER_REACH = {"gamma": 0.95, "learning_rate": 1e-3, "tau": 0.05}
+
+
 def her_reach(steps: int) -> None:
     """SAC + HER (SB3's HerReplayBuffer, 4 future goals) on the goal-conditioned Reach."""
     from stable_baselines3 import SAC, HerReplayBuffer
@@ -150,6 +156,7 @@ def her_reach(steps: int) -> None:
             replay_buffer_class=HerReplayBuffer,
             replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
             learning_starts=1000,
+            **HER_REACH,
             seed=0,
             verbose=0,
         ),
@@ -159,7 +166,7 @@ def her_reach(steps: int) -> None:
     record["recipe"] = (
         "SAC('MultiInputPolicy', env, replay_buffer_class=HerReplayBuffer, "
         "replay_buffer_kwargs={'n_sampled_goal': 4, 'goal_selection_strategy': 'future'}, "
-        "learning_starts=1000), otherwise SB3's defaults, seed 0"
+        f"learning_starts=1000, {HER_REACH}), otherwise SB3's defaults, seed 0"
     )
     save("her-reach", record)
 

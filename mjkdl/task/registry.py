@@ -190,30 +190,37 @@ class _Registered(TaskEnv):
                 f"{', '.join(valid)} (and gymnasium.make's own, e.g. max_episode_steps)"
             )
 
-    def _episode(
+    def _finish(
         self,
         spec: TaskSpec,
-        time_limit: float | None,
-        control_timestep: float,
+        given: Mapping[str, Any],
         reward: str,
-        camera_names: Sequence[str],
-        camera_size: Sequence[int],
-        hide_observations: Sequence[str],
-    ) -> TaskSpec:
-        """`spec` with the common parameters applied."""
-        spec.hide = hide_observations
-        spec.time_limit = time_limit  # None: the registered TimeLimit (max_episode_steps)
-        spec.control_timestep = control_timestep
+        goal: Mapping[str, Any] | None = None,
+    ) -> None:
+        """Apply the parameters every registered task shares (`given`: the constructor's
+        arguments by name) to `spec`, then build the env (goal-conditioned with `goal`)."""
+        self._refuse_unknown(given["unknown"])
+        spec.hide = given["hide_observations"]
+        spec.time_limit = given["time_limit"]  # None: the registered TimeLimit alone
+        spec.control_timestep = given["control_timestep"]
         if reward_type(reward) == "sparse":
             spec.reward = SparseReward(spec.success)
-        if isinstance(camera_size, (str, bytes)) or not isinstance(camera_size, Sequence):
-            raise SpecTypeError(f"camera_size must be (height, width), got {camera_size!r}")
-        if len(camera_size) != 2:
-            raise SpecError(f"camera_size must be (height, width), got {camera_size!r}")
-        h, w = integer(camera_size[0], "camera_size[0]"), integer(camera_size[1], "camera_size[1]")
-        cams = names(camera_names, "camera_names", "camera")
+        size = given["camera_size"]
+        if isinstance(size, (str, bytes)) or not isinstance(size, Sequence):
+            raise SpecTypeError(f"camera_size must be (height, width), got {size!r}")
+        if len(size) != 2:
+            raise SpecError(f"camera_size must be (height, width), got {size!r}")
+        h, w = integer(size[0], "camera_size[0]"), integer(size[1], "camera_size[1]")
+        cams = names(given["camera_names"], "camera_names", "camera")
         spec.sensors = [*spec.sensors, *(CameraSensor(c, width=w, height=h) for c in cams)]
-        return spec
+        render = {k: given[k] for k in _RENDER}
+        if goal is None:
+            TaskEnv.__init__(self, spec, given["render_mode"], **render)
+        else:
+            GoalTaskEnv.__init__(self, spec, given["render_mode"], **goal, **render)  # type: ignore[arg-type]
+
+
+_RENDER = ("render_camera", "render_width", "render_height", "render_shadows")
 
 
 class PandaReachEnv(_Registered, TaskEnv):
@@ -245,28 +252,11 @@ class PandaReachEnv(_Registered, TaskEnv):
         render_shadows: bool = False,
         **unknown: Any,
     ) -> None:
-        self._refuse_unknown(unknown)
-        success_distance = _positive(success_distance, "success_distance")
-        spec = panda_reach_spec(goal_low, goal_high, success_distance)
+        spec = panda_reach_spec(
+            goal_low, goal_high, _positive(success_distance, "success_distance")
+        )
         spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
-        spec = self._episode(
-            spec,
-            time_limit,
-            control_timestep,
-            reward_type,
-            camera_names,
-            camera_size,
-            hide_observations,
-        )
-        TaskEnv.__init__(
-            self,
-            spec,
-            render_mode,
-            render_camera=render_camera,
-            render_width=render_width,
-            render_height=render_height,
-            render_shadows=render_shadows,
-        )
+        self._finish(spec, locals(), reward_type)
 
 
 class PandaPickCubeEnv(_Registered, TaskEnv):
@@ -296,27 +286,9 @@ class PandaPickCubeEnv(_Registered, TaskEnv):
         render_shadows: bool = False,
         **unknown: Any,
     ) -> None:
-        self._refuse_unknown(unknown)
         spec = panda_pick_cube_spec(cube_low, cube_high)
         spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
-        spec = self._episode(
-            spec,
-            time_limit,
-            control_timestep,
-            reward_type,
-            camera_names,
-            camera_size,
-            hide_observations,
-        )
-        TaskEnv.__init__(
-            self,
-            spec,
-            render_mode,
-            render_camera=render_camera,
-            render_width=render_width,
-            render_height=render_height,
-            render_shadows=render_shadows,
-        )
+        self._finish(spec, locals(), reward_type)
 
 
 class PandaReachGoalEnv(_Registered, GoalTaskEnv):
@@ -346,32 +318,11 @@ class PandaReachGoalEnv(_Registered, GoalTaskEnv):
         render_shadows: bool = False,
         **unknown: Any,
     ) -> None:
-        self._refuse_unknown(unknown)
-        success_distance = _positive(success_distance, "success_distance")
-        spec = panda_reach_spec(goal_low, goal_high, success_distance)
-        spec = self._episode(
-            spec,
-            time_limit,
-            control_timestep,
-            "dense",
-            camera_names,
-            camera_size,
-            hide_observations,
-        )
-        GoalTaskEnv.__init__(
-            self,
-            spec,
-            render_mode,
-            achieved="panda_tcp_pos",
-            desired="goal_pose",
-            threshold=success_distance,
-            reward_type=reward_type,
-            goal_keys=("goal_rel",),
-            render_camera=render_camera,
-            render_width=render_width,
-            render_height=render_height,
-            render_shadows=render_shadows,
-        )
+        threshold = _positive(success_distance, "success_distance")
+        spec = panda_reach_spec(goal_low, goal_high, threshold)
+        goal: dict[str, Any] = {"achieved": "panda_tcp_pos", "desired": "goal_pose"}
+        goal.update(goal_keys=("goal_rel",), threshold=threshold, reward_type=reward_type)
+        self._finish(spec, locals(), "dense", goal)
 
 
 class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
@@ -404,36 +355,16 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         render_shadows: bool = False,
         **unknown: Any,
     ) -> None:
-        self._refuse_unknown(unknown)
-        success_distance = _positive(success_distance, "success_distance")
+        threshold = _positive(success_distance, "success_distance")
         lo, hi = _box3(target_low, target_high, "target")
         spec = panda_pick_cube_spec(cube_low, cube_high)
         spec.scene.objects.append(_marker("target", [0.1, 1.0, 0.1, 0.5]))
         spec.sensors = [*spec.sensors, BodyPoseSensor("target")]
         spec.initializers = [*spec.initializers, PropPlacer(["target"], lo, hi, random_yaw=False)]
         spec.terminate_on_success = False
-        spec = self._episode(
-            spec,
-            time_limit,
-            control_timestep,
-            "dense",
-            camera_names,
-            camera_size,
-            hide_observations,
-        )
-        GoalTaskEnv.__init__(
-            self,
-            spec,
-            render_mode,
-            achieved="cube_pose",
-            desired="target_pose",
-            threshold=success_distance,
-            reward_type=reward_type,
-            render_camera=render_camera,
-            render_width=render_width,
-            render_height=render_height,
-            render_shadows=render_shadows,
-        )
+        goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "target_pose"}
+        goal.update(threshold=threshold, reward_type=reward_type)
+        self._finish(spec, locals(), "dense", goal)
 
 
 def _positive(value: object, field: str) -> float:
