@@ -75,6 +75,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--env-kwargs", default="", metavar="JSON")
     p.add_argument("--speed", type=float, default=1.0, help="fraction of full speed (0-1]")
     p.add_argument("--deadzone", type=float, default=0.1, help="SpaceMouse dead zone [0-1)")
+    p.add_argument("--demos", type=int, default=None, help="stop after this many demos")
 
     p = sub.add_parser("evaluate", help="success rate of a policy over many seeds")
     _run_flags(p)
@@ -154,6 +155,7 @@ def _dispatch(args: argparse.Namespace) -> int:
             env_kwargs=parse_env_kwargs(args.env_kwargs),
             speed=args.speed,
             deadzone=args.deadzone,
+            demos=args.demos,
         )
         print(f"{args.out}: {n} demos saved")
         return 0
