@@ -1,16 +1,19 @@
-"""A registered task with a camera observation, for the demonstration tests (importable as
-`demo_envs:` in a Gymnasium id, so a fresh process finds it too)."""
+"""Tasks and policies for the demonstration tests, importable in a fresh process too: a
+camera task registered as `demo_envs:mjkdl_test/PickCubeCamera-v0`, and `module:fn` policies."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from mjkdl.task import CameraSensor, TaskEnv
 from mjkdl.task.registry import panda_pick_cube_spec
 
-CAMERA_ENV = "mjkdl_test/PickCubeCamera-v0"
+CAMERA_ENV = "demo_envs:mjkdl_test/PickCubeCamera-v0"
+Obs = Mapping[str, np.ndarray]
 
 
 def pick_cube_camera(render_mode: str | None = None, **kwargs: Any) -> TaskEnv:
@@ -21,5 +24,48 @@ def pick_cube_camera(render_mode: str | None = None, **kwargs: Any) -> TaskEnv:
     return TaskEnv(spec, render_mode, **kwargs)
 
 
-if CAMERA_ENV not in gym.registry:
-    gym.register(id=CAMERA_ENV, entry_point=f"{__name__}:pick_cube_camera")
+if "mjkdl_test/PickCubeCamera-v0" not in gym.registry:
+    gym.register(id="mjkdl_test/PickCubeCamera-v0", entry_point=f"{__name__}:pick_cube_camera")
+
+
+class Approach:
+    """Closed loop: the TCP heads for a point above the cube, wobbling with time; counts its
+    resets (the runner calls `reset()` at every episode start)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        space = env.action_space
+        self.low, self.high = space.low, space.high
+        self.resets = 0
+
+    def reset(self) -> None:
+        self.resets += 1
+
+    def __call__(self, obs: Obs) -> np.ndarray:
+        target = obs["cube_pose"][:3] + np.array([0.0, 0.0, 0.08])
+        twist = np.zeros(7)
+        twist[:3] = 3.0 * (target - obs["panda_tcp_pos"])
+        twist[3:6] = 0.3 * np.sin(10 * obs["time"][0] + np.arange(3))
+        twist[6] = self.high[6] if obs["time"][0] > 0.5 else self.low[6]
+        return np.clip(twist, self.low, self.high).astype(np.float32)
+
+
+def approach(env: gym.Env) -> Approach:
+    return Approach(env)
+
+
+def wrong_shape(env: gym.Env) -> Callable[[Obs], np.ndarray]:
+    return lambda obs: np.zeros(3, np.float32)
+
+
+def nan_after_two_steps(env: gym.Env) -> Callable[[Obs], np.ndarray]:
+    def policy(obs: Obs) -> np.ndarray:
+        a = np.zeros(env.action_space.shape, np.float32)
+        if obs["time"][0] > 0.15:
+            a[1] = np.nan
+        return a
+
+    return policy
+
+
+def not_callable(env: gym.Env) -> int:
+    return 3

@@ -29,6 +29,16 @@ MAX_WORKERS = 256
 
 
 @dataclass(frozen=True)
+class Video:
+    """An MP4 of an episode through the env's render camera, one frame per control step
+    (shadows and reflections off: software rendering makes them cost more than physics)."""
+
+    path: Path
+    width: int = 640
+    height: int = 480
+
+
+@dataclass(frozen=True)
 class EpisodeResult:
     """How one episode went: success (the last step's `info["is_success"]`), summed reward,
     steps, and the recording when one was asked for."""
@@ -79,7 +89,7 @@ def run_episode(
     seed: int,
     *,
     record: bool = False,
-    video: Path | None = None,
+    video: Video | None = None,
     source: PolicySource = "policy",
 ) -> EpisodeResult:
     """Reset with `seed` (the action space too, for random actions) and act to the end."""
@@ -119,11 +129,19 @@ def run_episode(
     return EpisodeResult(seed, success, total, steps, bool(info.get("diverged", False)), data)
 
 
-def video_recorder(env: gym.Env, path: Path) -> VideoRecorder:
-    """An MP4 of the env's render camera (`front` on the registered tasks), one frame a step."""
+def video_recorder(env: gym.Env, video: Video) -> VideoRecorder:
+    """`video` of the env's render camera (`front` on the registered tasks)."""
     unwrapped: Any = env.unwrapped
     period = float(getattr(unwrapped, "control_timestep", 0.1))
-    rec = VideoRecorder.open(unwrapped.scene, path, 640, 480, fps=1.0 / period)
+    rec = VideoRecorder.open(
+        unwrapped.scene,
+        video.path,
+        video.width,
+        video.height,
+        fps=1.0 / period,
+        shadows=False,
+        reflections=False,
+    )
     camera = getattr(unwrapped, "_render_camera_name", "")
     if camera:
         rec.use_camera(camera)
@@ -149,7 +167,7 @@ def _init(env_id: str, env_kwargs: dict[str, Any], source: PolicySource) -> None
     _WORKER.update(env=env, policy=make_policy(source, env), source=source)
 
 
-def _run(seed: int, record: bool, video: Path | None) -> EpisodeResult:
+def _run(seed: int, record: bool, video: Video | None) -> EpisodeResult:
     w = _WORKER
     return run_episode(w["env"], w["policy"], seed, record=record, video=video, source=w["source"])
 
@@ -161,10 +179,10 @@ def run_seeds(
     seeds: Sequence[int],
     *,
     record: bool = False,
-    videos: Mapping[int, Path] | None = None,
+    videos: Mapping[int, Video] | None = None,
     workers: int = 1,
 ) -> Iterator[EpisodeResult]:
-    """One episode per seed, yielded in seed order; `videos` maps seeds to MP4 paths.
+    """One episode per seed, yielded in seed order; `videos` maps seeds to MP4s.
 
     The env and the policy are built here, before the first episode, so a bad id, keyword
     or policy fails before anything is written."""
@@ -189,7 +207,7 @@ def _in_process(
     source: PolicySource,
     seeds: Sequence[int],
     record: bool,
-    videos: dict[int, Path],
+    videos: dict[int, Video],
 ) -> Iterator[EpisodeResult]:
     try:
         for s in seeds:
@@ -204,7 +222,7 @@ def _in_workers(
     source: PolicySource,
     seeds: Sequence[int],
     record: bool,
-    videos: dict[int, Path],
+    videos: dict[int, Video],
     workers: int,
 ) -> Iterator[EpisodeResult]:
     ctx = multiprocessing.get_context("spawn")

@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 from ..errors import SpecError
 from ..task._check import integer
-from .episodes import EpisodeResult, run_seeds
+from .episodes import EpisodeResult, Video, run_seeds
 from .policy import PolicySource
 
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile
@@ -82,19 +82,22 @@ def evaluate(
     env_kwargs: Mapping[str, Any] | None = None,
     video_dir: str | os.PathLike[str] | None = None,
     videos: int = 3,
+    video_size: tuple[int, int] = (640, 480),
     workers: int = 1,
     progress: bool = True,
 ) -> Evaluation:
     """Run `policy` for `episodes` episodes on seeds `seed`, `seed + 1`, ...; with
-    `video_dir`, MP4s of the first `videos` episodes (`episode_<seed>.mp4`)."""
+    `video_dir`, MP4s of the first `videos` episodes (`episode_<seed>.mp4`, `video_size`)."""
     episodes = integer(episodes, "--episodes")
     seed = integer(seed, "--seed", least=0)
     seeds = list(range(seed, seed + episodes))
-    paths: dict[int, Path] = {}
+    paths: dict[int, Video] = {}
     if video_dir is not None:
         folder = Path(video_dir)
         folder.mkdir(parents=True, exist_ok=True)
-        paths = {s: folder / f"episode_{s}.mp4" for s in seeds[: max(0, videos)]}
+        paths = {
+            s: Video(folder / f"episode_{s}.mp4", *video_size) for s in seeds[: max(0, videos)]
+        }
     results = []
     gen = run_seeds(env_id, env_kwargs or {}, policy, seeds, videos=paths, workers=workers)
     with tqdm(total=episodes, desc=f"evaluate {env_id}", unit="ep", disable=not progress) as bar:
@@ -102,4 +105,4 @@ def evaluate(
             results.append(result)
             bar.update()
             bar.set_postfix(success=sum(r.success for r in results))
-    return Evaluation(results, list(paths.values()))
+    return Evaluation(results, [v.path for v in paths.values()])

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import MjkdlError, SpecError
 from ..record import VideoRecorder, offscreen_renderer
 from ..scene import mujoco_version
-from .episodes import video_recorder, make_env, success_of
+from .episodes import Video, make_env, success_of, video_recorder
 from .hdf5 import STATE, Demo, DemoFile, mjkdl_version, scene_model
 
 MODES = ("actions", "states")
@@ -67,10 +67,11 @@ def replay(
     *,
     mode: str = "actions",
     video: str | os.PathLike[str] | None = None,
+    video_size: tuple[int, int] = (640, 480),
 ) -> ReplayResult:
     """Replay one demo of the file at `path` in a fresh `gymnasium.make(env_name,
     **env_kwargs)`; warns (`ReplayWarning`) first when the file was made with another model
-    or version. `video`: an MP4 of the env's render camera."""
+    or version. `video`: an MP4 of the env's render camera, `video_size` (width, height)."""
     if mode not in MODES:
         raise SpecError(f"--mode must be one of {', '.join(MODES)}, got {mode!r}")
     with DemoFile(path) as demos:
@@ -80,7 +81,7 @@ def replay(
             for message in mismatches(demos, d, env):
                 warnings.warn(message, ReplayWarning, stacklevel=2)
             run = _replay_actions if mode == "actions" else _replay_states
-            return run(env, d, None if video is None else Path(video))
+            return run(env, d, None if video is None else Video(Path(video), *video_size))
         finally:
             env.close()
 
@@ -90,7 +91,7 @@ def _state(scene: Any, out: np.ndarray) -> np.ndarray:
     return out
 
 
-def _replay_actions(env: gym.Env, demo: Demo, video: Path | None) -> ReplayResult:
+def _replay_actions(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResult:
     env.reset(seed=demo.seed)
     scene = env.unwrapped.scene  # type: ignore[attr-defined]
     state = np.empty(demo.states.shape[1])
@@ -128,7 +129,7 @@ def _replay_actions(env: gym.Env, demo: Demo, video: Path | None) -> ReplayResul
     )
 
 
-def _replay_states(env: gym.Env, demo: Demo, video: Path | None) -> ReplayResult:
+def _replay_states(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResult:
     env.reset(seed=demo.seed)
     scene = env.unwrapped.scene  # type: ignore[attr-defined]
     model, data = scene.model, scene.data
