@@ -73,22 +73,28 @@ def test_the_policys_reset_runs_at_every_episode() -> None:
     assert policy.resets == 3
 
 
-@pytest.mark.parametrize(
-    ("args", "message"),
-    [
-        (["mjkdl/PandaPik-v0", "--random"], "no env id named 'mjkdl/PandaPik-v0' in Gymnasium's registry; close matches: mjkdl/PandaPickCube-v0"),
-        ([PICK, "--random", "--workers", "0"], "--workers must be from 1 to 256, got 0"),
-        ([PICK, "--policy", "demo_envs:wrong_shape"], "policy demo_envs:wrong_shape (seed 0, step 0) returned an action of shape (3,); the env takes (7,)"),
-        ([PICK, "--policy", "demo_envs:nan_after_two_steps"], "policy demo_envs:nan_after_two_steps (seed 0, step 2) returned non-finite entries at [1]"),
-        ([PICK, "--policy", "no_such_module:fn"], "--policy no_such_module:fn: cannot import module 'no_such_module'"),
-        ([PICK, "--policy", "demo_envs:nope"], "--policy demo_envs:nope: module 'demo_envs' has no callable 'nope'; it has: "),
-        ([PICK, "--policy", "demo_envs"], "--policy must look like module:fn"),
-        ([PICK, "--policy", "demo_envs:not_callable"], "demo_envs:not_callable(env) must return a callable policy(obs) -> action, got int"),
-        ([PICK, "--random", "--env-kwargs", "{oops"], "--env-kwargs is not valid JSON"),
-        ([PICK, "--random", "--env-kwargs", "[1]"], "--env-kwargs must be a JSON object, got [1]"),
-        ([PICK, "--random", "--episodes", "0"], "--episodes must be a positive integer, got 0"),
-    ],
-)  # fmt: skip
+BAD = [
+    (["mjkdl/PandaPik-v0", "--random"], "no env id named 'mjkdl/PandaPik-v0' in Gymnasium's "
+     "registry; close matches: mjkdl/PandaPickCube-v0"),
+    ([PICK, "--random", "--workers", "0"], "--workers must be from 1 to 256, got 0"),
+    ([PICK, "--policy", "demo_envs:wrong_shape"], "policy demo_envs:wrong_shape (seed 0, step 0) "
+     "returned an action of shape (3,); the env takes (7,)"),
+    ([PICK, "--policy", "demo_envs:nan_after_two_steps"], "policy "
+     "demo_envs:nan_after_two_steps (seed 0, step 2) returned non-finite entries at [1]"),
+    ([PICK, "--policy", "no_such_module:fn"], "--policy no_such_module:fn: cannot import "
+     "module 'no_such_module'"),
+    ([PICK, "--policy", "demo_envs:nope"], "--policy demo_envs:nope: module 'demo_envs' has no "
+     "callable 'nope'; it has: "),
+    ([PICK, "--policy", "demo_envs"], "--policy must look like module:fn"),
+    ([PICK, "--policy", "demo_envs:not_callable"], "demo_envs:not_callable(env) must return a "
+     "callable policy(obs) -> action, got int"),
+    ([PICK, "--random", "--env-kwargs", "{oops"], "--env-kwargs is not valid JSON"),
+    ([PICK, "--random", "--env-kwargs", "[1]"], "--env-kwargs must be a JSON object, got [1]"),
+    ([PICK, "--random", "--episodes", "0"], "--episodes must be a positive integer, got 0"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("args", "message"), BAD)
 def test_bad_input_names_itself_and_writes_nothing(
     tmp_path: Path, args: list[str], message: str
 ) -> None:

@@ -48,9 +48,14 @@ def test_the_command_line_prints_each_episode_and_the_rate() -> None:
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     assert [ln.split(":")[0] for ln in lines[:4]] == ["seed 2", "seed 3", "seed 4", "seed 5"]
-    assert all(re.fullmatch(r"seed \d: success=False return=\d+\.\d{3} length=5", ln) for ln in lines[:4])
-    assert re.fullmatch(r"success: 0\.0 % \(95 % CI 0\.0-49\.0 %, 0/4\); mean return \d+\.\d{3}, mean length 5\.0 steps", lines[4])
-    single = evaluate(REACH, "random", episodes=4, seed=2, env_kwargs={"max_episode_steps": 5}, progress=False)
+    assert all(
+        re.fullmatch(r"seed \d: success=False return=\d+\.\d{3} length=5", ln) for ln in lines[:4]
+    )
+    rate = r"success: 0\.0 % \(95 % CI 0\.0-49\.0 %, 0/4\); mean return \d+\.\d{3}, "
+    assert re.fullmatch(rate + r"mean length 5\.0 steps", lines[4])
+    single = evaluate(
+        REACH, "random", episodes=4, seed=2, env_kwargs={"max_episode_steps": 5}, progress=False
+    )
     returns = [float(ln.split("return=")[1].split()[0]) for ln in lines[:4]]
     assert returns == pytest.approx([e.total_reward for e in single.episodes], abs=5e-4)
 

@@ -23,7 +23,6 @@ import mjkdl as mjk
 from mjkdl.demos import (
     DemoFile,
     DemoFileError,
-    DemoWriteError,
     EpisodeWriter,
     make_env,
     run_episode,
@@ -122,12 +121,15 @@ def test_foreign_truncated_and_missing_files_are_refused(tmp_path: Path) -> None
         DemoFile(tmp_path / "nope.hdf5")
     text = tmp_path / "text.hdf5"
     text.write_text("not hdf5")
-    with pytest.raises(DemoFileError, match="text.hdf5 is not a readable HDF5 file"):
+    with pytest.raises(DemoFileError, match=r"text\.hdf5 is not a readable HDF5 file"):
         DemoFile(text)
     foreign = tmp_path / "foreign.hdf5"
     with h5py.File(foreign, "w") as f:
         f.create_dataset("x", data=[1, 2])
-    with pytest.raises(DemoFileError, match=r"foreign.hdf5 is not a demonstration file: it has no data.attrs\['env_args'\]"):
+    with pytest.raises(
+        DemoFileError,
+        match=r"foreign.hdf5 is not a demonstration file: it has no data.attrs\['env_args'\]",
+    ):
         DemoFile(foreign)
     good = tmp_path / "good.hdf5"
     env = make_env(REACH, {"max_episode_steps": 2})
@@ -136,16 +138,18 @@ def test_foreign_truncated_and_missing_files_are_refused(tmp_path: Path) -> None
     with EpisodeWriter(good, REACH) as writer:
         writer.write(ep.data)
     with DemoFile(good) as f:
-        with pytest.raises(KeyError, match="no demo named 'demo_7' in .*good.hdf5; close matches: demo_0"):
+        with pytest.raises(
+            KeyError, match=r"no demo named 'demo_7' in .*good\.hdf5; close matches: demo_0"
+        ):
             f.demo(7)
         assert f.demo(0).num_samples == 2
     cut = tmp_path / "cut.hdf5"
     cut.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
-    with pytest.raises(DemoFileError, match="cut.hdf5 is not a readable HDF5 file"):
+    with pytest.raises(DemoFileError, match=r"cut\.hdf5 is not a readable HDF5 file"):
         DemoFile(cut)
-    with pytest.raises(DemoFileError, match=f"holds demos of {REACH}.*cannot append {PICK}"):
+    with pytest.raises(DemoFileError, match=rf"holds demos of {REACH}.*cannot append {PICK}"):
         EpisodeWriter(good, PICK, append=True)
-    with pytest.raises(DemoFileError, match="foreign.hdf5 is not a demonstration file"):
+    with pytest.raises(DemoFileError, match=r"foreign\.hdf5 is not a demonstration file"):
         EpisodeWriter(foreign, REACH, append=True)
     with pytest.raises(DemoFileError, match="JSON-serialisable"):
         EpisodeWriter(tmp_path / "x.hdf5", REACH, {"bad": object()})

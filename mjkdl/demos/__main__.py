@@ -103,79 +103,98 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
+    return {
+        "collect": _collect,
+        "replay": _replay,
+        "teleop": _teleop,
+        "evaluate": _evaluate,
+        "export-lerobot": _export,
+    }[args.command](args)
+
+
+def _collect(args: argparse.Namespace) -> int:
+    from .collect import collect
     from .episodes import parse_env_kwargs
 
-    if args.command == "collect":
-        from .collect import collect
+    r = collect(
+        args.env_id,
+        _source(args),
+        args.out,
+        episodes=args.episodes,
+        seed=args.seed,
+        env_kwargs=parse_env_kwargs(args.env_kwargs),
+        workers=args.workers,
+        keep_failures=args.keep_failures,
+        append=args.append,
+    )
+    print(f"{r.path}: kept {r.kept} of {r.episodes} episodes ({r.successes} successful)")
+    return 0
 
-        r = collect(
-            args.env_id,
-            _source(args),
-            args.out,
-            episodes=args.episodes,
-            seed=args.seed,
-            env_kwargs=parse_env_kwargs(args.env_kwargs),
-            workers=args.workers,
-            keep_failures=args.keep_failures,
-            append=args.append,
-        )
-        print(f"{r.path}: kept {r.kept} of {r.episodes} episodes ({r.successes} successful)")
-        return 0
-    if args.command == "replay":
-        from .hdf5 import DemoFile
-        from .replay import replay
 
-        if args.demo == "all":
-            with DemoFile(args.file) as f:
-                demos: list[int | str] = list(f.names)
+def _replay(args: argparse.Namespace) -> int:
+    from .hdf5 import DemoFile
+    from .replay import replay
+
+    if args.demo == "all":
+        with DemoFile(args.file) as f:
+            demos: list[int | str] = list(f.names)
+    else:
+        demos = [int(args.demo) if args.demo.isdigit() else args.demo]
+    if args.video and len(demos) > 1:
+        print("error: --video films one demo: add --demo i", file=sys.stderr)
+        return 2
+    worst = 0.0
+    for d in demos:
+        r = replay(args.file, d, mode=args.mode, video=args.video)
+        if r.mode == "actions":
+            at = "" if r.first_mismatch < 0 else f", first at step {r.first_mismatch}"
+            print(f"{r.demo}: {r.steps} steps, max state error {r.max_state_error:g}{at}")
+            worst = max(worst, r.max_state_error)
         else:
-            demos = [int(args.demo) if args.demo.isdigit() else args.demo]
-        if args.video and len(demos) > 1:
-            print("error: --video films one demo: add --demo i", file=sys.stderr)
-            return 2
-        worst = 0.0
-        for d in demos:
-            r = replay(args.file, d, mode=args.mode, video=args.video)
-            if r.mode == "actions":
-                at = "" if r.first_mismatch < 0 else f", first at step {r.first_mismatch}"
-                print(f"{r.demo}: {r.steps} steps, max state error {r.max_state_error:g}{at}")
-                worst = max(worst, r.max_state_error)
-            else:
-                px = "no cameras" if r.max_pixel_error < 0 else f"{r.max_pixel_error} levels"
-                print(f"{r.demo}: {r.steps} states set, camera frames differ by at most {px}")
-        return 0 if worst == 0.0 else 1
-    if args.command == "teleop":
-        from .teleop import teleop
+            px = "no cameras" if r.max_pixel_error < 0 else f"{r.max_pixel_error} levels"
+            print(f"{r.demo}: {r.steps} states set, camera frames differ by at most {px}")
+    return 0 if worst == 0.0 else 1
 
-        n = teleop(
-            args.env_id,
-            args.out,
-            device=args.device,
-            seed=args.seed,
-            env_kwargs=parse_env_kwargs(args.env_kwargs),
-            speed=args.speed,
-            deadzone=args.deadzone,
-            demos=args.demos,
-        )
-        print(f"{args.out}: {n} demos saved")
-        return 0
-    if args.command == "evaluate":
-        from .evaluate import evaluate
 
-        ev = evaluate(
-            args.env_id,
-            _source(args),
-            episodes=args.episodes,
-            seed=args.seed,
-            env_kwargs=parse_env_kwargs(args.env_kwargs),
-            video_dir=args.video,
-            videos=args.videos,
-            workers=args.workers,
-        )
-        for e in ev.episodes:
-            print(f"seed {e.seed}: success={e.success} return={e.total_reward:.3f} length={e.length}")
-        print(ev.summary())
-        return 0
+def _teleop(args: argparse.Namespace) -> int:
+    from .episodes import parse_env_kwargs
+    from .teleop import teleop
+
+    n = teleop(
+        args.env_id,
+        args.out,
+        device=args.device,
+        seed=args.seed,
+        env_kwargs=parse_env_kwargs(args.env_kwargs),
+        speed=args.speed,
+        deadzone=args.deadzone,
+        demos=args.demos,
+    )
+    print(f"{args.out}: {n} demos saved")
+    return 0
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from .episodes import parse_env_kwargs
+    from .evaluate import evaluate
+
+    ev = evaluate(
+        args.env_id,
+        _source(args),
+        episodes=args.episodes,
+        seed=args.seed,
+        env_kwargs=parse_env_kwargs(args.env_kwargs),
+        video_dir=args.video,
+        videos=args.videos,
+        workers=args.workers,
+    )
+    for e in ev.episodes:
+        print(f"seed {e.seed}: success={e.success} return={e.total_reward:.3f} length={e.length}")
+    print(ev.summary())
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
     from .lerobot import export_lerobot
 
     out = export_lerobot(args.file, args.root, repo_id=args.repo_id, task=args.task)

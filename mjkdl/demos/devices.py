@@ -37,8 +37,9 @@ class DeviceError(MjkdlError, RuntimeError):
 # GLFW key codes of the keypad (what MuJoCo's viewer passes to its key callback).
 KP = {str(i): 320 + i for i in range(10)} | {".": 330, "/": 331, "*": 332, "-": 333, "+": 334}
 KP_ENTER = 335
-# Motion keys: keypad digit -> (axis, sign); translation or rotation about that axis.
-MOTION = {"8": (0, 1), "2": (0, -1), "4": (1, 1), "6": (1, -1), "9": (2, 1), "3": (2, -1)}
+# Motion keys: keypad digit -> (world axis, sign), as seen from the `front` camera (which
+# looks at the robot from +x): 8 pushes away from you (-x), 6 right (+y), 9 up (+z).
+MOTION = {"8": (0, -1), "2": (0, 1), "4": (1, -1), "6": (1, 1), "9": (2, 1), "3": (2, -1)}
 COMMAND_KEYS = {
     KP["0"]: Command.GRIPPER,
     KP["5"]: Command.MODE,
@@ -46,11 +47,12 @@ COMMAND_KEYS = {
     KP["."]: Command.DISCARD,
     KP["-"]: Command.RESET,
 }
-KEYS_HELP = """keyboard keys (numeric keypad, Num Lock either way):
-  8 / 2   +x / -x      (translation; rotation about x after 5)
-  4 / 6   +y / -y
-  9 / 3   +z / -z
-  5       switch translation <-> rotation
+KEYS_HELP = """keyboard keys (numeric keypad, Num Lock either way; directions as seen
+from the front camera, which faces the robot):
+  8 / 2   away / towards you  (-x / +x)
+  4 / 6   left / right        (-y / +y)
+  9 / 3   up / down           (+z / -z)
+  5       switch translation <-> rotation (about the same directions)
   0       toggle the gripper (open <-> closed)
   Enter   save the episode and start the next seed
   .       discard the episode and restart its seed
@@ -138,12 +140,15 @@ class KeyboardDevice:
 
 
 def spacemouse_twist(state: Any, deadzone: float) -> np.ndarray:
-    """A pyspacemouse state (x, y, z, roll, pitch, yaw in [-1, 1]) as a twist in [-1, 1]^6:
-    axes inside `deadzone` read 0, the rest is rescaled to start from 0 at its edge."""
+    """A pyspacemouse state in its `HID_Z_UP` convention (x right, y away from you, z up;
+    roll, pitch, yaw about them; each in [-1, 1]) as a world twist in [-1, 1]^6 for a user
+    who faces the robot as the `front` camera does: away is -x, right is +y. Axes inside
+    `deadzone` read 0; the rest is rescaled to start from 0 at its edge."""
     raw = np.array([state.x, state.y, state.z, state.roll, state.pitch, state.yaw], dtype=float)
     mag = np.abs(raw)
-    out = np.where(mag <= deadzone, 0.0, np.sign(raw) * (mag - deadzone) / (1.0 - deadzone))
-    return np.clip(out, -1.0, 1.0)
+    dev = np.where(mag <= deadzone, 0.0, np.sign(raw) * (mag - deadzone) / (1.0 - deadzone))
+    x, y, z, rx, ry, rz = np.clip(dev, -1.0, 1.0)
+    return np.array([-y, x, z, -ry, rx, rz])
 
 
 class SpaceMouseDevice:
@@ -165,7 +170,7 @@ class SpaceMouseDevice:
                     "--device spacemouse needs pyspacemouse: pip install 'mjkdl[teleop]'"
                 ) from None
             try:
-                device = pyspacemouse.open()
+                device = pyspacemouse.open(axis_convention=pyspacemouse.AxisConvention.HID_Z_UP)
             except Exception as err:  # no device, no permission on /dev/hidraw*
                 raise DeviceError(f"no SpaceMouse could be opened: {err}") from None
         self._device = device

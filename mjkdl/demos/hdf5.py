@@ -261,7 +261,9 @@ class EpisodeWriter(Closable):
         obs = g.create_group("obs")
         for key, value in ep.obs.items():
             if value.dtype == np.uint8 and value.ndim >= 3:  # camera frames, one chunk each
-                obs.create_dataset(key, data=value, chunks=(1, *value.shape[1:]), **_IMAGE_COMPRESSION)
+                obs.create_dataset(
+                    key, data=value, chunks=(1, *value.shape[1:]), **_IMAGE_COMPRESSION
+                )
             else:
                 obs.create_dataset(key, data=value)
         g.attrs["seed"] = ep.seed
@@ -353,7 +355,9 @@ class DemoFile(Closable):
         try:
             args = json.loads(f["data"].attrs["env_args"])
         except (TypeError, ValueError) as err:
-            raise DemoFileError(f"{self._path}: data.attrs['env_args'] is not JSON: {err}") from None
+            raise DemoFileError(
+                f"{self._path}: data.attrs['env_args'] is not JSON: {err}"
+            ) from None
         if not isinstance(args, dict) or not isinstance(args.get("env_name"), str):
             raise DemoFileError(f"{self._path}: data.attrs['env_args'] has no 'env_name'")
         args.setdefault("env_kwargs", {})

@@ -60,7 +60,7 @@ class LeRobotExport:
 def _need_pyarrow() -> Any:
     try:
         import pyarrow as pa
-        import pyarrow.parquet  # noqa: F401
+        import pyarrow.parquet
     except ImportError:
         raise ImportError("export-lerobot needs pyarrow: pip install 'mjkdl[lerobot]'") from None
     return pa
@@ -279,8 +279,8 @@ def _write(
                 image_samples[k].append(demo.obs[k][:: max(1, n // 10)])
             row["meta/episodes/chunk_index"] = 0
             row["meta/episodes/file_index"] = 0
-            for name, stats in (("observation.state", _stats(state)), ("action", _stats(action))):
-                for stat, value in stats.items():
+            for name, values in (("observation.state", state), ("action", action)):
+                for stat, value in _stats(values).items():
                     row[f"stats/{name}/{stat}"] = value
             episodes.append(row)
             index += n

@@ -163,4 +163,6 @@ def _replay_states(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResul
             r.close()
         if recorder is not None:
             recorder.close()
-    return ReplayResult(demo.name, "states", demo.num_samples, 0.0, -1, worst, demo.success, demo.success)
+    return ReplayResult(
+        demo.name, "states", demo.num_samples, 0.0, -1, worst, demo.success, demo.success
+    )

@@ -128,9 +128,9 @@ class Teleop:
             ("saved", f"{self.saved} demos to {self.writer.path.name}"),
             ("", self._status),
         ]
-        keys = KEYS_HELP.splitlines()[1:9]
-        left = "\n".join([r[0] for r in rows] + [""] + [k[:9].strip() for k in keys])
-        right = "\n".join([r[1] for r in rows] + [""] + [k[9:].strip() for k in keys])
+        keys = [ln[2:] for ln in KEYS_HELP.splitlines() if ln.startswith("  ")]
+        left = "\n".join([r[0] for r in rows] + [""] + [k[:8].strip() for k in keys])
+        right = "\n".join([r[1] for r in rows] + [""] + [k[8:].strip() for k in keys])
         return [(_FONT, _TOPLEFT, left, right)]
 
 
