@@ -262,8 +262,8 @@ def _add_primitive(
     geom_type, nsize = _GEOM_TYPES[obj.shape]
     size = np.asarray(obj.size, dtype=float)
     friction = np.asarray(obj.friction, dtype=float)
-    body = s.worldbody.add_body(name=obj.name, pos=pos, quat=quat)
-    if not obj.fixed:
+    body = s.worldbody.add_body(name=obj.name, pos=pos, quat=quat, mocap=obj.marker)
+    if not (obj.fixed or obj.marker):
         body.add_freejoint(name=obj.name)
     full_friction = np.array([1.0, 0.005, 0.0001])
     full_friction[: friction.size] = friction
@@ -277,6 +277,8 @@ def _add_primitive(
     )
     if obj.mass > 0:
         geom.mass = float(obj.mass)
+    if obj.marker:
+        geom.contype = geom.conaffinity = 0
 
 
 def _add_mjcf_object(

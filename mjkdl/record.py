@@ -89,6 +89,23 @@ class VideoResolution(enum.Enum):
         return self.value[1]
 
 
+def check_offscreen_size(model: mujoco.MjModel, width: object, height: object) -> None:
+    """Refuse a frame size that is not a positive integer or exceeds the model's offscreen
+    buffer (`offwidth`/`offheight`), without making an OpenGL context."""
+    for field, value, limit, attr in (
+        ("width", width, model.vis.global_.offwidth, "offwidth"),
+        ("height", height, model.vis.global_.offheight, "offheight"),
+    ):
+        if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value <= 0:
+            raise SpecError(f"{field} must be a positive integer, got {value!r}")
+        if value > limit:
+            raise SpecError(
+                f"{field} {value} exceeds the model's offscreen buffer ({attr} = {limit}); "
+                f"use a smaller size or raise model.vis.global_.{attr} (<visual><global "
+                f'{attr}="..."/> in MJCF)'
+            )
+
+
 def offscreen_renderer(
     model: mujoco.MjModel,
     width: int,
@@ -103,18 +120,7 @@ def offscreen_renderer(
     backend (see the module notes) and raises `OffscreenRenderError` when no OpenGL context
     can be made.
     """
-    for field, value, limit, attr in (
-        ("width", width, model.vis.global_.offwidth, "offwidth"),
-        ("height", height, model.vis.global_.offheight, "offheight"),
-    ):
-        if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value <= 0:
-            raise SpecError(f"{field} must be a positive integer, got {value!r}")
-        if value > limit:
-            raise SpecError(
-                f"{field} {value} exceeds the model's offscreen buffer ({attr} = {limit}); "
-                f"use a smaller size or raise model.vis.global_.{attr} (<visual><global "
-                f'{attr}="..."/> in MJCF)'
-            )
+    check_offscreen_size(model, width, height)
     shadows = flag(shadows, "shadows")
     reflections = flag(reflections, "reflections")
     try:

@@ -83,7 +83,8 @@ class RobotSpec:
 class SceneObject:
     """A primitive (`shape`, `size`, `mass`, `rgba`, `friction`, `condim`) or an MJCF file
     (whose own geoms keep their properties); placed at `pos`/`euler` (degrees); free unless
-    `fixed`."""
+    `fixed`. A `marker` is a primitive that only shows (a goal): no collisions, no mass, moved
+    by `Scene.set_body_pose` and never by physics (a MuJoCo mocap body)."""
 
     name: str = ""
     mjcf_path: str | Path = ""
@@ -96,6 +97,7 @@ class SceneObject:
     pos: list[float] = field(default_factory=_zeros3)
     euler: list[float] = field(default_factory=_zeros3)
     fixed: bool = False
+    marker: bool = False
 
 
 @dataclass

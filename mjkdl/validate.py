@@ -243,6 +243,11 @@ def _check_object(obj: SceneObject, field: str) -> None:
     _pose(obj.pos, obj.euler, field)
     flag(obj.fixed, f"{field}.fixed")
     path = path_text(obj.mjcf_path, f"{field}.mjcf_path")
+    if flag(obj.marker, f"{field}.marker") and (path or obj.fixed or obj.mass != 0):
+        raise SpecError(
+            f"{field}: a marker is a massless primitive placed by set_body_pose; give it "
+            "no mjcf_path, fixed or mass"
+        )
     if path:
         primitive = not isinstance(obj.size, list) or obj.size or not is_real(obj.mass)
         if obj.shape is not None or primitive or obj.mass != 0:
@@ -275,7 +280,7 @@ def _check_object(obj: SceneObject, field: str) -> None:
             f"{field}.friction values must lie in [0, {MAX_FRICTION:g}], got {obj.friction!r}"
         )
     mass = real(obj.mass, f"{field}.mass")
-    if mass < 0 or (mass == 0 and not obj.fixed):
+    if mass < 0 or (mass == 0 and not (obj.fixed or obj.marker)):
         raise SpecError(f"{field}.mass must be positive for a free object, got {obj.mass!r}")
     if mass:
         _in_range(mass, MASS_RANGE, f"{field}.mass")

@@ -6,7 +6,16 @@ Importing this package registers `mjkdl/PandaReach-v0` and `mjkdl/PandaPickCube-
 from .env import Sensor, TaskEnv
 from .initializers import JointInitializer, PhysicsRandomizer, PoseInitializer, PropPlacer
 from .registry import register as _register
-from .rewards import Lifted, LiftReward, Reached, ReachReward, distance, height
+from .rewards import (
+    Held,
+    Lifted,
+    LiftReward,
+    Reached,
+    ReachReward,
+    SparseReward,
+    distance,
+    height,
+)
 from .rollout import Episode, ray_collect, run_episode
 from .sensors import intrinsics
 from .spec import (
@@ -14,7 +23,9 @@ from .spec import (
     ArmSpec,
     BodyPoseSensor,
     CameraSensor,
+    ContactSensor,
     GripperSpec,
+    RelativePositionSensor,
     TaskSpec,
 )
 from .view import view
@@ -26,8 +37,10 @@ __all__ = [
     "ArmSpec",
     "BodyPoseSensor",
     "CameraSensor",
+    "ContactSensor",
     "Episode",
     "GripperSpec",
+    "Held",
     "JointInitializer",
     "LiftReward",
     "Lifted",
@@ -36,7 +49,9 @@ __all__ = [
     "PropPlacer",
     "ReachReward",
     "Reached",
+    "RelativePositionSensor",
     "Sensor",
+    "SparseReward",
     "TaskEnv",
     "TaskSpec",
     "distance",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol, runtime_checkable
 
@@ -16,15 +17,31 @@ from numpy.typing import ArrayLike
 from ..control import CartesianVelocityController, Gripper
 from ..errors import SimulationError, SpecError, SpecTypeError, UnknownNameError
 from ..names import model_id
-from ..record import offscreen_renderer
+from ..record import check_offscreen_size, offscreen_renderer
 from ..robot import Robot
 from ..scene import MAX_STEPS, Env
 from ..spec import CtrlMode, SceneSpec
 from ..validate import flag, real, real_array, text, vector
 from ._check import integer
 from .rewards import check_positions
-from .sensors import ArmReader, CameraReader, PoseReader, Reader
-from .spec import Actuation, ArmSpec, BodyPoseSensor, CameraSensor, GripperSpec, TaskSpec
+from .sensors import (
+    ArmReader,
+    CameraReader,
+    ContactReader,
+    PoseReader,
+    Reader,
+    RelativeReader,
+)
+from .spec import (
+    Actuation,
+    ArmSpec,
+    BodyPoseSensor,
+    CameraSensor,
+    ContactSensor,
+    GripperSpec,
+    RelativePositionSensor,
+    TaskSpec,
+)
 
 _CARTESIAN_LABELS = ("vx", "vy", "vz", "wx", "wy", "wz")
 MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
@@ -117,7 +134,7 @@ class _Effector:
         self.grip_index = start + n if gripper is not None else -1
         self.home = None if arm.home is None else np.asarray(arm.home, dtype=float)
 
-    def new_episode(self) -> None:
+    def new_episode(self, scene: Env) -> None:
         """Arm at home, gripper open, and a fresh controller: the QP's acceleration bounds
         start from the state, not from the last episode's motion (its own reset detection
         goes by a clock that an episode of one step does not advance)."""
@@ -125,10 +142,12 @@ class _Effector:
             self.robot.set_joint_pos(self.home, call_forward=False)
         if self.gripper is not None:
             self.gripper.command(0.0)
+            _settle_tool(scene, self.arm.prefix + self.arm.tip_body)
         if self.controller is not None:
             self.controller = _controller(self.robot, self.arm)
 
     def apply(self, action: np.ndarray, period: float) -> None:
+        """Write this arm's slice of the (physical, clipped) action to its robot and gripper."""
         robot, arm = self.robot, self.arm.actuation
         robot.update()
         a: Any = action[self.slice]
@@ -153,19 +172,31 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
     The action concatenates, per arm in order, a twist `[vx, vy, vz, wx, wy, wz]` of the TCP
     along the control frame (Cartesian velocity) or one value per joint (joint modes), then
-    the gripper's entry in [0, 1] when it has one. Actions are clipped into `action_space`
-    (a policy's exploration noise past a bound acts at the bound); NaN or infinite entries
-    are an error naming them. Each `step` holds the action for `control_timestep`, i.e.
-    `control_timestep / scene.timestep` physics steps.
+    the gripper's entry in [0, 1] when it has one; with `TaskSpec.normalize_actions` every
+    entry is in [-1, 1] instead, scaled onto those bounds. Actions are clipped into
+    `action_space` (a policy's exploration noise past a bound acts at the bound); NaN or
+    infinite entries are an error naming them. Each `step` holds the action for
+    `control_timestep`, i.e. `control_timestep / scene.timestep` physics steps. An episode
+    starts with each gripper open: its fingers are moved there before the first observation.
 
     Observations are fresh arrays every step (the agent may keep them); see `ArmReader`,
-    `CameraSensor` and `BodyPoseSensor` for their meaning. `truncated` becomes true once
+    `CameraSensor`, `BodyPoseSensor` and `ContactSensor` for their meaning. `info` holds
+    `is_success` and `diverged` at every reset and step. `truncated` becomes true once
     `time_limit` seconds have passed since `reset`. A diverging simulation ends the episode
     (`terminated=True`, `info["diverged"]`, the previous observation), and `step` then
     raises until `reset`.
+
+    Rendering: `"rgb_array"` (H×W×3 uint8), `"depth_array"` (H×W float32 metres) of
+    `render_camera` at `render_width`×`render_height`, without shadows and reflections unless
+    `render_shadows`; `"human"` opens the viewer. `gymnasium.make` adds `"rgb_array_list"`.
+    OpenGL contexts are made in the process that renders, at its first frame, so an env built
+    before a `fork` (Gymnasium's async vector envs) renders in the child.
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}  # noqa: RUF012
+    metadata: dict[str, Any] = {  # noqa: RUF012
+        "render_modes": ["rgb_array", "depth_array", "human"],
+        "render_fps": 10,
+    }
     observation_space: spaces.Dict
     action_space: spaces.Box
 
@@ -177,21 +208,30 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         render_camera: str = "",
         render_width: int = 640,
         render_height: int = 480,
+        render_shadows: bool = False,
     ) -> None:
         if not isinstance(spec, TaskSpec):
             raise SpecError(f"TaskEnv takes a TaskSpec, got {type(spec).__name__}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            modes = ", ".join(repr(m) for m in self.metadata["render_modes"])
+            hint = (
+                " (gymnasium.make adds it around 'rgb_array')"
+                if render_mode == "rgb_array_list"
+                else ""
+            )
             raise SpecError(
-                f"render_mode must be None, 'rgb_array' or 'human', got {render_mode!r}"
+                f"render_mode must be None or one of {modes}, got {render_mode!r}{hint}"
             )
         render_width = integer(render_width, "render_width")
         render_height = integer(render_height, "render_height")
         if not isinstance(render_camera, str):
             raise SpecTypeError(f"render_camera must be a camera name, got {render_camera!r}")
+        self._render_shadows = flag(render_shadows, "render_shadows")
         self.task_spec = copy.deepcopy(spec)
         self.render_mode = render_mode
         self._closed = True  # until built: close() must work on a half-built env
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._renderer_pid = os.getpid()
         self._readers: list[Reader] = []
         self._viewer: Any = None
         self._stepper: Callable[[], bool] | None = None
@@ -239,15 +279,26 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if len(set(names)) != len(names):
             raise SpecError(f"TaskSpec.arms: names must be unique, got {names}")
         for field in ("control_timestep", "time_limit"):
-            if not _positive(getattr(spec, field)):
+            value = getattr(spec, field)
+            if not _positive(value) and not (field == "time_limit" and value is None):
+                what = "or None" if field == "time_limit" else ""
                 raise SpecError(
-                    f"TaskSpec.{field} must be a positive number of seconds, "
-                    f"got {getattr(spec, field)!r}"
+                    f"TaskSpec.{field} must be a positive number of seconds {what}".rstrip()
+                    + f", got {value!r}"
                 )
-        for field in ("reward", "terminated"):
+        for field in ("reward", "terminated", "success"):
             fn = getattr(spec, field)
             if fn is not None and not callable(fn):
                 raise SpecError(f"TaskSpec.{field} must be callable or None, got {fn!r}")
+        flag(spec.terminate_on_success, "TaskSpec.terminate_on_success")
+        flag(spec.normalize_actions, "TaskSpec.normalize_actions")
+        if real(spec.success_hold, "TaskSpec.success_hold") < 0:
+            raise SpecError(
+                f"TaskSpec.success_hold must be a non-negative number of seconds, "
+                f"got {spec.success_hold!r}"
+            )
+        if spec.terminate_on_success and spec.success is None:
+            raise SpecError("TaskSpec.terminate_on_success needs a TaskSpec.success callable")
         for field in ("sensors", "initializers"):
             if not isinstance(getattr(spec, field), (list, tuple)):
                 raise SpecError(
@@ -273,7 +324,12 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             )
         self._substeps = substeps
         self._period = substeps * dt
-        self._max_steps = math.ceil(spec.time_limit / self._period - 1e-9)
+        self._max_steps = (
+            math.inf
+            if spec.time_limit is None
+            else math.ceil(spec.time_limit / self._period - 1e-9)
+        )
+        self._hold_steps = math.ceil(spec.success_hold / self._period - 1e-9)
         self.metadata = {**self.metadata, "render_fps": 1.0 / self._period}
 
         self.robots: dict[str, Robot] = {}
@@ -291,23 +347,35 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         self._action_low = np.concatenate(low)
         self._action_high = np.concatenate(high)
         self.action_labels = labels
-        self.action_space = spaces.Box(
-            self._action_low.astype(np.float32),
-            self._action_high.astype(np.float32),
-            dtype=np.float32,
-        )
+        if spec.normalize_actions:
+            span = self._action_high - self._action_low
+            unbounded = [n for n, w in zip(labels, span, strict=True) if not np.isfinite(w)]
+            if unbounded:
+                raise SpecError(
+                    f"TaskSpec.normalize_actions: action entries {unbounded} have no finite "
+                    "bounds to scale [-1, 1] onto (give the joints effort limits)"
+                )
+            self.action_space = spaces.Box(-1.0, 1.0, (len(labels),), dtype=np.float32)
+            self._action_mid = 0.5 * (self._action_high + self._action_low)
+            self._action_half = 0.5 * (self._action_high - self._action_low)
+        else:
+            self.action_space = spaces.Box(
+                self._action_low.astype(np.float32),
+                self._action_high.astype(np.float32),
+                dtype=np.float32,
+            )
         self._action = np.zeros(len(labels))
 
         self._render_camera_name = render_camera
         self._render_size = (render_width, render_height)
-        self.observation_space = self._bind()
-        for field in ("reward", "terminated"):
-            check_positions(
-                getattr(spec, field), self.observation_space.spaces, f"TaskSpec.{field}"
-            )
-        if self.render_mode == "rgb_array":
-            self._renderer(render_width, render_height)  # size errors now, not at render()
+        self._task_space = self._bind()
+        self.observation_space = self._task_space
+        for field in ("reward", "terminated", "success"):
+            check_positions(getattr(spec, field), self._task_space.spaces, f"TaskSpec.{field}")
+        if self.render_mode in ("rgb_array", "depth_array"):
+            check_offscreen_size(scene.model, render_width, render_height)  # now, not at render()
         self._steps = 0
+        self._held = 0
         self._needs_reset = True
         self._diverged: str | None = None
 
@@ -316,9 +384,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         observation space they make. Run again when the scene was rebuilt
         (`scene.add_object`), since MuJoCo's arrays are new then."""
         spec, scene = self.task_spec, self.scene
-        for r in self._renderers.values():
-            r.close()
-        self._readers, self._renderers = [], {}
+        self._close_renderers()
+        self._readers = []
         model, data = scene.model, scene.data
         self._model = model
         sources: list[str] = []
@@ -352,7 +419,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
     def _follow_rebuild(self) -> None:
         """Rebind to a rebuilt scene; its observations must keep their names and shapes."""
-        new, old = self._bind().spaces, self.observation_space.spaces
+        new, old = self._bind().spaces, self._task_space.spaces
         changed = sorted(k for k in new.keys() | old.keys() if new.get(k) != old.get(k))
         if changed:
             raise SpecError(
@@ -398,20 +465,42 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             return CameraReader(model, data, sensor, self._renderer, where)
         if isinstance(sensor, BodyPoseSensor):
             return PoseReader(model, data, sensor, where)
+        if isinstance(sensor, ContactSensor):
+            return ContactReader(model, data, sensor, where)
+        if isinstance(sensor, RelativePositionSensor):
+            arms = {r.arm: r for r in self._readers if isinstance(r, ArmReader)}
+            return RelativeReader(model, data, sensor, arms, where)
         if isinstance(sensor, Sensor):
             return UserReader(sensor, self, where)
         raise SpecError(
-            f"{where} must be a CameraSensor, a BodyPoseSensor or a Sensor (space/read), "
+            f"{where} must be a CameraSensor, BodyPoseSensor, ContactSensor, "
+            "RelativePositionSensor or a Sensor (space/read), "
             f"got {type(sensor).__name__}"
         )
 
     def _renderer(self, width: int, height: int) -> mujoco.Renderer:
-        """The one renderer of this size (every camera of that size shares it)."""
+        """The one renderer of this size (every camera of that size shares it), made at its
+        first use in this process: an OpenGL context does not survive a `fork`, so a child
+        process makes its own and leaves the parent's alone."""
+        if self._renderer_pid != os.getpid():
+            _ORPHANED.extend(self._renderers.values())  # the parent's: never freed here
+            self._renderers = {}
+            self._renderer_pid = os.getpid()
         r = self._renderers.get((width, height))
         if r is None:
-            r = offscreen_renderer(self.scene.model, width, height)
+            r = offscreen_renderer(
+                self.scene.model, width, height, shadows=False, reflections=False
+            )
             self._renderers[(width, height)] = r
         return r
+
+    def _close_renderers(self) -> None:
+        if self._renderer_pid == os.getpid():
+            for r in self._renderers.values():
+                r.close()
+        else:
+            _ORPHANED.extend(self._renderers.values())
+        self._renderers = {}
 
     def _camera_id(self, name: str, where: str) -> int:
         return model_id(self.scene.model, mujoco.mjtObj.mjOBJ_CAMERA, "camera", name, where)
@@ -429,7 +518,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if isinstance(seed, (bool, np.bool_)):
             raise SpecTypeError(f"reset(seed=...) must be an integer or None, got {seed!r}")
         if options:
-            raise SpecError(f"reset(options=...): TaskEnv takes no options, got {dict(options)}")
+            raise SpecError(
+                f"reset(options=...): TaskEnv takes no options, got {dict(options)}; task "
+                "parameters go to the constructor (gymnasium.make(id, **parameters))"
+            )
         super().reset(seed=seed)
         self._needs_reset = True  # until this reset completes (an initializer may raise)
         scene = self.scene
@@ -437,7 +529,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             self._follow_rebuild()
         scene.reset()
         for eff in self._effectors:
-            eff.new_episode()
+            eff.new_episode(scene)
         for init in self.task_spec.initializers:
             init(self, self.np_random)
         mujoco.mj_forward(scene.model, scene.data)
@@ -445,12 +537,13 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             eff.robot.sync_commands()
         mujoco.mj_forward(scene.model, scene.data)  # torques under the synced commands
         self._steps = 0
+        self._held = 0
         self._needs_reset = False
         self._diverged = None
         obs = self._observe()
         if self.render_mode == "human":
             self.render()
-        return obs, {"diverged": False}
+        return obs, {"is_success": self._success(obs), "diverged": False}
 
     def step(
         self, action: np.ndarray
@@ -472,7 +565,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if why is not None:
             self._diverged = why
             obs = {k: b.copy() for k, b in self._buffers}  # the last finite observation
-            return obs, 0.0, True, truncated, {"diverged": True, "error": why}
+            info = {"is_success": False, "diverged": True, "error": why}
+            return obs, 0.0, True, truncated, info
         _refresh_kinematics(self.scene.model, self.scene.data)
         obs = self._observe()
         spec = self.task_spec
@@ -485,7 +579,32 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             terminated = spec.terminated(obs)
             if type(terminated) is not bool:
                 terminated = flag(terminated, "TaskSpec.terminated(obs)")
-        return obs, reward, terminated, truncated, {"diverged": False}
+        success = self._success(obs)
+        self._held = self._held + 1 if success else 0
+        if spec.terminate_on_success and self._held > self._hold_steps and not terminated:
+            terminated = True
+            # The steps this end cuts off would each have paid about this step's reward.
+            horizon = self._horizon()
+            if math.isfinite(horizon):
+                reward *= 1 + max(0, horizon - self._steps)
+        return obs, reward, terminated, truncated, {"is_success": success, "diverged": False}
+
+    def _success(self, obs: dict[str, np.ndarray]) -> bool:
+        fn = self.task_spec.success
+        if fn is None:
+            return False
+        value = fn(obs)
+        return value if type(value) is bool else flag(value, "TaskSpec.success(obs)")
+
+    def _horizon(self) -> float:
+        """Control steps an episode lasts at most: `time_limit`'s, else the `TimeLimit` that
+        Gymnasium registered for this env's id (a wrapper is invisible from inside, so a
+        `max_episode_steps` given to `make` is not seen), else unbounded."""
+        if math.isfinite(self._max_steps):
+            return self._max_steps
+        registered = gym.registry.get(self.spec.id) if self.spec is not None else None
+        steps = getattr(registered, "max_episode_steps", None)
+        return math.inf if steps is None else steps
 
     def _checked_action(self, action: object) -> np.ndarray:
         a: Any = action
@@ -499,6 +618,11 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             bad = [f"{self.action_labels[i]}={a[i]}" for i in np.flatnonzero(~np.isfinite(a))]
             raise SpecError(f"action entries must be finite, got {', '.join(bad)}")
         out = self._action
+        if self.task_spec.normalize_actions:
+            np.clip(a, -1.0, 1.0, out=out)
+            out *= self._action_half
+            out += self._action_mid
+            return out
         np.maximum(a, self._action_low, out=out)
         np.minimum(out, self._action_high, out=out)
         return out
@@ -548,15 +672,23 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     # ------------------------------------------------------------------ rendering
 
     def render(self) -> np.ndarray | None:
-        """`rgb_array`: an image of `render_camera` (the free camera when ""); `human`: the
-        interactive viewer, which then shows every physics step in real time."""
+        """`rgb_array`/`depth_array`: an image of `render_camera` (the free camera when "");
+        `human`: the interactive viewer, which then shows every physics step in real time."""
         self._check_open()
-        if self.render_mode == "rgb_array":
+        if self.render_mode in ("rgb_array", "depth_array"):
             r = self._renderer(*self._render_size)
             flags = r.scene.flags  # shared with camera sensors of this size, which may differ
-            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 1
+            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
+                self._render_shadows
+            )
             r.update_scene(self.scene.data, camera=self._render_camera)
-            return r.render()
+            if self.render_mode == "rgb_array":
+                return r.render()
+            r.enable_depth_rendering()
+            try:
+                return r.render()
+            finally:
+                r.disable_depth_rendering()
         if self.render_mode == "human":
             if self._viewer is None:
                 from ..viewer import SimulateViewer  # the viewer needs a display: open on use
@@ -586,9 +718,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     def close(self) -> None:
         """Release renderers, the viewer and the scene; later calls raise RuntimeError."""
         self._readers = []
-        for r in self._renderers.values():
-            r.close()
-        self._renderers = {}
+        self._close_renderers()
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
@@ -597,6 +727,58 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if scene is not None:
             scene.close()
         self._closed = True
+
+
+# Renderers inherited through a fork: their OpenGL contexts belong to the parent, and
+# freeing them here can hang (software EGL) or fail, so they are kept until exit.
+_ORPHANED: list[mujoco.Renderer] = []
+_SETTLE_STEPS = 500  # physics steps a gripper gets to open at reset (1 s at 2 ms)
+
+
+def _settle_tool(scene: Env, tip_body: str) -> None:
+    """Let the joints below `tip_body` (the fingers) move to where their actuators hold
+    them, everything else pinned in place, then restore the clock: the episode starts with
+    the gripper as commanded instead of MuJoCo's `qpos0` (the Panda's fingers closed)."""
+    model, data = scene.model, scene.data
+    tip = model.body(tip_body).id
+    below = [b for b in range(model.nbody) if _descends(model, b, tip) and b != tip]
+    joints = [j for j in range(model.njnt) if model.jnt_bodyid[j] in below]
+    if not joints:
+        return
+    free_q = np.zeros(model.nq, dtype=bool)
+    free_v = np.zeros(model.nv, dtype=bool)
+    for j in joints:
+        n_q, n_v = _JOINT_SIZES[int(model.jnt_type[j])]
+        free_q[model.jnt_qposadr[j] : model.jnt_qposadr[j] + n_q] = True
+        free_v[model.jnt_dofadr[j] : model.jnt_dofadr[j] + n_v] = True
+    pinned_q, pinned_v = ~free_q, ~free_v
+    qpos, time = data.qpos.copy(), data.time
+    for k in range(_SETTLE_STEPS):
+        mujoco.mj_step(model, data)
+        data.qpos[pinned_q] = qpos[pinned_q]
+        data.qvel[pinned_v] = 0.0
+        if k > 10 and np.abs(data.qvel[free_v]).max() < 1e-4:
+            break
+    data.qvel[:] = 0.0
+    data.qacc_warmstart[:] = 0.0
+    data.time = time
+    mujoco.mj_forward(model, data)
+
+
+_JOINT_SIZES = {
+    int(mujoco.mjtJoint.mjJNT_FREE): (7, 6),
+    int(mujoco.mjtJoint.mjJNT_BALL): (4, 3),
+    int(mujoco.mjtJoint.mjJNT_SLIDE): (1, 1),
+    int(mujoco.mjtJoint.mjJNT_HINGE): (1, 1),
+}
+
+
+def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+    while body > 0:
+        if body == ancestor:
+            return True
+        body = int(model.body_parentid[body])
+    return False
 
 
 def _controller(robot: Robot, arm: ArmSpec) -> CartesianVelocityController:

@@ -45,7 +45,7 @@ def _robot(env: TaskEnv, arm: object, cls: str) -> tuple[Robot, str]:
 
 @dataclass
 class PropPlacer:
-    """Puts free `bodies` at random positions in the box `low`..`high` (xyz, world), each
+    """Puts free or marker `bodies` at random positions in the box `low`..`high` (xyz, world), each
     without contact with anything — the scene, the arms and the props placed before it —
     as MuJoCo's collision detection sees it (margins included). Orientation: a random yaw
     about the world z when `random_yaw`, else the body's initial one. A body that still
@@ -95,9 +95,14 @@ class PropPlacer:
     @staticmethod
     def _free_body(model: mujoco.MjModel, name: str, where: str) -> int:
         b = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", name, where)
+        if model.body_mocapid[b] >= 0:
+            return b
         j = model.body_jntadr[b]
         if model.body_jntnum[b] < 1 or int(model.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_FREE):
-            raise SpecError(f"{where}: body {name!r} is not a free body (fixed=False objects are)")
+            raise SpecError(
+                f"{where}: body {name!r} is neither a free body (fixed=False objects are) nor a "
+                "marker"
+            )
         return b
 
 

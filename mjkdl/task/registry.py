@@ -1,27 +1,63 @@
-"""Registered tasks: Menagerie's Franka Panda reaching for a ball and lifting a cube.
+"""Registered tasks: Menagerie's Franka Panda reaching a goal and lifting a cube.
 
 Both follow dm_robotics_panda: Cartesian velocity of the TCP plus the hand's binary gripper
-(action of 7), a 0.1 s control period over 2 ms physics, 10 s episodes.
+(action of 7, each entry in [-1, 1]), a 0.1 s control period over 2 ms physics, episodes of
+100 steps (Gymnasium's `TimeLimit`: `gymnasium.make(id, max_episode_steps=N)` changes it).
+Parameters go through `gymnasium.make(id, **parameters)` (docs/task.md lists them);
+`time_limit` (seconds) ends episodes earlier.
 """
 
 from __future__ import annotations
 
+import inspect
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from .. import menagerie
-from ..spec import CameraSpec, Condim, RobotSpec, SceneObject, SceneSpec, Shape, ToolFrameSpec
+from ..errors import SpecError, SpecTypeError
+from ..spec import (
+    AttachKind,
+    AttachTarget,
+    CameraSpec,
+    Condim,
+    RobotSpec,
+    SceneObject,
+    SceneSpec,
+    Shape,
+    ToolFrameSpec,
+)
+from ..validate import flag, real
+from ._check import integer, names
 from .env import TaskEnv
+from .goal import GoalTaskEnv, reward_type
 from .initializers import PoseInitializer, PropPlacer
-from .rewards import Lifted, LiftReward, ReachReward
-from .spec import ArmSpec, BodyPoseSensor, GripperSpec, TaskSpec
+from .rewards import Held, LiftReward, Reached, ReachReward, SparseReward
+from .spec import (
+    ArmSpec,
+    BodyPoseSensor,
+    CameraSensor,
+    ContactSensor,
+    GripperSpec,
+    RelativePositionSensor,
+    TaskSpec,
+)
 
 # Menagerie's "home" keyframe for the arm joints (radians): hand down, in front of the base.
 PANDA_HOME = [0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853]
-BALL_RADIUS = 0.03
+GOAL_RADIUS = 0.02
 CUBE_HALF = 0.02
-LIFT = 0.1
+LIFT = 0.05  # metres above its resting height that count as lifted
+HOLD = 0.5  # seconds a lift must be held before the episode ends
+MAX_EPISODE_STEPS = 100  # Gymnasium's TimeLimit: 10 s at the default 0.1 s control period
+REACH_GOAL_LOW = (0.3, -0.3, 0.1)
+REACH_GOAL_HIGH = (0.7, 0.3, 0.5)
+CUBE_LOW = (0.4, -0.15)
+CUBE_HIGH = (0.6, 0.15)
+TARGET_LOW = (0.4, -0.15, CUBE_HALF + 0.08)
+TARGET_HIGH = (0.6, 0.15, CUBE_HALF + 0.2)
 
 
 def panda_arm(name: str = "panda") -> ArmSpec:
@@ -37,42 +73,29 @@ def panda_arm(name: str = "panda") -> ArmSpec:
 
 
 def panda_scene(objects: list[SceneObject]) -> SceneSpec:
-    """Menagerie's Panda at the world origin on a floor, `objects`, and a `front` camera."""
+    """Menagerie's Panda at the world origin on a floor, `objects`, a `front` camera facing
+    the arm and a `wrist` camera on the hand looking between the fingers."""
     return SceneSpec(
         timestep=0.002,
         add_floor=True,
         add_skybox=False,
         robots=[RobotSpec(path=menagerie.model_path("franka_emika_panda"))],
         objects=objects,
-        cameras=[CameraSpec(name="front", pos=[1.6, 0.0, 0.9], euler=[0.0, 65.0, 90.0], fovy=45.0)],
-    )
-
-
-def panda_reach_spec() -> TaskSpec:
-    """Reach a 3 cm ball dropped at random on the floor in front of the arm; the TCP starts
-    at a random pose above the work area. Reward `clip(1 - distance, 0, 1)`."""
-    ball = SceneObject(
-        name="ball", shape=Shape.SPHERE, size=[BALL_RADIUS], rgba=[1.0, 0.0, 0.0, 1.0], mass=0.1
-    )
-    z = BALL_RADIUS + 0.002
-    return TaskSpec(
-        scene=panda_scene([ball]),
-        arms=[panda_arm()],
-        sensors=[BodyPoseSensor("ball", name="goal")],
-        initializers=[  # the arm first: the ball is then placed clear of it
-            PoseInitializer(
-                "panda", low=[0.3, -0.2, 0.3, 165, -15, -105], high=[0.6, 0.2, 0.6, 195, 15, -75]
+        cameras=[
+            CameraSpec(name="front", pos=[1.6, 0.0, 0.9], euler=[0.0, 65.0, 90.0], fovy=45.0),
+            CameraSpec(
+                name="wrist",
+                pos=[0.07, 0.0, 0.03],
+                euler=[180.0, 20.0, -90.0],
+                fovy=75.0,
+                attach_to=AttachTarget(AttachKind.Body, "hand"),
             ),
-            PropPlacer(["ball"], low=[0.35, -0.3, z], high=[0.65, 0.3, z]),
         ],
-        reward=ReachReward("panda_tcp_pos", "goal_pose"),
     )
 
 
-def panda_pick_cube_spec() -> TaskSpec:
-    """Lift a 4 cm cube placed at random on the floor by 10 cm. Reward `LiftReward` (1 when
-    lifted, up to 0.5 for approaching and raising it); the episode ends once it is lifted."""
-    cube = SceneObject(
+def _cube() -> SceneObject:
+    return SceneObject(
         name="cube",
         shape=Shape.BOX,
         size=[CUBE_HALF] * 3,
@@ -81,34 +104,322 @@ def panda_pick_cube_spec() -> TaskSpec:
         condim=Condim.Torsional,
         friction=[1.0, 0.02, 0.001],
     )
-    z = CUBE_HALF + 0.002
+
+
+def _marker(name: str, rgba: list[float]) -> SceneObject:
+    return SceneObject(name=name, shape=Shape.SPHERE, size=[GOAL_RADIUS], rgba=rgba, marker=True)
+
+
+def _box3(low: object, high: object, where: str) -> tuple[list[float], list[float]]:
+    from ..compile import vector  # the scene's checks: length, finite numbers
+
+    lo, hi = vector(low, 3, f"{where}_low"), vector(high, 3, f"{where}_high")
+    if np.any(lo > hi):
+        raise SpecError(f"{where}_low must not exceed {where}_high, got {lo} and {hi}")
+    return lo.tolist(), hi.tolist()
+
+
+def panda_reach_spec(
+    goal_low: Sequence[float] = REACH_GOAL_LOW,
+    goal_high: Sequence[float] = REACH_GOAL_HIGH,
+    success_distance: float = 0.05,
+) -> TaskSpec:
+    """Bring the TCP within `success_distance` of a goal marker (no collisions) placed at
+    random in `goal_low`..`goal_high`; the TCP starts at a random pose above the work area.
+    Dense reward `ReachReward`; observations add `goal_pose` and `goal_rel` (goal - TCP)."""
+    lo, hi = _box3(goal_low, goal_high, "goal")
     return TaskSpec(
-        scene=panda_scene([cube]),
+        scene=panda_scene([_marker("goal", [1.0, 0.1, 0.1, 0.6])]),
         arms=[panda_arm()],
-        sensors=[BodyPoseSensor("cube")],
-        initializers=[PropPlacer(["cube"], low=[0.4, -0.15, z], high=[0.6, 0.15, z])],
-        reward=LiftReward("panda_tcp_pos", "cube_pose", rest_z=CUBE_HALF, lift=LIFT),
-        terminated=Lifted("cube_pose", rest_z=CUBE_HALF, lift=LIFT),
+        sensors=[BodyPoseSensor("goal"), RelativePositionSensor("goal", "panda")],
+        initializers=[
+            PoseInitializer(
+                "panda", low=[0.3, -0.2, 0.3, 165, -15, -105], high=[0.6, 0.2, 0.6, 195, 15, -75]
+            ),
+            PropPlacer(["goal"], low=lo, high=hi, random_yaw=False),
+        ],
+        reward=ReachReward("panda_tcp_pos", "goal_pose", success_distance=success_distance),
+        success=Reached("panda_tcp_pos", "goal_pose", success_distance),
+        normalize_actions=True,
     )
 
 
-def panda_reach(render_mode: str | None = None, **kwargs: Any) -> TaskEnv:
-    """`mjkdl/PandaReach-v0`; keyword arguments go to `TaskEnv`."""
-    kwargs.setdefault("render_camera", "front")
-    return TaskEnv(panda_reach_spec(), render_mode, **kwargs)
+def panda_pick_cube_spec(
+    cube_low: Sequence[float] = CUBE_LOW, cube_high: Sequence[float] = CUBE_HIGH
+) -> TaskSpec:
+    """Lift a 4 cm cube, placed at random in the xy box `cube_low`..`cube_high` on the floor,
+    by 5 cm between the fingers and hold it there for 0.5 s. Staged reward `LiftReward`;
+    observations add `cube_pose`, `cube_rel` (cube - TCP) and `cube_contacts` (fingers)."""
+    z = CUBE_HALF + 0.002
+    lo, hi = _box3([*_pair(cube_low, "cube_low"), z], [*_pair(cube_high, "cube_high"), z], "cube")
+    contacts = ContactSensor("cube", ["left_finger", "right_finger"])
+    return TaskSpec(
+        scene=panda_scene([_cube()]),
+        arms=[panda_arm()],
+        sensors=[BodyPoseSensor("cube"), RelativePositionSensor("cube", "panda"), contacts],
+        initializers=[PropPlacer(["cube"], low=lo, high=hi)],
+        reward=LiftReward(
+            "panda_tcp_pos", "cube_pose", "cube_contacts", rest_z=CUBE_HALF, lift=LIFT
+        ),
+        success=Held("cube_pose", "cube_contacts", rest_z=CUBE_HALF, lift=LIFT),
+        terminate_on_success=True,
+        success_hold=HOLD,
+        normalize_actions=True,
+    )
 
 
-def panda_pick_cube(render_mode: str | None = None, **kwargs: Any) -> TaskEnv:
-    """`mjkdl/PandaPickCube-v0`; keyword arguments go to `TaskEnv`."""
-    kwargs.setdefault("render_camera", "front")
-    return TaskEnv(panda_pick_cube_spec(), render_mode, **kwargs)
+def _pair(value: object, field: str) -> list[float]:
+    from ..compile import vector
+
+    return vector(value, 2, field).tolist()
+
+
+class _Registered(TaskEnv):
+    """Parameters shared by the registered tasks, checked with messages that name them."""
+
+    @classmethod
+    def _refuse_unknown(cls, unknown: Mapping[str, Any]) -> None:
+        if unknown:
+            valid = [p for p in inspect.signature(cls.__init__).parameters][1:-1]
+            raise SpecError(
+                f"{cls.__name__}: unknown parameter(s) {sorted(unknown)}; valid: "
+                f"{', '.join(valid)} (and gymnasium.make's own, e.g. max_episode_steps)"
+            )
+
+    def _episode(
+        self,
+        spec: TaskSpec,
+        time_limit: float | None,
+        control_timestep: float,
+        reward: str,
+        camera_names: Sequence[str],
+        camera_size: Sequence[int],
+    ) -> TaskSpec:
+        """`spec` with the common parameters applied."""
+        spec.time_limit = time_limit  # None: the registered TimeLimit (max_episode_steps)
+        spec.control_timestep = control_timestep
+        if reward_type(reward) == "sparse":
+            spec.reward = SparseReward(spec.success)
+        if isinstance(camera_size, (str, bytes)) or not isinstance(camera_size, Sequence):
+            raise SpecTypeError(f"camera_size must be (height, width), got {camera_size!r}")
+        if len(camera_size) != 2:
+            raise SpecError(f"camera_size must be (height, width), got {camera_size!r}")
+        h, w = integer(camera_size[0], "camera_size[0]"), integer(camera_size[1], "camera_size[1]")
+        cams = names(camera_names, "camera_names", "camera")
+        spec.sensors = [*spec.sensors, *(CameraSensor(c, width=w, height=h) for c in cams)]
+        return spec
+
+
+class PandaReachEnv(_Registered, TaskEnv):
+    """`mjkdl/PandaReach-v0`: bring the Panda's TCP within `success_distance` of a goal.
+
+    Success (`info["is_success"]`): TCP within `success_distance` metres of the goal; the
+    episode goes on unless `terminate_on_success`. `reward_type`: "dense" (`ReachReward`) or
+    "sparse" (1 on success steps). `camera_names` (of "front", "wrist") add `{name}_rgb`
+    observations of `camera_size` (height, width).
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        goal_low: Sequence[float] = REACH_GOAL_LOW,
+        goal_high: Sequence[float] = REACH_GOAL_HIGH,
+        success_distance: float = 0.05,
+        reward_type: str = "dense",
+        terminate_on_success: bool = False,
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        self._refuse_unknown(unknown)
+        success_distance = _positive(success_distance, "success_distance")
+        spec = panda_reach_spec(goal_low, goal_high, success_distance)
+        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
+        spec = self._episode(
+            spec, time_limit, control_timestep, reward_type, camera_names, camera_size
+        )
+        TaskEnv.__init__(
+            self,
+            spec,
+            render_mode,
+            render_camera=render_camera,
+            render_width=render_width,
+            render_height=render_height,
+            render_shadows=render_shadows,
+        )
+
+
+class PandaPickCubeEnv(_Registered, TaskEnv):
+    """`mjkdl/PandaPickCube-v0`: lift a cube 5 cm between the Panda's fingers and hold it.
+
+    Success: the cube at least 5 cm above its resting height while both fingers touch it;
+    the episode ends once that has held for 0.5 s (`terminate_on_success`). `reward_type`:
+    "dense" (`LiftReward`: reach, grasp, lift, hold) or "sparse".
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        cube_low: Sequence[float] = CUBE_LOW,
+        cube_high: Sequence[float] = CUBE_HIGH,
+        reward_type: str = "dense",
+        terminate_on_success: bool = True,
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        self._refuse_unknown(unknown)
+        spec = panda_pick_cube_spec(cube_low, cube_high)
+        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
+        spec = self._episode(
+            spec, time_limit, control_timestep, reward_type, camera_names, camera_size
+        )
+        TaskEnv.__init__(
+            self,
+            spec,
+            render_mode,
+            render_camera=render_camera,
+            render_width=render_width,
+            render_height=render_height,
+            render_shadows=render_shadows,
+        )
+
+
+class PandaReachGoalEnv(_Registered, GoalTaskEnv):
+    """`mjkdl/PandaReachGoal-v0`: `PandaReach-v0` goal-conditioned, for HER.
+
+    `achieved_goal` is the TCP position, `desired_goal` the goal's; `observation` the arm's
+    state (goal observations left out). `reward_type` defaults to "sparse" (1 within
+    `success_distance`, else 0), as HER expects; `compute_reward` gives the same numbers.
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        goal_low: Sequence[float] = REACH_GOAL_LOW,
+        goal_high: Sequence[float] = REACH_GOAL_HIGH,
+        success_distance: float = 0.05,
+        reward_type: str = "sparse",
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        self._refuse_unknown(unknown)
+        success_distance = _positive(success_distance, "success_distance")
+        spec = panda_reach_spec(goal_low, goal_high, success_distance)
+        spec = self._episode(spec, time_limit, control_timestep, "dense", camera_names, camera_size)
+        GoalTaskEnv.__init__(
+            self,
+            spec,
+            render_mode,
+            achieved="panda_tcp_pos",
+            desired="goal_pose",
+            threshold=success_distance,
+            reward_type=reward_type,
+            goal_keys=("goal_rel",),
+            render_camera=render_camera,
+            render_width=render_width,
+            render_height=render_height,
+            render_shadows=render_shadows,
+        )
+
+
+class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
+    """`mjkdl/PandaPickCubeGoal-v0`: bring the cube within `success_distance` of a target
+    marker in the air above the floor (`target_low`..`target_high`), goal-conditioned.
+
+    `achieved_goal` is the cube's position, `desired_goal` the target's; `observation` the
+    arm's state, the cube's pose, `cube_rel` and the finger contacts. Sparse reward by
+    default.
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        cube_low: Sequence[float] = CUBE_LOW,
+        cube_high: Sequence[float] = CUBE_HIGH,
+        target_low: Sequence[float] = TARGET_LOW,
+        target_high: Sequence[float] = TARGET_HIGH,
+        success_distance: float = 0.03,
+        reward_type: str = "sparse",
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        self._refuse_unknown(unknown)
+        success_distance = _positive(success_distance, "success_distance")
+        lo, hi = _box3(target_low, target_high, "target")
+        spec = panda_pick_cube_spec(cube_low, cube_high)
+        spec.scene.objects.append(_marker("target", [0.1, 1.0, 0.1, 0.5]))
+        spec.sensors = [*spec.sensors, BodyPoseSensor("target")]
+        spec.initializers = [*spec.initializers, PropPlacer(["target"], lo, hi, random_yaw=False)]
+        spec.terminate_on_success = False
+        spec = self._episode(spec, time_limit, control_timestep, "dense", camera_names, camera_size)
+        GoalTaskEnv.__init__(
+            self,
+            spec,
+            render_mode,
+            achieved="cube_pose",
+            desired="target_pose",
+            threshold=success_distance,
+            reward_type=reward_type,
+            render_camera=render_camera,
+            render_width=render_width,
+            render_height=render_height,
+            render_shadows=render_shadows,
+        )
+
+
+def _positive(value: object, field: str) -> float:
+    out = real(value, field)
+    if out <= 0:
+        raise SpecError(f"{field} must be a positive number of metres, got {value!r}")
+    return out
+
+
+TASKS: dict[str, type[TaskEnv]] = {
+    "mjkdl/PandaReach-v0": PandaReachEnv,
+    "mjkdl/PandaPickCube-v0": PandaPickCubeEnv,
+    "mjkdl/PandaReachGoal-v0": PandaReachGoalEnv,
+    "mjkdl/PandaPickCubeGoal-v0": PandaPickCubeGoalEnv,
+}
 
 
 def register() -> None:
     """Register the tasks with Gymnasium (done by `import mjkdl.task`; idempotent)."""
-    for env_id, entry in (
-        ("mjkdl/PandaReach-v0", "panda_reach"),
-        ("mjkdl/PandaPickCube-v0", "panda_pick_cube"),
-    ):
+    for env_id, cls in TASKS.items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=f"{__name__}:{entry}", disable_env_checker=False)
+            gym.register(
+                id=env_id,
+                entry_point=f"{__name__}:{cls.__name__}",
+                max_episode_steps=MAX_EPISODE_STEPS,
+                disable_env_checker=False,
+            )

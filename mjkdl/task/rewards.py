@@ -1,8 +1,13 @@
-"""Reward and termination helpers for the common cases, built on observation names.
+"""Reward, success and termination helpers for the common cases, built on observation names.
 
-`TaskSpec.reward` and `TaskSpec.terminated` take the step's observation; these helpers return
-such callables (picklable, so vector envs and Ray can ship them). A position observation is any
-whose first three entries are x, y, z in the world: `{arm}_tcp_pos`, `{name}_pose`.
+`TaskSpec.reward`, `success` and `terminated` take the step's observation; these helpers
+return such callables (picklable, so vector envs and Ray can ship them). A position
+observation is any whose first three entries are x, y, z in the world: `{arm}_tcp_pos`,
+`{name}_pose`.
+
+The dense rewards lie in [0, 1] per step, grow with progress towards success, and pay a
+success step at least as much as any step before success, so a policy that fails never earns
+more than one that succeeds (docs/task.md gives the formulas).
 """
 
 from __future__ import annotations
@@ -19,7 +24,8 @@ from ..validate import real, text
 from ._check import positive
 
 
-def _position(obs: Mapping[str, np.ndarray], key: str) -> np.ndarray:
+def position(obs: Mapping[str, np.ndarray], key: str) -> np.ndarray:
+    """The x, y, z held by position observation `key` (its first three entries)."""
     if type(obs) is not dict and not isinstance(obs, Mapping):
         raise SpecTypeError(f"the observation must be a mapping of names to arrays, got {obs!r}")
     if not isinstance(key, str):
@@ -50,39 +56,23 @@ def check_positions(fn: object, boxes: Mapping[str, Any], where: str) -> None:
 
 def distance(obs: Mapping[str, np.ndarray], a: str, b: str) -> float:
     """Metres between the positions held by observations `a` and `b`."""
-    d = _position(obs, a) - _position(obs, b)
+    d = position(obs, a) - position(obs, b)
     return math.sqrt(d.dot(d))
 
 
 def height(obs: Mapping[str, np.ndarray], key: str) -> float:
     """World z of the position held by observation `key`."""
-    return float(_position(obs, key)[2])
+    return float(position(obs, key)[2])
 
 
-@dataclass(frozen=True)
-class ReachReward:
-    """Dense reward `clip(1 - distance(a, b) / scale, 0, 1)`: 1 on the target, 0 from
-    `scale` metres away (dm_robotics_panda's `1 - distance` with `scale=1`)."""
-
-    a: str
-    b: str
-    scale: float = 1.0
-
-    def __post_init__(self) -> None:
-        text(self.a, "ReachReward.a")
-        text(self.b, "ReachReward.b")
-        positive(self.scale, "ReachReward.scale")
-
-    def _positions(self) -> dict[str, str]:
-        return {"ReachReward.a": self.a, "ReachReward.b": self.b}
-
-    def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
-        return min(1.0, max(0.0, 1.0 - distance(obs, self.a, self.b) / self.scale))
+def _closeness(d: float, scale: float) -> float:
+    """1 at distance 0, falling smoothly towards 0 over a few `scale`s."""
+    return 1.0 - math.tanh(d / scale)
 
 
 @dataclass(frozen=True)
 class Reached:
-    """Termination: observations `a` and `b` are within `tolerance` metres."""
+    """Success (or termination): observations `a` and `b` are within `tolerance` metres."""
 
     a: str
     b: str
@@ -101,9 +91,38 @@ class Reached:
 
 
 @dataclass(frozen=True)
+class ReachReward:
+    """Dense reaching reward in [0, 1]: `0.5 * (1 - tanh(d / scale))`, plus 0.5 while `d`
+    is within `success_distance` (the success `Reached(a, b, success_distance)` counts)."""
+
+    a: str
+    b: str
+    success_distance: float = 0.05
+    scale: float = 0.1
+
+    def __post_init__(self) -> None:
+        text(self.a, "ReachReward.a")
+        text(self.b, "ReachReward.b")
+        positive(self.success_distance, "ReachReward.success_distance")
+        positive(self.scale, "ReachReward.scale")
+
+    def _positions(self) -> dict[str, str]:
+        return {"ReachReward.a": self.a, "ReachReward.b": self.b}
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
+        d = distance(obs, self.a, self.b)
+        return reach_reward(d, self.success_distance, self.scale)
+
+
+def reach_reward(d: Any, success_distance: float, scale: float) -> Any:
+    """`ReachReward`'s formula for a distance or an array of them (goal-conditioned envs)."""
+    return 0.5 * (1.0 - np.tanh(np.asarray(d) / scale)) + 0.5 * (np.asarray(d) <= success_distance)
+
+
+@dataclass(frozen=True)
 class Lifted:
-    """Termination (and sparse reward): the object of observation `key` is at least `lift`
-    metres above `rest_z`, the height it rests at."""
+    """The object of observation `key` is at least `lift` metres above `rest_z`, the height
+    it rests at."""
 
     key: str
     rest_z: float
@@ -121,18 +140,50 @@ class Lifted:
         return height(obs, self.key) >= self.rest_z + self.lift
 
 
+def _grasped(obs: Mapping[str, np.ndarray], key: str) -> bool:
+    """Every entry of the `ContactSensor` observation `key` is in contact."""
+    if key not in obs:
+        raise unknown_name("observation", key, obs, where="the step's observation")
+    return bool(np.all(np.asarray(obs[key]) > 0.5))
+
+
+@dataclass(frozen=True)
+class Held:
+    """Success of a pick: `Lifted(obj, rest_z, lift)` while the object touches every body of
+    the `ContactSensor` observation `contacts` (both fingers: held, not balanced or tossed)."""
+
+    obj: str
+    contacts: str
+    rest_z: float
+    lift: float
+
+    def __post_init__(self) -> None:
+        text(self.obj, "Held.obj")
+        text(self.contacts, "Held.contacts")
+        real(self.rest_z, "Held.rest_z")
+        positive(self.lift, "Held.lift")
+
+    def _positions(self) -> dict[str, str]:
+        return {"Held.obj": self.obj}
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
+        lifted = height(obs, self.obj) >= self.rest_z + self.lift
+        return lifted and _grasped(obs, self.contacts)
+
+
 @dataclass(frozen=True)
 class LiftReward:
-    """Sparse + shaped lifting reward, in [0, 1.5].
+    """Staged dense pick reward in [0, 1]: reach, grasp, lift, then hold.
 
-    Sparse: 1 once `Lifted(obj, rest_z, lift)`. Shaped, up to 0.5: a quarter for the TCP
-    approaching the object (`near = 1 - tanh(distance / reach_scale)`) and a quarter for the
-    height gained toward `lift`, scaled by `near` so pushing the object up from afar does not
-    pay.
+    Before success, `0.25 * (1 - tanh(d / reach_scale))` for the TCP nearing the object, plus
+    0.25 while it is grasped (touching every body of `contacts`), plus, while grasped, up to
+    0.25 for the height gained towards `lift`: at most 0.75. A success step (`Held` with the
+    same fields) pays 1.
     """
 
     tcp: str
     obj: str
+    contacts: str
     rest_z: float
     lift: float
     reach_scale: float = 0.1
@@ -140,6 +191,7 @@ class LiftReward:
     def __post_init__(self) -> None:
         text(self.tcp, "LiftReward.tcp")
         text(self.obj, "LiftReward.obj")
+        text(self.contacts, "LiftReward.contacts")
         real(self.rest_z, "LiftReward.rest_z")
         positive(self.lift, "LiftReward.lift")
         positive(self.reach_scale, "LiftReward.reach_scale")
@@ -148,8 +200,29 @@ class LiftReward:
         return {"LiftReward.tcp": self.tcp, "LiftReward.obj": self.obj}
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
-        z = height(obs, self.obj)
-        near = 1.0 - math.tanh(distance(obs, self.tcp, self.obj) / self.reach_scale)
-        gained = min(1.0, max(0.0, (z - self.rest_z) / self.lift))
-        sparse = 1.0 if z >= self.rest_z + self.lift else 0.0
-        return sparse + 0.25 * near * (1.0 + gained)
+        gained = (height(obs, self.obj) - self.rest_z) / self.lift
+        grasped = _grasped(obs, self.contacts)
+        if grasped and gained >= 1.0:
+            return 1.0
+        reward = 0.25 * _closeness(distance(obs, self.tcp, self.obj), self.reach_scale)
+        if grasped:
+            reward += 0.25 + 0.25 * max(0.0, gained)
+        return reward
+
+
+@dataclass(frozen=True)
+class SparseReward:
+    """1 on the steps where `success(obs)` holds, else 0."""
+
+    success: Any
+
+    def __post_init__(self) -> None:
+        if not callable(self.success):
+            raise SpecTypeError(f"SparseReward.success must be callable, got {self.success!r}")
+
+    def _positions(self) -> dict[str, str]:
+        inner = getattr(self.success, "_positions", None)
+        return inner() if inner is not None else {}
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
+        return 1.0 if self.success(obs) else 0.0

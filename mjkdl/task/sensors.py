@@ -18,12 +18,13 @@ import numpy as np
 from gymnasium import spaces
 
 from ..compile import euler_quat, vector
-from ..errors import SpecError
+from ..errors import SpecError, unknown_name
 from ..names import find_id, model_id
+from ..record import check_offscreen_size
 from ..spec import ToolFrameSpec
 from ..validate import flag, real, text
-from ._check import integer
-from .spec import ArmSpec, BodyPoseSensor, CameraSensor
+from ._check import integer, names
+from .spec import ArmSpec, BodyPoseSensor, CameraSensor, ContactSensor, RelativePositionSensor
 
 if TYPE_CHECKING:
     from ..control import Gripper
@@ -100,6 +101,7 @@ class ArmReader(Reader):
         for s in ft:
             boxes[f"{p}_wrench" if len(ft) == 1 else f"{p}_{s.name}_wrench"] = _box((6,))
         super().__init__(boxes)
+        self.arm = p
         self._data, self._model = data, model
         self._gripper = gripper
         b = self.buffers
@@ -183,6 +185,31 @@ class ArmReader(Reader):
             torque[:] = t_view
 
 
+class RelativeReader(Reader):
+    """`{name}_rel`: a body's world position minus an arm's TCP position (world axes)."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        s: RelativePositionSensor,
+        arms: dict[str, ArmReader],
+        where: str,
+    ):
+        body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", s.body, f"{where}.body")
+        arm = text(s.arm, f"{where}.arm")
+        if arm not in arms:
+            raise unknown_name("arm", arm, arms, where=f"{where}.arm (TaskSpec.arms)")
+        name = text(s.name, f"{where}.name") or s.body
+        super().__init__({f"{name}_rel": _box((3,))})
+        self._out = self.buffers[f"{name}_rel"]
+        self._pos, self._tcp = data.xpos[body], arms[arm].buffers[f"{arm}_tcp_pos"]
+
+    def read(self) -> None:
+        """Runs after the arms' readers, whose TCP positions it reads."""
+        np.subtract(self._pos, self._tcp, out=self._out)
+
+
 class PoseReader(Reader):
     """`{name}_pose`: a body's world position and quaternion."""
 
@@ -221,7 +248,9 @@ def intrinsics(fovy_deg: float, width: int, height: int) -> np.ndarray:
 class CameraReader(Reader):
     """`{name}_rgb`, `{name}_depth` (metres) and `{name}_intrinsics` of one camera.
 
-    Renderers come from `renderer(width, height)`, shared by every camera of the same size.
+    Renderers come from `renderer(width, height)`, shared by every camera of the same size
+    and asked for at every frame, so the env makes its OpenGL context in the process that
+    renders (after a fork, too).
     """
 
     def __init__(
@@ -243,9 +272,10 @@ class CameraReader(Reader):
         boxes[f"{name}_intrinsics"] = _box((3, 3))
         super().__init__(boxes)
         try:
-            self._renderer: mujoco.Renderer = renderer(w, h)
+            check_offscreen_size(model, w, h)
         except SpecError as err:
             raise SpecError(f"{where}: {err}") from None
+        self._renderer, self._size = renderer, (w, h)
         self._data, self._cam = data, cam
         self._flags = flags
         self._rgb = self.buffers[f"{name}_rgb"]
@@ -253,7 +283,7 @@ class CameraReader(Reader):
         self.buffers[f"{name}_intrinsics"][:] = intrinsics(float(model.cam_fovy[cam]), w, h)
 
     def read(self) -> None:
-        r = self._renderer
+        r = self._renderer(*self._size)
         flags = r.scene.flags  # the renderer is shared: set this camera's look every time
         flags[mujoco.mjtRndFlag.mjRND_SHADOW], flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
             self._flags
@@ -264,3 +294,41 @@ class CameraReader(Reader):
             r.render(out=self._depth)
             r.disable_depth_rendering()
         r.render(out=self._rgb)
+
+
+class ContactReader(Reader):
+    """`{name}_contacts`: 1.0 for each of `others` that `body` touches, else 0.0.
+
+    A touch is a MuJoCo contact (from the last physics step) at zero or negative distance
+    between a geom of `body` and a geom of the other body; geoms of child bodies do not count.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, s: ContactSensor, where: str):
+        body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", s.body, f"{where}.body")
+        others = [
+            model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", name, f"{where}.others[{i}]")
+            for i, name in enumerate(names(s.others, f"{where}.others"))
+        ]
+        if not others:
+            raise SpecError(f"{where}.others must name at least one body")
+        name = text(s.name, f"{where}.name") or s.body
+        super().__init__({f"{name}_contacts": _box((len(others),), 0.0, 1.0)})
+        self._out = self.buffers[f"{name}_contacts"]
+        self._data, self._body = data, body
+        self._slot = {b: i for i, b in enumerate(others)}
+        self._geom_body = model.geom_bodyid
+
+    def read(self) -> None:
+        out, d = self._out, self._data
+        out[:] = 0.0
+        if d.ncon == 0:
+            return
+        con = d.contact
+        pairs = self._geom_body[con.geom]
+        for (a, b), dist in zip(pairs, con.dist, strict=True):
+            if dist > 0.0:
+                continue
+            if a == self._body and b in self._slot:
+                out[self._slot[b]] = 1.0
+            elif b == self._body and a in self._slot:
+                out[self._slot[a]] = 1.0

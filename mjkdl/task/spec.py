@@ -92,21 +92,57 @@ class BodyPoseSensor:
 
 
 @dataclass
+class RelativePositionSensor:
+    """Where `body` is seen from arm `arm`'s TCP: `{name}_rel` = body position minus TCP
+    position, world axes (the goal or the cube relative to the hand); `name` defaults to
+    `body`."""
+
+    body: str
+    arm: str
+    name: str = ""
+
+
+@dataclass
+class ContactSensor:
+    """Which of `others` `body` touches: `{name}_contacts`, 1.0 per touching body, else 0.0
+    (the cube between two fingers: `ContactSensor("cube", ["left_finger", "right_finger"])`);
+    `name` defaults to `body`."""
+
+    body: str
+    others: Sequence[str]
+    name: str = ""
+
+
+@dataclass
 class TaskSpec:
     """A whole task: the scene, its arms, the control period and how an episode goes.
 
-    `control_timestep` must be a whole number of physics timesteps. `sensors` are
-    `CameraSensor`, `BodyPoseSensor` or any object following `mjkdl.task.Sensor`.
-    `initializers` run in order at every reset with the env's seeded generator; any callable
-    `(env, rng)` works. `reward(obs)` and `terminated(obs)` see the observation of the step and
+    `control_timestep` must be a whole number of physics timesteps. `time_limit` (seconds)
+    sets `truncated`; None leaves episode length to a wrapper (Gymnasium's `TimeLimit`).
+    `sensors` are `CameraSensor`, `BodyPoseSensor`, `ContactSensor` or any object following
+    `mjkdl.task.Sensor`. `initializers` run in order at every reset with the env's seeded
+    generator; any callable `(env, rng)` works.
+
+    `reward(obs)`, `terminated(obs)` and `success(obs)` see the observation of the step and
     return a finite real number and `True`/`False` (NumPy scalars too); anything else raises.
+    `success` fills `info["is_success"]` at every reset and step (False without one). With
+    `terminate_on_success` the episode ends once success has held for `success_hold` seconds,
+    and that last step's reward counts once more for every step the end cuts off (up to
+    `time_limit`, or without one the `max_episode_steps` Gymnasium registered for the env),
+    so succeeding early never costs reward.
+    `normalize_actions` makes every action entry lie in [-1, 1], mapped linearly onto the
+    arm's bounds (the gripper: -1 open, +1 closed).
     """
 
     scene: SceneSpec
     arms: list[ArmSpec]
     control_timestep: float = 0.1
-    time_limit: float = 10.0
+    time_limit: float | None = 10.0
     sensors: Sequence[Any] = field(default_factory=list)
     initializers: Sequence[Initializer] = field(default_factory=list)
     reward: Callable[[Observation], float] | None = None
     terminated: Callable[[Observation], bool] | None = None
+    success: Callable[[Observation], bool] | None = None
+    terminate_on_success: bool = False
+    success_hold: float = 0.0
+    normalize_actions: bool = False
