@@ -1,31 +1,15 @@
-"""Tasks and policies for the demonstration tests, importable in a fresh process too: a
-camera task registered as `demo_envs:mjkdl_test/PickCubeCamera-v0`, and `module:fn` policies."""
+"""Policies for the demonstration tests, importable as `demo_envs:fn` in a fresh process."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from mjkdl.task import CameraSensor, TaskEnv
-from mjkdl.task.registry import panda_pick_cube_spec
-
-CAMERA_ENV = "demo_envs:mjkdl_test/PickCubeCamera-v0"
+# PickCube with a 64x48 front camera observation (`front_rgb`).
+CAMERA = {"camera_names": ["front"], "camera_size": [48, 64]}
 Obs = Mapping[str, np.ndarray]
-
-
-def pick_cube_camera(render_mode: str | None = None, **kwargs: Any) -> TaskEnv:
-    """PickCube with a 64x48 `front_rgb` observation."""
-    spec = panda_pick_cube_spec()
-    spec.sensors.append(CameraSensor("front", width=64, height=48))
-    kwargs.setdefault("render_camera", "front")
-    return TaskEnv(spec, render_mode, **kwargs)
-
-
-if "mjkdl_test/PickCubeCamera-v0" not in gym.registry:
-    gym.register(id="mjkdl_test/PickCubeCamera-v0", entry_point=f"{__name__}:pick_cube_camera")
 
 
 class Approach:

@@ -10,7 +10,7 @@ import pytest
 from conftest import menagerie
 from test_demos_hdf5 import PICK, REACH, cli
 
-from mjkdl.demos import DemoFile, PolicyError, collect
+from mjkdl.demos import DemoFile, collect
 
 
 @pytest.fixture(autouse=True)
@@ -112,13 +112,15 @@ def test_bad_input_names_itself_and_writes_nothing(
         assert not out.exists()
 
 
-def test_the_expert_or_a_clear_error_without_one(tmp_path: Path) -> None:
-    try:
-        import mjkdl.task.experts  # noqa: F401
-    except ImportError:
-        with pytest.raises(PolicyError, match="no scripted experts yet"):
-            collect(PICK, "expert", tmp_path / "e.hdf5", episodes=1, progress=False)
-        assert not (tmp_path / "e.hdf5").exists()
-        return
-    r = collect(PICK, "expert", tmp_path / "e.hdf5", episodes=4, progress=False)
-    assert r.successes == r.kept == 4
+def test_expert_demos_are_successes_and_other_envs_have_none(tmp_path: Path) -> None:
+    r = collect(PICK, "expert", tmp_path / "e.hdf5", episodes=3, seed=0, progress=False)
+    assert (r.successes, r.kept) == (3, 3)
+    with DemoFile(r.path) as f:
+        assert all(d.success and d.dones[-1] == 1 and d.num_samples < 100 for d in f)
+        grip = f.demo(0).actions[:, 6]
+        assert grip[0] == -1.0 and grip[-1] == 1.0  # opens, then closes on the cube
+    r2 = cli("collect", "CartPole-v1", "--expert", "--episodes", "1", "--out",
+             str(tmp_path / "c.hdf5"))  # fmt: skip
+    assert r2.returncode == 2
+    assert "error: no expert for CartPoleEnv; experts exist for mjkdl/PandaReach-v0" in r2.stderr
+    assert not (tmp_path / "c.hdf5").exists()

@@ -68,3 +68,10 @@ def test_success_is_the_envs_is_success_or_a_clean_termination() -> None:
     assert success_of({"diverged": False}, True) is True
     assert success_of({"diverged": True}, True) is False
     assert success_of({}, False) is False
+
+
+def test_the_expert_succeeds_and_says_so() -> None:
+    r = cli("evaluate", PICK, "--expert", "--episodes", "5", "--seed", "0")
+    assert r.returncode == 0, r.stderr
+    assert all("success=True" in ln for ln in r.stdout.splitlines()[:5])
+    assert r.stdout.splitlines()[5].startswith("success: 100.0 % (95 % CI 56.6-100.0 %, 5/5)")

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 import pytest
 from conftest import ROOT, menagerie
-from demo_envs import CAMERA_ENV, approach
+from demo_envs import CAMERA, approach
 
 import mjkdl as mjk
 from mjkdl.demos import (
@@ -103,11 +103,11 @@ def approach_reach(env):
 
 
 def test_camera_frames_are_chunked_and_compressed(tmp_path: Path) -> None:
-    env = make_env(CAMERA_ENV, {"max_episode_steps": 3})
+    env = make_env(PICK, {**CAMERA, "max_episode_steps": 3})
     ep = run_episode(env, lambda obs: np.zeros(7, np.float32), 0, record=True)
     env.close()
     assert ep.data is not None
-    with EpisodeWriter(tmp_path / "cam.hdf5", CAMERA_ENV) as writer:
+    with EpisodeWriter(tmp_path / "cam.hdf5", PICK, CAMERA) as writer:
         writer.write(ep.data)
     with h5py.File(tmp_path / "cam.hdf5", "r") as f:
         rgb = f["data/demo_0/obs/front_rgb"]

@@ -11,8 +11,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from conftest import menagerie
-from demo_envs import CAMERA_ENV
-from test_demos_hdf5 import REACH, cli
+from demo_envs import CAMERA
+from test_demos_hdf5 import PICK, REACH, cli
 
 from mjkdl.demos import DemoFile, EpisodeWriter, ExportError, collect, export_lerobot
 
@@ -22,8 +22,8 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     menagerie("franka_emika_panda")
     folder = tmp_path_factory.mktemp("lerobot")
     demos = folder / "cam.hdf5"
-    collect(CAMERA_ENV, "demo_envs:approach", demos, episodes=3, seed=1, keep_failures=True,
-            env_kwargs={"max_episode_steps": 7}, progress=False)  # fmt: skip
+    collect(PICK, "demo_envs:approach", demos, episodes=3, seed=1, keep_failures=True,
+            env_kwargs={**CAMERA, "max_episode_steps": 7}, progress=False)  # fmt: skip
     r = cli("export-lerobot", str(demos), "--root", str(folder / "ds"), "--repo-id", "me/pick")
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == f"{folder / 'ds'}: 3 episodes, 21 frames"
@@ -48,7 +48,7 @@ def test_info_tasks_and_stats(exported: tuple[Path, Path]) -> None:
     assert feats["observation.state"]["shape"][0] == len(feats["observation.state"]["names"])
     assert "panda_tcp_pos.2" in feats["observation.state"]["names"]
     tasks = pq.read_table(root / "meta/tasks.parquet").to_pylist()
-    assert tasks == [{"task_index": 0, "task": CAMERA_ENV}]
+    assert tasks == [{"task_index": 0, "task": PICK}]
     stats = json.loads((root / "meta/stats.json").read_text())
     assert stats["action"]["count"] == [21]
     assert np.array(stats["observation.images.front"]["mean"]).shape == (3, 1, 1)

@@ -15,7 +15,7 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
-from ..errors import MjkdlError, UnknownNameError
+from ..errors import MjkdlError
 
 Obs = Mapping[str, np.ndarray]
 PolicySource = str | Callable[[gym.Env], "Policy"]
@@ -92,17 +92,11 @@ def load_factory(spec: str) -> Callable[[gym.Env], Policy]:
 
 
 def _expert(env: gym.Env) -> Policy:
-    try:  # issue #21 adds the module; until then --expert says there is none
-        experts = importlib.import_module("mjkdl.task.experts")
-    except ImportError:
-        raise PolicyError(
-            "--expert: this mjkdl has no scripted experts yet (mjkdl.task.experts is missing); "
-            "use --policy module:fn or --random"
-        ) from None
-    try:
-        return experts.expert_for(env)
-    except KeyError as err:
-        raise UnknownNameError(str(err.args[0]) if err.args else str(err)) from None
+    """The task's scripted expert; an env without one is an `UnknownNameError` listing the
+    tasks that have one."""
+    from ..task.experts import expert_for
+
+    return expert_for(env)
 
 
 def checked_action(action: object, space: gym.spaces.Box, where: str) -> np.ndarray:
