@@ -51,7 +51,7 @@ def env_alone(env: Any, expert: Any, seeds: list[int]) -> int:
 def recorded(env: Any, expert: Any, seeds: list[int], path: Path, kwargs: dict) -> int:
     """The same episodes recorded and written; control steps taken."""
     steps = 0
-    with EpisodeWriter(path, ENV, kwargs) as writer:
+    with EpisodeWriter(path, ENV, kwargs, overwrite=True) as writer:
         for seed in seeds:
             ep = run_episode(env, expert, seed, record=True, source="expert")
             assert ep.data is not None

@@ -44,6 +44,13 @@ def test_only_successes_are_kept_unless_asked(tmp_path: Path) -> None:
         assert len(f) == 0
     r = cli("collect", REACH, "--random", "--episodes", "3", "--env-kwargs",
             '{"max_episode_steps": 3}', "--keep-failures", "--out", str(out))  # fmt: skip
+    assert r.returncode == 2
+    assert f"error: {out} exists: pass --append to add demos to it or --overwrite" in r.stderr
+    with DemoFile(out) as f:
+        assert len(f) == 0  # untouched
+    r = cli("collect", REACH, "--random", "--episodes", "3", "--env-kwargs",
+            '{"max_episode_steps": 3}', "--keep-failures", "--overwrite",
+            "--out", str(out))  # fmt: skip
     assert r.returncode == 0 and "kept 3 of 3 episodes (0 successful)" in r.stdout
     assert "collect mjkdl/PandaReach-v0: 100%" in r.stderr  # the progress bar
 

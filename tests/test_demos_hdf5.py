@@ -170,6 +170,12 @@ def test_append_continues_the_numbering(tmp_path: Path) -> None:
     w.close()  # idempotent
     with pytest.raises(RuntimeError, match="EpisodeWriter is closed"):
         w.write(eps[0].data)
+    with pytest.raises(DemoFileError, match=r"a\.hdf5 exists: pass --append .* or --overwrite"):
+        EpisodeWriter(path, REACH)
+    with EpisodeWriter(path, REACH, overwrite=True) as w:
+        assert w.num_demos == 0
+    with DemoFile(path) as f:
+        assert f.names == []
 
 
 def test_sigkill_loses_at_most_the_episode_in_progress(tmp_path: Path) -> None:

@@ -54,6 +54,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="HDF5 file to write (robomimic layout)")
     p.add_argument("--keep-failures", action="store_true", help="keep unsuccessful episodes")
     p.add_argument("--append", action="store_true", help="add to an existing file")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing file")
 
     p = sub.add_parser("replay", help="replay a recorded demo, exactly")
     p.add_argument("file", metavar="FILE")
@@ -126,6 +127,7 @@ def _collect(args: argparse.Namespace) -> int:
         workers=args.workers,
         keep_failures=args.keep_failures,
         append=args.append,
+        overwrite=args.overwrite,
     )
     print(f"{r.path}: kept {r.kept} of {r.episodes} episodes ({r.successes} successful)")
     return 0

@@ -37,10 +37,12 @@ def collect(
     workers: int = 1,
     keep_failures: bool = False,
     append: bool = False,
+    overwrite: bool = False,
     progress: bool = True,
 ) -> CollectResult:
     """Run `episodes` episodes (seeds `seed`, `seed + 1`, ...) and write the successful ones
-    (all with `keep_failures`) to `out`, each flushed as it is written."""
+    (all with `keep_failures`) to `out`, each flushed as it is written. An existing `out` is
+    refused unless `append` (add to it) or `overwrite` (replace it)."""
     episodes = integer(episodes, "--episodes")
     seed = integer(seed, "--seed", least=0)
     kwargs = dict(env_kwargs or {})
@@ -48,7 +50,7 @@ def collect(
     results = run_seeds(env_id, kwargs, policy, seeds, record=True, workers=workers)
     kept = successes = 0
     with (
-        EpisodeWriter(out, env_id, kwargs, append=append) as writer,
+        EpisodeWriter(out, env_id, kwargs, append=append, overwrite=overwrite) as writer,
         tqdm(total=episodes, desc=f"collect {env_id}", unit="ep", disable=not progress) as bar,
     ):
         for result in results:

@@ -160,7 +160,8 @@ class EpisodeWriter(Closable):
     """Appends finished episodes to an HDF5 file as `data/demo_<i>`, flushing after each.
 
     A crash or SIGKILL loses at most the episode being written: every `write` ends with the
-    file complete on disk. `append=True` continues an existing file of the same env.
+    file complete on disk. An existing file is refused unless `append=True` (continue it: the
+    same env and kwargs) or `overwrite=True` (replace it).
     """
 
     def __init__(
@@ -170,6 +171,7 @@ class EpisodeWriter(Closable):
         env_kwargs: Mapping[str, Any] | None = None,
         *,
         append: bool = False,
+        overwrite: bool = False,
     ) -> None:
         self._path = Path(path)
         args = env_args(env_name, env_kwargs or {})
@@ -178,6 +180,11 @@ class EpisodeWriter(Closable):
         except TypeError as err:
             raise DemoFileError(f"env_kwargs must be JSON-serialisable: {err}") from None
         self._file: h5py.File | None = None
+        if self._path.exists() and not (append or overwrite):
+            raise DemoFileError(
+                f"{self._path} exists: pass --append to add demos to it or --overwrite to "
+                "replace it"
+            )
         if append and self._path.exists():
             DemoFile(self._path).close()  # a foreign or broken file is refused here
             f = self._open(self._path, "a")
@@ -304,24 +311,10 @@ def _write_masks(f: h5py.File, demos: list[str]) -> None:
 
 
 @dataclass
-class Demo:
-    """One demo read back: arrays in memory, attributes as plain values."""
+class Demo(EpisodeData):
+    """One demo read back (arrays in memory), with its name in the file."""
 
-    name: str
-    seed: int
-    actions: np.ndarray
-    rewards: np.ndarray
-    dones: np.ndarray
-    states: np.ndarray
-    obs: dict[str, np.ndarray]
-    success: bool
-    model_file: str
-    model_hash: str
-
-    @property
-    def num_samples(self) -> int:
-        """Steps in the demo."""
-        return len(self.actions)
+    name: str = ""
 
 
 class DemoFile(Closable):
