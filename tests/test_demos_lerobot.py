@@ -107,3 +107,17 @@ def test_bad_exports(exported: tuple[Path, Path], tmp_path: Path) -> None:
     with pytest.raises(ExportError, match=r"empty\.hdf5 holds no finished demos to export"):
         export_lerobot(empty, tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_lerobots_own_loader_reads_the_export(exported: tuple[Path, Path]) -> None:
+    """Where lerobot installs (0.4 pins torch < 2.11; CI has a newer torch, so this skips
+    there): its `LeRobotDataset` reads the metadata, tasks and rows."""
+    lerobot_dataset = pytest.importorskip("lerobot.datasets.lerobot_dataset")
+    demos, root = exported
+    ds = lerobot_dataset.LeRobotDataset("me/pick", root=root)
+    assert (ds.num_episodes, ds.num_frames, ds.fps) == (3, 21, 10)
+    assert ds.meta.video_keys == ["observation.images.front"]
+    assert ds.meta.get_task_index(PICK) == 0
+    with DemoFile(demos) as f:
+        actions = np.concatenate([d.actions for d in f])
+    assert np.array_equal(np.stack([np.asarray(a) for a in ds.hf_dataset["action"]]), actions)

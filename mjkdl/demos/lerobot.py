@@ -141,6 +141,23 @@ def _fps(env_name: str, env_kwargs: dict[str, Any]) -> float:
     return round(fps) if abs(fps - round(fps)) < 1e-9 else fps
 
 
+def _tasks_table(pa: Any, tasks: list[str]) -> Any:
+    """`meta/tasks.parquet`: `task_index` by task, with the pandas metadata that makes the task
+    the frame's index when pandas reads it back, as lerobot's `load_tasks` expects."""
+    pandas_meta = {
+        "index_columns": ["task"],
+        "column_indexes": [],
+        "columns": [
+            {"name": "task_index", "field_name": "task_index", "pandas_type": "int64",
+             "numpy_type": "int64", "metadata": None},
+            {"name": "task", "field_name": "task", "pandas_type": "unicode",
+             "numpy_type": "object", "metadata": None},
+        ],
+    }  # fmt: skip
+    table = pa.table({"task_index": pa.array(range(len(tasks)), pa.int64()), "task": tasks})
+    return table.replace_schema_metadata({"pandas": json.dumps(pandas_meta)})
+
+
 class _Video:
     """One camera's MP4 of every episode, one video frame per dataset frame."""
 
@@ -311,10 +328,7 @@ def _write(
     meta = out / "meta"
     (meta / "episodes" / "chunk-000").mkdir(parents=True, exist_ok=True)
     pq.write_table(pa.Table.from_pylist(episodes), meta / "episodes/chunk-000/file-000.parquet")
-    pq.write_table(
-        pa.table({"task_index": pa.array([0], pa.int64()), "task": [task]}),
-        meta / "tasks.parquet",
-    )
+    pq.write_table(_tasks_table(pa, [task]), meta / "tasks.parquet")
     stats: dict[str, Any] = {
         "observation.state": _stats(np.concatenate(all_state)),
         "action": _stats(np.concatenate(all_action)),
