@@ -222,3 +222,24 @@ def test_a_full_disk_keeps_the_finished_demos(tmp_path: Path) -> None:
     with DemoFile(out) as f:
         assert f.names == ["demo_0", "demo_1", "demo_2"]
         assert all(d.num_samples == 100 for d in f)
+
+
+def test_a_file_being_written_elsewhere_says_so(tmp_path: Path) -> None:
+    path = tmp_path / "busy.hdf5"
+    code = (
+        "import sys, time\nfrom mjkdl.demos import EpisodeWriter\n"
+        f"w = EpisodeWriter({str(path)!r}, {REACH!r})\nprint('open', flush=True)\ntime.sleep(60)"
+    )
+    env = {**__import__("os").environ, "PYTHONPATH": str(ROOT)}
+    writer = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, env=env)
+    try:
+        assert writer.stdout is not None and writer.stdout.readline() == b"open\n"
+        with pytest.raises(
+            DemoFileError, match=r"busy\.hdf5 is open for writing in another process"
+        ):
+            DemoFile(path)
+    finally:
+        writer.kill()
+        writer.wait(10)
+    with DemoFile(path) as f:  # a writer killed before any demo leaves an empty, readable file
+        assert len(f) == 0

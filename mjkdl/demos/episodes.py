@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import SpecError, SpecTypeError, unknown_name
 from ..record import VideoRecorder
 from .hdf5 import EpisodeBuffer, EpisodeData
-from .policy import Policy, PolicySource, checked_action, describe, make_policy
+from .policy import Policy, PolicySource, checked_action, make_policy
 
 MAX_WORKERS = 256
 
@@ -109,8 +109,7 @@ def run_episode(
         if recorder is not None:
             recorder.record_frame()
         while not done:
-            where = f"policy {describe(source)} (seed {seed}, step {steps})"
-            action = checked_action(policy(obs), space, where)
+            action = checked_action(policy(obs), space, source, seed, steps)
             if buffer is not None:
                 buffer.before_step(scene, obs)
             obs, reward, terminated, truncated, info = env.step(action)

@@ -251,8 +251,9 @@ class EpisodeWriter(Closable):
                 f.flush()
             except (OSError, RuntimeError, KeyError):
                 pass
+            why = " ".join(str(err).split())  # HDF5's message spans lines
             raise DemoWriteError(
-                f"could not write {name} to {self._path} ({err}); the file keeps its {kept} "
+                f"could not write {name} to {self._path} ({why}); the file keeps its {kept} "
                 "finished demos"
             ) from None
         self._next += 1
@@ -327,6 +328,11 @@ class DemoFile(Closable):
         try:
             self._file: h5py.File | None = h5py.File(self._path, "r")
         except OSError as err:
+            if "unable to lock file" in str(err):
+                raise DemoFileError(
+                    f"{self._path} is open for writing in another process (a collection or "
+                    "teleop session); read it when that ends"
+                ) from None
             raise DemoFileError(
                 f"{self._path} is not a readable HDF5 file (truncated or foreign?): {err}"
             ) from None

@@ -99,17 +99,23 @@ def _expert(env: gym.Env) -> Policy:
     return expert_for(env)
 
 
-def checked_action(action: object, space: gym.spaces.Box, where: str) -> np.ndarray:
-    """`action` as an array of the space's shape with finite entries, or a PolicyError."""
+def checked_action(
+    action: object, space: gym.spaces.Box, source: PolicySource, seed: int, step: int
+) -> np.ndarray:
+    """`action` as an array of the space's shape with finite entries, or a PolicyError
+    naming the policy, the seed and the step."""
     try:
         a = np.asarray(action, dtype=space.dtype)
     except (TypeError, ValueError):
-        raise PolicyError(f"{where} returned {action!r}, not an array of numbers") from None
+        a = None
+    if a is not None and a.shape == space.shape and math.isfinite(float(a.sum(dtype=np.float64))):
+        return a
+    where = f"policy {describe(source)} (seed {seed}, step {step})"
+    if a is None:
+        raise PolicyError(f"{where} returned {action!r}, not an array of numbers")
     if a.shape != space.shape:
         raise PolicyError(
             f"{where} returned an action of shape {a.shape}; the env takes {space.shape}"
         )
-    if not math.isfinite(float(np.sum(a, dtype=np.float64))):
-        bad = np.flatnonzero(~np.isfinite(a)).tolist()
-        raise PolicyError(f"{where} returned non-finite entries at {bad}: {a.tolist()}")
-    return a
+    bad = np.flatnonzero(~np.isfinite(a)).tolist()
+    raise PolicyError(f"{where} returned non-finite entries at {bad}: {a.tolist()}")
