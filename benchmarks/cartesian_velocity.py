@@ -36,6 +36,7 @@ import pinocchio as pin
 import proxsuite
 import qpsolvers
 from scenes import HOME, TOOL, tabletop_spec
+from tqdm import tqdm
 
 import mjkdl as mjk
 
@@ -289,16 +290,18 @@ def main() -> int:
     ]
     panda_problems: list[tuple] = []
     panda_step = 0.0
-    for name, spec, make, kw in cases:
+    for name, spec, make, kw in tqdm(cases, desc="scenes", disable=None, leave=False):
         mode = mjk.CtrlMode.VELOCITY if "VELOCITY" in name else mjk.CtrlMode.POSITION
         with mjk.Env.build(spec) as env:
             robot = make(env, mode)
             ctrl = mjk.CartesianVelocityController(robot, **kw)
             solve_us, step_us, problems = time_loop(env, robot, ctrl, args.steps)
-            print(f"  {name:44s} {solve_us:6.1f} us {step_us:6.1f} us {solve_us / step_us:6.2f}x")
+            tqdm.write(
+                f"  {name:44s} {solve_us:6.1f} us {step_us:6.1f} us {solve_us / step_us:6.2f}x"
+            )
             if name == "Panda + hand, POSITION":
                 panda_problems, panda_step = problems, step_us
-                with mjk.Env.build(panda_spec()) as env2:
+                with mjk.Env.build(panda_spec()) as env2, tqdm.external_write_mode():
                     solver_robot = panda(env2, mode)
                     print()
                     solver_table(panda_problems, panda_step, solver_robot)

@@ -33,6 +33,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 from scenes import HOME, TOOL, tabletop_spec
+from tqdm import tqdm
 
 import mjkdl as mjk
 
@@ -233,7 +234,7 @@ def main() -> None:
 
     ratios: dict[str, list[float]] = {name: [] for name in cases}
     base: dict[tuple[str, str], list[float]] = {}
-    for _ in range(BLOCKS):
+    for _ in tqdm(range(BLOCKS), desc="blocks", disable=None, leave=False):
         block = {key: timed(loop, key[1]) for key, loop in raws.items()}
         for k, t in block.items():
             base.setdefault(k, []).append(t)

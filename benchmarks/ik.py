@@ -17,6 +17,7 @@ import time
 import numpy as np
 import pinocchio as pin
 from scenes import HOME, TOOL, tabletop_spec
+from tqdm import tqdm
 
 import mjkdl as mjk
 
@@ -41,7 +42,7 @@ def main() -> None:
             robot.ik(target, home)
 
         passes = []
-        for _ in range(max(1, args.repeat)):
+        for _ in tqdm(range(max(1, args.repeat)), desc="passes", disable=None, leave=False):
             times, results = [], []
             for target in targets:
                 t0 = time.perf_counter()

@@ -29,6 +29,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported
 import mujoco
 import numpy as np
 from scenes import HOME, TOOL, tabletop_spec
+from tqdm import tqdm
 
 import mjkdl as mjk
 from mjkdl.record import offscreen_renderer
@@ -124,7 +125,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for quality in (True, False):
             render, encode = [], []
-            for k in range(args.rounds):
+            for k in tqdm(range(args.rounds), desc="rounds", disable=None, leave=False):
                 render.append(render_only(env, states, quality))
                 encode.append(render_encode(env, states, quality, Path(tmp) / f"{k}.mp4"))
             r, e = min(render), min(encode)

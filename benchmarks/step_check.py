@@ -19,6 +19,7 @@ import time
 
 import mujoco
 from scenes import tabletop_spec
+from tqdm import tqdm
 
 import mjkdl as mjk
 from mjkdl.scene import _NO_FAULTS
@@ -47,7 +48,7 @@ def main() -> None:
         check = lambda: faults != _NO_FAULTS  # noqa: E731
         empty = lambda: None  # noqa: E731
         ratios_step, ratios_check, raw_us = [], [], []
-        for _ in range(args.blocks):
+        for _ in tqdm(range(args.blocks), desc="blocks", disable=None, leave=False):
             a = _per_step(step_raw, args.steps)
             b = _per_step(scene.step, args.steps)
             c = _per_step(check, args.steps) - _per_step(empty, args.steps)

@@ -8,8 +8,9 @@ interleaved in blocks of `STEPS` control steps (each block starts from a fresh r
     steps, a forward pass, every observation read and copied, the reward;
 (c) the same with a 128x128 RGB camera observation (and with depth as well), shadows and
     reflections off (`CameraSensor`'s default), in their own shorter blocks.
-Then an async vector env (`gymnasium.make_vec(..., vectorization_mode="async")`) with 1 ... N
-sub-environments, N the machine's cores, against a single env stepped in this process.
+Then `render()` ("rgb_array", shadows off) against a `CameraSensor` of the same size, and an
+async vector env (`gymnasium.make_vec(..., vectorization_mode="async")`) with 1 ... N
+sub-environments, N the machine's cores, without and with a 128x128 camera each.
 dm_robotics_panda's own figure for its Panda environment, for scale: 209 control steps/s.
 
     python benchmarks/task_env.py
@@ -28,6 +29,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
+from tqdm import tqdm
 
 import mjkdl as mjk
 from mjkdl.task import CameraSensor, TaskEnv  # importing mjkdl.task registers the tasks
@@ -66,6 +68,7 @@ def raw_loop(
 def env_loop(env: TaskEnv, seed: int = 0) -> tuple[Callable[[], None], Callable[[int], None]]:
     """`env.step` with a still twist and the hand open (what the raw loop simulates)."""
     action = np.zeros(env.action_space.shape, np.float32)
+    action[-1] = env.action_space.low[-1]  # the gripper's "open" end
 
     def reset() -> None:
         env.reset(seed=seed)
@@ -94,7 +97,7 @@ def interleaved(
     for reset, run in loops.values():  # warm up: caches, renderer, QP solver
         reset()
         run(3)
-    for _ in range(blocks):
+    for _ in tqdm(range(blocks), desc="blocks", disable=None, leave=False):
         for name, (reset, run) in loops.items():
             reset()
             t0, c0 = time.perf_counter(), time.process_time()
@@ -116,12 +119,40 @@ def retained_bytes(reset: Callable[[], None], run: Callable[[int], None]) -> int
     return sum(s.size_diff for s in after.compare_to(before, "filename"))
 
 
-def vector_rate(num_envs: int, seconds: float) -> float:
-    """Control steps per second summed over `num_envs` async sub-environments."""
-    vec = gym.make_vec("mjkdl/PandaReach-v0", num_envs=num_envs, vectorization_mode="async")
+def render_costs(size: tuple[int, int], frames: int) -> tuple[float, float]:
+    """Seconds per `env.render()` frame ("rgb_array") and per camera observation of the same
+    camera and size (a step with a `CameraSensor` minus one without), interleaved."""
+    w, h = size
+    spec = panda_reach_spec()
+    spec.sensors = [*spec.sensors, CameraSensor("front", w, h)]
+    with_camera = TaskEnv(spec)
+    renders = TaskEnv(
+        panda_reach_spec(), "rgb_array", render_camera="front", render_width=w, render_height=h
+    )
+    loops = {"sensor": env_loop(with_camera), "plain": env_loop(renders)}
+
+    def render_loop(n: int) -> None:
+        for _ in range(n):
+            renders.render()
+
+    loops["render"] = (loops["plain"][0], render_loop)
+    times, _ = interleaved(loops, frames, 3)
+    with_camera.close()
+    renders.close()
+    sensor = float(np.median(times["sensor"] - times["plain"]))
+    return float(np.median(times["render"])), sensor
+
+
+def vector_rate(num_envs: int, seconds: float, **kwargs: object) -> float:
+    """Control steps per second summed over `num_envs` async sub-environments (Linux's default
+    start method, fork), with `gym.make` keyword arguments `kwargs` (e.g. cameras)."""
+    vec = gym.make_vec(
+        "mjkdl/PandaReach-v0", num_envs=num_envs, vectorization_mode="async", **kwargs
+    )
     try:
         vec.reset(seed=0)
         action = np.zeros(vec.action_space.shape, np.float32)
+        action[:, -1] = -1.0  # hands open
         vec.step(action)
         steps, t0 = 0, time.perf_counter()
         while time.perf_counter() - t0 < seconds:
@@ -140,6 +171,20 @@ def main() -> None:
         "--vector-seconds", type=float, default=4.0, help="wall seconds per vector-env size"
     )
     args = parser.parse_args()
+
+    # Vector envs first, before this process renders: their workers are forked (Linux's
+    # default start method), and OpenGL does not survive a fork once the parent rendered.
+    cores = os.cpu_count() or 1
+    vector_lines = []
+    for label, kwargs in (("no camera", {}), ("128x128 camera", {"camera_names": ["wrist"]})):
+        single = None
+        for n in sorted({1, *range(2, cores + 1)}):
+            rate = vector_rate(n, args.vector_seconds, **kwargs)
+            single = rate if single is None else single
+            vector_lines.append(
+                f"async vector env, {label}, {n} sub-env(s): {rate:7.0f} control steps/s  "
+                f"(x{rate / single:.2f} of 1 sub-env; {cores} cores)"
+            )
 
     plain = TaskEnv(panda_reach_spec())
     raw_reset, raw_run, raw_scene = raw_loop(TaskEnv(panda_reach_spec()))
@@ -179,16 +224,13 @@ def main() -> None:
         env.close()
     raw_scene.close()
 
-    cores = os.cpu_count() or 1
-    single = None
-    for n in sorted({1, *range(2, cores + 1)}):
-        rate = vector_rate(n, args.vector_seconds)
-        single = rate if single is None else single
+    for size in ((128, 128), (640, 480)):
+        render, sensor = render_costs(size, args.camera_blocks)
         print(
-            f"async vector env, {n} sub-env(s): {rate:7.0f} control steps/s  "
-            f"(x{rate / single:.2f} of 1 sub-env, x{rate / env_rate:.2f} of env.step "
-            f"in-process; {cores} cores)"
+            f"render() rgb_array {size[0]}x{size[1]}: {render * 1e3:6.2f} ms/frame; a "
+            f"CameraSensor of that size: {sensor * 1e3:6.2f} ms/step (ratio {render / sensor:.2f})"
         )
+    print("\n".join(vector_lines))
 
 
 if __name__ == "__main__":

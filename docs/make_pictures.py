@@ -8,6 +8,8 @@
   chain's body frames drawn;
 * ``control.png`` (docs): the Panda part-way round the figure eight of
   ``examples/cartesian_velocity.py``, its TCP's path so far drawn in;
+* ``motion.png`` (docs): the Panda of ``examples/plan_shelves.py`` half-way along a planned
+  trajectory from above one shelf to above the other, round the wall, its TCP path drawn in;
 * ``task.png`` (docs): ``mjkdl/PandaReach-v0`` after a reset, through its `front` camera;
 * ``viewer.png`` (docs): the real `SimulateViewer` window with four live figures, grabbed from
   a virtual display (needs Xvfb and ffmpeg's x11grab, which imageio-ffmpeg ships).
@@ -37,12 +39,15 @@ DOCS = ROOT / "docs"
 sys.path.insert(0, str(ROOT / "examples"))
 from cartesian_velocity import figure_eight  # noqa: E402
 from common import HOME, create_arm, create_panda, panda, panda_scene, tutorial_spec  # noqa: E402
+from plan_shelves import GRASP, HOVER, SHELF_A, SHELF_B, at, shelves  # noqa: E402
 
 import mjkdl as mjk  # noqa: E402
 import mjkdl.task  # noqa: E402  (registers the mjkdl/ tasks with Gymnasium)
 from mjkdl.record import offscreen_renderer  # noqa: E402
 
 MAX_BYTES = 200_000
+MOTION_SEED = 1  # OMPL's seed for the planned path of motion.png
+HOME_PANDA = [0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853]
 
 
 def readme_picture(env: mjk.Env, robot: mjk.Robot) -> np.ndarray:
@@ -122,6 +127,31 @@ def control_picture(turn: float = 1.5 * np.pi) -> np.ndarray:
         return render(env, orbit([0.3, 0.0, 0.4], 1.25, 215.0, -38.0), path=np.array(path))
 
 
+def motion_picture() -> np.ndarray:
+    """The Panda half-way from shelf A to shelf B over the wall, the planned TCP path drawn."""
+    import ompl.util
+
+    from mjkdl.plan import MotionPlanner, TrajectoryFollower
+
+    ompl.util.RNG.setSeed(MOTION_SEED)
+    with mjk.Env.build(panda_scene([panda()], shelves())) as env:
+        robot = create_panda(env)
+        grasp = robot.ik(at(SHELF_A, GRASP + HOVER), np.array(HOME_PANDA)).q
+        env.on_reset = lambda ctx: robot.set_joint_pos(grasp, call_forward=False)
+        env.reset()
+        robot.update()
+        trajectory = MotionPlanner(robot).plan(at(SHELF_B, GRASP + HOVER))
+        times = np.linspace(0.0, trajectory.duration, 120)
+        path = np.array([robot.fk_frame(trajectory.sample(t)[0]).translation for t in times])
+        follower = TrajectoryFollower(robot)
+        follower.start(trajectory)
+        for _ in range(round(0.5 * trajectory.duration / env.timestep())):
+            robot.update()
+            follower.command()
+            robot.step()
+        return render(env, orbit([0.25, 0.0, 0.45], 2.2, 235.0, -25.0), path=path)
+
+
 def task_picture() -> np.ndarray:
     """`mjkdl/PandaReach-v0` just after `reset(seed=0)`, as `render()` returns it."""
     env = gym.make("mjkdl/PandaReach-v0", render_mode="rgb_array", render_height=400)
@@ -178,6 +208,7 @@ def main() -> None:
         body = int(mujoco.mjtFrame.mjFRAME_BODY)
         save("robot.png", render(env, orbit([0.1, 0.0, 1.0], 1.3, 120.0, -18.0), body))
     save("control.png", control_picture())
+    save("motion.png", motion_picture())
     save("task.png", task_picture())
     shot = viewer_picture()
     if shot is not None:

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from tqdm import tqdm
 
 import mjkdl as mjk
 
@@ -285,20 +286,37 @@ def run(
     step that follows. Steps go through `robot` when given (else through `env`).
 
     Headless, the loop stops after ``args.duration`` simulated seconds (counted in steps, so
-    an `env.reset()` inside the loop does not extend it) or as soon as `until()` is true.
+    an `env.reset()` inside the loop does not extend it) or as soon as `until()` is true; a
+    progress bar of simulated seconds shows on a terminal once the run takes over a second.
     Otherwise it runs in the interactive viewer, in real time, until the window is closed or
     Ctrl+C is pressed. A loop that ends before `until()` is true says "stopped after N s".
     """
     if args.headless:
         advance = robot.step if robot is not None else env.step
-        budget = round(args.duration / env.timestep())
+        dt = env.timestep()
+        budget = round(args.duration / dt)
+        every = max(1, round(0.1 / dt))  # the bar moves by 0.1 simulated seconds
         steps = 0
-        while steps < budget and not (until is not None and until()):
-            control()
-            advance()
-            steps += 1
-            if after_step is not None:
-                after_step()
+        # Without `until` the run's length is known; with it, the bar counts up to the end.
+        bar = tqdm(
+            total=None if until is not None else round(budget * dt, 3),
+            desc=title,
+            unit="sim s",
+            bar_format="{desc}: {n:.1f}/{total} sim s |{bar}| {elapsed}<{remaining}"
+            if until is None
+            else "{desc}: {n:.1f} sim s {elapsed}",
+            disable=None,  # only on a terminal
+            delay=1.0,
+        )
+        with bar:
+            while steps < budget and not (until is not None and until()):
+                control()
+                advance()
+                steps += 1
+                if after_step is not None:
+                    after_step()
+                if steps % every == 0:
+                    bar.update(every * dt)
         if until is not None and not until():
             print(f"stopped after {steps * env.timestep():.1f} s (--duration), before the end")
         return steps

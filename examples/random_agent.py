@@ -15,6 +15,7 @@ import time
 
 import gymnasium as gym
 from common import parse_args
+from tqdm import tqdm
 
 import mjkdl.task
 
@@ -39,11 +40,11 @@ def main() -> int:
     max_steps = max(1, round(args.duration / env.unwrapped.control_timestep))
     total_steps, start = 0, time.perf_counter()
     returns = []
-    for k in range(args.episodes):
+    for k in tqdm(range(args.episodes), desc="episodes", disable=None, delay=1.0):
         episode = mjkdl.task.run_episode(env, args.seed + k, max_steps=max_steps)
         returns.append(episode.total_reward)
         total_steps += episode.steps
-        print(
+        tqdm.write(
             f"episode {k}: seed {episode.seed}, steps {episode.steps}, "
             f"return {episode.total_reward:.4f}"
         )

@@ -17,6 +17,7 @@ import time
 import gymnasium as gym
 import ray
 from common import parse_args
+from tqdm import tqdm
 
 import mjkdl.task
 
@@ -51,7 +52,8 @@ def main() -> int:
     print(f"control steps per second (with Ray start-up): {steps / elapsed:.0f}")
     env = gym.make(args.task)
     if args.verify:
-        here = [mjkdl.task.run_episode(env, s, max_steps=max_steps) for s in seeds]
+        sequential = tqdm(seeds, desc="sequential episodes", disable=None, delay=1.0)
+        here = [mjkdl.task.run_episode(env, s, max_steps=max_steps) for s in sequential]
         print(f"matches sequential: {here == episodes}")
     if not args.headless:
         best = max(episodes, key=lambda e: e.total_reward)

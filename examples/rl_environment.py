@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 from common import parse_args
+from tqdm import tqdm
 
 import mjkdl as mjk
 from mjkdl import task
@@ -100,7 +101,8 @@ def main() -> int:
         return 0
     obs, _ = env.reset(seed=0)
     reward = 0.0
-    for _ in range(round(args.duration / env.control_timestep)):
+    steps = round(args.duration / env.control_timestep)
+    for _ in tqdm(range(steps), desc="control steps", disable=None, delay=1.0):
         obs, reward, *_ = env.step(hover_agent(obs))
     depth = obs["wrist_cam_depth"]
     print(f"simulated: {obs['time'][0]:.2f} s")

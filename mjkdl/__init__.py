@@ -13,13 +13,15 @@ from .errors import (
 )
 from .ik import IKResult
 from .record import (
+    ImageWriteError,
     OffscreenRenderError,
     RecordingError,
     VideoRecorder,
     VideoResolution,
     VideoWriteError,
+    save_image,
 )
-from .robot import Robot
+from .robot import IgnoredCommandWarning, Robot
 from .scene import Env, ResetHookError, ResetInfo, Scene, mujoco_log_path, mujoco_version
 from .spec import (
     AttachKind,
@@ -55,6 +57,8 @@ __all__ = [
     "ForceTorqueSensorSpec",
     "Gripper",
     "IKResult",
+    "IgnoredCommandWarning",
+    "ImageWriteError",
     "MjkdlError",
     "ModelFileError",
     "NoDisplayError",
@@ -84,5 +88,6 @@ __all__ = [
     "menagerie",
     "mujoco_log_path",
     "mujoco_version",
+    "save_image",
     "scene_object_site_name",
 ]

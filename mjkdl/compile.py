@@ -77,7 +77,7 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
     # Under the merge policy a child's non-default <option> (the 2F-85's elliptic cone and
     # impratio, Gen3's implicitfast integrator) is adopted; two children that disagree raise.
     s.compiler.conflict = mujoco.mjtConflict.mjCONFLICT_MERGE
-    s.option.timestep = float(spec.timestep)  # type: ignore[arg-type]
+    s.option.timestep = float(spec.timestep)
     s.option.gravity = [0.0, 0.0, float(spec.gravity_z)]
     s.visual.global_.offwidth = OFFSCREEN_WIDTH
     s.visual.global_.offheight = OFFSCREEN_HEIGHT
@@ -423,7 +423,7 @@ def _add_camera(s: mujoco.MjSpec, cam: CameraSpec, field: str) -> None:
         name=cam.name,
         pos=vector(cam.pos, 3, f"{field}.pos"),
         quat=euler_quat(cam.euler, f"{field}.euler"),
-        fovy=float(cam.fovy),  # type: ignore[arg-type]
+        fovy=float(cam.fovy),
     )
 
 

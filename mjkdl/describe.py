@@ -10,7 +10,10 @@ from, else the chain's last jointed body, or a rigid body below it named like a 
 an attachment is passed over: the 2F-85's `base_mount` leads to its `base`. The TCP site is
 the tool's (else the tip's) site named most like a TCP (`tcp`, `pinch`, `grip`, ...), else the
 tool's first site; without a site, a rigid body named so inside the tool becomes a `tcp_pos` /
-`tcp_euler` offset from the tip (the Panda URDF's `panda_hand_tcp`).
+`tcp_euler` offset from the tip (the Panda URDF's `panda_hand_tcp`). A model whose file marks
+no TCP at all but whose maker documents one (Menagerie's Panda: Franka's TCP, 0.1034 m below
+the `hand` flange) gets that TCP as an offset from the hand, which then ends the chain: the
+recipe the docs and the registered tasks use.
 """
 
 from __future__ import annotations
@@ -31,6 +34,13 @@ from .spec import SceneSpec
 
 # Name parts that mark a TCP site or a tool-frame body, best first.
 _TCP_WORDS = ("tcp", "pinch", "grip", "tool", "flange", "ee", "eef", "end", "attachment")
+
+# TCPs the model files do not mark, from the makers' documentation: model file (its folder
+# and name) -> (the body that ends the chain, the TCP's offset in it). Franka documents the
+# Panda's TCP 0.1034 m along the flange's z; the Panda URDF's `panda_hand_tcp` says the same.
+_DOCUMENTED_TCPS = {
+    "franka_emika_panda/panda.xml": ("hand", (0.0, 0.0, 0.1034)),
+}
 
 _JOINT_TYPES = {
     mujoco.mjtJoint.mjJNT_FREE: "free",
@@ -88,6 +98,7 @@ class _Robot:
     index: int
     file: str
     prefix: str
+    model: str  # the file's folder and name, the key of _DOCUMENTED_TCPS
     roots: list[int]
     tools: list[int]  # root bodies of its attachments, in attachment order
     problem: str = ""  # why its roots could not be found
@@ -134,7 +145,7 @@ def suggest(model: mujoco.MjModel, spec: SceneSpec) -> list[RobotSuggestion]:
     out = []
     for robot in _robots(model, spec):
         for root in robot.roots:
-            suggestion = _suggest(model, root, robot.tools, robot.prefix)
+            suggestion = _suggest(model, root, robot)
             if suggestion is not None:
                 out.append(suggestion)
     return out
@@ -157,7 +168,9 @@ def _robots(model: mujoco.MjModel, spec: SceneSpec) -> list[_Robot]:
             problem = "" if roots else "none of its file's root bodies is in the model"
         except (MjkdlError, ValueError, OSError) as err:
             roots, tools, problem = [], [], f"its file cannot be read again: {err}"
-        out.append(_Robot(i, Path(robot.path).name, prefix, roots, tools, problem))
+        path = Path(robot.path)
+        key = f"{path.parent.name}/{path.name}"
+        out.append(_Robot(i, path.name, prefix, key, roots, tools, problem))
     return out
 
 
@@ -173,7 +186,8 @@ def _bodies(model: mujoco.MjModel, prefix: str, names: Iterable[str]) -> list[in
     return [i for i in ids if i > 0]
 
 
-def _suggest(m: mujoco.MjModel, root: int, tools: list[int], prefix: str) -> RobotSuggestion | None:
+def _suggest(m: mujoco.MjModel, root: int, robot: _Robot) -> RobotSuggestion | None:
+    tools, prefix = robot.tools, robot.prefix
     children = _children(m)
     jointed = _jointed_subtrees(m, children)
     path = [root]
@@ -196,6 +210,11 @@ def _suggest(m: mujoco.MjModel, root: int, tools: list[int], prefix: str) -> Rob
     if tool is not None and not tcp:
         sites = [s for s in range(m.nsite) if m.site_bodyid[s] in _subtree(children, tool)]
         tcp = m.site(sites[0]).name if sites else ""
+    base = _unprefixed(m.body(root).name, prefix)
+    documented = _DOCUMENTED_TCPS.get(robot.model)
+    if documented and not tcp and tool is not None and m.body(tool).name == prefix + documented[0]:
+        # The hand ends the chain (its fingers stay passive joints of the robot's model).
+        return RobotSuggestion(prefix, base, documented[0], tcp_pos=documented[1])
     frame = None if tcp else _best_body(m, _rigid_below(m, children, tip))
     offset = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     if frame is not None and tool is None:
@@ -204,7 +223,7 @@ def _suggest(m: mujoco.MjModel, root: int, tools: list[int], prefix: str) -> Rob
         offset = _offset(m, tip, frame)  # a TCP body inside the tool (panda_hand_tcp)
     return RobotSuggestion(
         prefix=prefix,
-        base_body=_unprefixed(m.body(root).name, prefix),
+        base_body=base,
         tip_body=_unprefixed(m.body(tip).name, prefix),
         tool_body=_unprefixed(m.body(tool).name, prefix) if tool is not None else "",
         tcp_site=_unprefixed(tcp, prefix),
@@ -403,7 +422,7 @@ def _robot_suggestions(m: mujoco.MjModel, robot: _Robot) -> list[str]:
         return [f"no suggestion: {robot.problem}"]
     out = []
     for root in robot.roots:
-        suggestion = _suggest(m, root, robot.tools, robot.prefix)
+        suggestion = _suggest(m, root, robot)
         name = _quote(m.body(root).name)
         out.append(f"scene.{suggestion.call()}" if suggestion else f"no single chain at {name}")
     return out

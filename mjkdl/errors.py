@@ -43,6 +43,10 @@ class SimulationError(MjkdlError, RuntimeError):
         self.warnings = warnings
 
 
+class PlanningError(MjkdlError, RuntimeError):
+    """No motion was found: a start or goal in collision, an unreachable pose, a timeout."""
+
+
 def unknown_name(kind: str, name: str, known: Iterable[str], where: str = "") -> UnknownNameError:
     """A lookup error for `name` that lists the closest known names."""
     known = [k for k in known if k]

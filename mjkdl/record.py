@@ -69,6 +69,10 @@ class VideoWriteError(RecordingError):
     """The video cannot be written: missing folder, no permission, or the encoder failed."""
 
 
+class ImageWriteError(MjkdlError, OSError):
+    """An image cannot be written: missing folder, no permission, or no writer for its type."""
+
+
 class OffscreenRenderError(MjkdlError, RuntimeError):
     """No OpenGL context for offscreen rendering could be created on this machine."""
 
@@ -82,10 +86,12 @@ class VideoResolution(enum.Enum):
 
     @property
     def width(self) -> int:
+        """Frame width, pixels."""
         return self.value[0]
 
     @property
     def height(self) -> int:
+        """Frame height, pixels."""
         return self.value[1]
 
 
@@ -121,6 +127,13 @@ def offscreen_renderer(
     can be made.
     """
     check_offscreen_size(model, width, height)
+    if _EGL_INHERITED:
+        raise OffscreenRenderError(
+            "this process was forked from one that had already rendered through EGL, and an "
+            "OpenGL context does not survive a fork; render in the parent only after starting "
+            "the workers, or start them with 'spawn' or 'forkserver' (gymnasium.make_vec(..., "
+            "vector_kwargs={'context': 'spawn'}), multiprocessing.get_context('spawn'))"
+        )
     shadows = flag(shadows, "shadows")
     reflections = flag(reflections, "reflections")
     try:
@@ -171,6 +184,24 @@ def _not_in_scene(where: str, field: str, index: int, kind: str, count: int) -> 
 _BACKEND_LOCK = threading.Lock()
 
 
+# Set in a child process forked after its parent had opened MuJoCo's EGL display: OpenGL
+# does not survive a fork (Mesa's llvmpipe loses its rendering threads and the child hangs
+# at its first frame; NVIDIA's EGL reports an incomplete framebuffer), so offscreen
+# rendering there is refused with the fix instead.
+_EGL_INHERITED = False
+
+
+def _note_fork() -> None:
+    global _EGL_INHERITED
+    egl = sys.modules.get("mujoco.egl")
+    if egl is not None and getattr(egl, "EGL_DISPLAY", None) is not None:
+        _EGL_INHERITED = True
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_note_fork)
+
+
 def _new_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
     """`mujoco.Renderer` on EGL when MuJoCo's backend is an implicit GLFW, else MuJoCo's own.
 
@@ -217,6 +248,44 @@ def _output_path(path: str | os.PathLike[str]) -> tuple[Path, bool]:
     except OSError as err:
         raise VideoWriteError(f"cannot write video {str(p)!r}: {err.strerror}") from None
     return p, not existed
+
+
+def save_image(path: str | os.PathLike[str], rgb: np.ndarray) -> Path:
+    """Write an RGB image (H×W×3 uint8, as `mujoco.Renderer.render()` and camera observations
+    give it) or a grey one (H×W uint8) to `path`; the suffix picks the format (.png, .jpg).
+
+    Through OpenCV, which mjkdl depends on; `cv2.imwrite` itself expects BGR, this does not.
+    """
+    p = Path(path_text(path, "save_image(path)")).expanduser()
+    if not isinstance(rgb, np.ndarray):
+        raise SpecTypeError(f"save_image(rgb) must be a NumPy array, got {type(rgb).__name__}")
+    if rgb.dtype != np.uint8 or not (rgb.ndim == 2 or (rgb.ndim == 3 and rgb.shape[2] == 3)):
+        raise SpecError(
+            f"save_image(rgb) must be uint8 of shape (H, W, 3) or (H, W), got {rgb.dtype} of "
+            f"shape {rgb.shape} (a depth image: scale it to 0..255 and cast it to uint8 first)"
+        )
+    if rgb.size == 0:
+        raise SpecError(f"save_image(rgb) is empty (shape {rgb.shape})")
+    import cv2  # only here: importing OpenCV takes a noticeable fraction of a second
+
+    if not cv2.haveImageWriter(str(p)):
+        raise ImageWriteError(
+            f"cannot write image {str(p)!r}: no image writer for suffix {p.suffix!r}; use .png "
+            "(lossless) or .jpg"
+        )
+    folder = p.parent.resolve()
+    if not folder.is_dir():
+        raise ImageWriteError(
+            f"cannot write image {str(p)!r}: folder {str(folder)!r} does not exist"
+        )
+    image = rgb if rgb.ndim == 2 else np.ascontiguousarray(rgb[:, :, ::-1])  # OpenCV's BGR
+    try:
+        written = cv2.imwrite(str(p), image)
+    except cv2.error as err:  # a directory of that name, among others
+        raise ImageWriteError(f"cannot write image {str(p)!r}: {err.msg or err}") from None
+    if not written:
+        raise ImageWriteError(f"cannot write image {str(p)!r}: permission denied or disk full")
+    return p
 
 
 class _FrameClock:

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import sys
+import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from types import FrameType
 
 import mujoco
 import numpy as np
@@ -33,6 +36,14 @@ _gravity = pin.computeGeneralizedGravity
 _hypot = math.hypot
 # The per-step ufuncs, called with a positional output (faster than out=).
 _add, _mul = np.add, np.multiply
+# The command port each control mode applies; the others it ignores.
+_MODE_PORT = {
+    CtrlMode.POSITION: "jnt_pos_cmd",
+    CtrlMode.VELOCITY: "jnt_vel_cmd",
+    CtrlMode.TORQUE: "jnt_trq_cmd",
+}
+_PORT_MODE = {port: mode for mode, port in _MODE_PORT.items()}
+_PACKAGE = str(Path(__file__).resolve().parent) + os.sep  # frames inside mjkdl
 
 
 @dataclass
@@ -81,6 +92,8 @@ class _Command:
             fast = robot._fast
             if not fast or port is not robot._driven:
                 robot._pending = True
+                if port is not robot._acting and self.name not in robot._warned:
+                    robot._stray_write(self.name)
             # On update()'s fast paths the port the mode drives goes to MuJoCo at once, with
             # what the last update() added to it (_apply would do the same at step()).
             elif fast == 1:
@@ -95,6 +108,10 @@ class _Command:
             robot._assign(port, value, self.name)
 
 
+class IgnoredCommandWarning(UserWarning):
+    """A command port was written that the robot's control mode does not apply."""
+
+
 class Robot:
     """A controllable serial chain of a `Scene`, modelled in Pinocchio.
 
@@ -102,6 +119,10 @@ class Robot:
     that `update()` refreshes in place; copy them to keep a snapshot. Commands are assigned as a
     whole (`robot.jnt_trq_cmd = tau`) and checked for length, finiteness and magnitude (at most
     1e10, beyond which MuJoCo would zero the control); they reach MuJoCo by the next `step()`.
+    Only the mode's port acts (`jnt_pos_cmd` in POSITION, `jnt_vel_cmd` in VELOCITY,
+    `jnt_trq_cmd` in TORQUE): a step that follows a write to another port warns once per robot
+    and port (`IgnoredCommandWarning`). Measured ports change only on `update()`:
+    `last_update_time` is the simulation time they were read at.
 
     `model` is one Pinocchio model of everything that moves the arm: the joints from the world
     to the base (a turning torso, a free or mocap base), the arm, and the tool and branches
@@ -155,6 +176,9 @@ class Robot:
         self._fast = 0  # which fast path update() takes, see _choose_path
         self._driven: np.ndarray | None = None  # the command port that path writes through
         self._gravity_ff = True
+        self._stamp = 0.0  # data.time when the measured ports were last read
+        self._stray: set[str] = set()  # ports written since the last apply that may be ignored
+        self._warned: set[str] = set()  # ports already warned about (once per robot and port)
         self._bind(scene.model, scene.data)
         self._hold_commands()
         self._pending = False
@@ -236,6 +260,7 @@ class Robot:
         self._motors = False  # TORQUE mode through contiguous actuators: the fast path
         self._servos = False  # POSITION/VELOCITY through contiguous actuators
         self._servo_cmd = self._pos_cmd  # that mode's command port
+        self._acting = self._mode_port()
         self._fast = 0
         if self._applied_mode is not None:
             self._configure(self._applied_mode)
@@ -414,11 +439,32 @@ class Robot:
             self._check_open()
         return self._ro["_trq_msr"]
 
+    @property
+    def last_update_time(self) -> float:
+        """Simulation time (`data.time`) at which the measured ports were last read.
+
+        Measured ports change only on `update()` (and on a reset), as on hardware: when this
+        is behind `scene.time()`, they are stale by the difference.
+        """
+        self._check_open()
+        return self._stamp
+
     jnt_pos_cmd = _Command("Joint position command (POSITION mode).")
+    """Joint position command, radians or metres in chain order: what POSITION mode's servos
+    track (plus gravity feed-forward). Reads as a read-only array; assign a whole vector
+    (`robot.jnt_pos_cmd = q`), checked for length, finiteness and magnitude (at most 1e10);
+    it applies at the next `step()`. Other modes ignore it (and warn once,
+    `IgnoredCommandWarning`)."""
     jnt_vel_cmd = _Command("Joint velocity command (VELOCITY mode).")
+    """Joint velocity command in chain order: what VELOCITY mode's servos track (plus gravity
+    feed-forward). Assigned and checked like `jnt_pos_cmd`; other modes ignore it (and warn
+    once)."""
     jnt_trq_cmd = _Command(
         "Joint torque command (TORQUE mode; on top of gravity with gravity_compensation)."
     )
+    """Joint torque command (N·m or N) in chain order: TORQUE mode applies it as it is, or on
+    top of the gravity torques with `gravity_compensation`; the actuators' `forcerange` still
+    limits it. Assigned and checked like `jnt_pos_cmd`; other modes ignore it (and warn once)."""
 
     def _vector(self, value: object, name: str, bound: float = math.inf) -> np.ndarray:
         """`value` checked to be n finite numbers, as a float64 array (no copy if it is one).
@@ -453,6 +499,37 @@ class Robot:
         if not self._active:
             self._activate()
         self._pending = True
+        if port is not self._acting and name not in self._warned:
+            self._stray_write(name)
+
+    def _mode_port(self) -> np.ndarray:
+        """The command port the current mode applies."""
+        return getattr(self, "_" + _MODE_PORT[self._mode][4:])
+
+    def _stray_write(self, name: str) -> None:
+        """Port `name`, which the current mode ignores, was written: the next apply decides
+        (the mode may still change before it) and warns; update() takes its general path
+        until then."""
+        self._stray.add(name)
+        self._pending = True
+        self._fast = 0
+
+    def _warn_ignored(self) -> None:
+        """Warn, once per port, about ports written since the last apply that the mode ignores."""
+        acting = _MODE_PORT[self._mode]
+        for name in sorted(self._stray - self._warned - {acting}):
+            self._warned.add(name)
+            warnings.warn(
+                f"{name} was written, but the Robot {self._base_name!r} -> {self._tip_name!r} "
+                f"is in {self._mode.name} mode, which applies {acting} only: {name} has no "
+                f"effect. Write {acting}, or set robot.ctrl_mode = "
+                f"mjk.CtrlMode.{_PORT_MODE[name].name} to use {name} (warned once per robot "
+                "and port)",
+                IgnoredCommandWarning,
+                stacklevel=_caller_stacklevel(),
+            )
+        self._stray.clear()
+        self._choose_path()
 
     def sync_commands(self) -> None:
         """Set the command ports to the measured state and apply them in the current mode.
@@ -470,6 +547,7 @@ class Robot:
         np.copyto(self._pos_cmd, self._pos_msr)
         self._vel_cmd.fill(0.0)
         self._trq_cmd.fill(0.0)
+        self._stray.clear()  # what was written is overwritten: nothing stray can act
         self._pending = True
 
     def _after_reset(self) -> None:
@@ -527,6 +605,7 @@ class Robot:
         if not self._active:
             self._activate()
         self._mode = mode
+        self._acting = self._mode_port()
         self._pending = True
         self._choose_path()
 
@@ -571,6 +650,7 @@ class Robot:
         """Read the measured state, then apply the command ports for the current mode."""
         fast = self._fast
         if fast:  # contiguous actuators, all checks done beforehand (_choose_path)
+            self._stamp = self._data.time
             self._q[...] = self._qsrc
             self._v[...] = self._vsrc
             self._trq_msr[...] = self._trq_src
@@ -608,6 +688,7 @@ class Robot:
         ready = (
             self._open
             and self._active
+            and not self._stray  # the general path applies, and warns about, stray writes
             and self._plain_read
             and self._mode is self._applied_mode
             and (self._motors or self._servos)
@@ -652,6 +733,8 @@ class Robot:
         (TORQUE), the position or velocity setpoint (servos), plus the scaled feed-forward.
         A handle that was never used for control leaves the actuators as authored.
         """
+        if self._stray:
+            self._warn_ignored()
         if self._mode is not self._applied_mode:
             if not self._active:
                 return
@@ -708,6 +791,7 @@ class Robot:
         return None
 
     def _read_state(self) -> None:
+        self._stamp = self._data.time
         if self._qsrc is not None:
             self._q[...] = self._qsrc
             self._v[...] = self._vsrc
@@ -998,6 +1082,16 @@ def _view(arr: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
     if len(idx) and np.all(np.diff(idx) == 1):
         return arr[idx[0] : idx[-1] + 1]
     return None
+
+
+def _caller_stacklevel() -> int:
+    """The `warnings.warn` stacklevel of the first frame outside mjkdl (the user's call)."""
+    frame: FrameType | None = sys._getframe(1)
+    level = 1
+    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+        frame = frame.f_back
+        level += 1
+    return level
 
 
 def _readonly(arr: np.ndarray) -> np.ndarray:

@@ -15,8 +15,11 @@ class AttachKind(enum.Enum):
     """What kind of MuJoCo element a model is mounted on."""
 
     Body = "body"
+    """A body: the mounted model's root becomes its child."""
     Site = "site"
+    """A site: the mounted model takes the site's pose (the usual tool flange)."""
     Frame = "frame"
+    """An MJCF `<frame>`."""
 
 
 @dataclass
@@ -24,30 +27,53 @@ class AttachTarget:
     """A mount point: a body, site or frame by name (names inside a robot omit its prefix)."""
 
     kind: AttachKind = AttachKind.Site
+    """Whether `name` is a body, a site or a frame (default: a site)."""
     name: str = ""
+    """The element's name; inside a robot without the robot's prefix. Required (no default)."""
 
 
 class Shape(enum.Enum):
     """Primitive geom shapes; `size` follows MuJoCo's geom size convention for each."""
 
     BOX = "box"
+    """`size`: three half-lengths."""
     SPHERE = "sphere"
+    """`size`: the radius."""
     CYLINDER = "cylinder"
+    """`size`: radius and half-height."""
     CAPSULE = "capsule"
+    """`size`: radius and half-height of the cylindrical part."""
     ELLIPSOID = "ellipsoid"
+    """`size`: three radii."""
 
 
 class Condim(enum.IntEnum):
     """MuJoCo contact dimensionality."""
 
     Frictionless = 1
+    """Normal force only."""
     Sliding = 3
+    """Plus tangential (sliding) friction: MuJoCo's default."""
     Torsional = 4
+    """Plus torsional friction: grasped objects do not spin about the contact normal."""
     Rolling = 6
+    """Plus rolling friction."""
 
 
 def _zeros3() -> list[float]:
     return [0.0, 0.0, 0.0]
+
+
+class _Required:
+    """The default of a field that must be set: building a spec that still holds it raises,
+    naming the field (there is no invented default)."""
+
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+
+REQUIRED: Any = _Required()
+"""Marks a required field of a description: `SceneSpec(timestep=REQUIRED)` is unset."""
 
 
 @dataclass
@@ -55,10 +81,15 @@ class AttachmentSpec:
     """An MJCF model (gripper, sensor, tool) mounted on a robot, offset by `pos`/`euler`."""
 
     mjcf_path: str | Path = ""
+    """The MJCF file to mount. Required."""
     attach_to: AttachTarget | None = None
+    """Where on the robot it goes (names without the robot's prefix). Required."""
     prefix: str = ""
+    """Added to every name of the mounted model (after the robot's own prefix)."""
     pos: list[float] = field(default_factory=_zeros3)
+    """Offset from `attach_to`, metres."""
     euler: list[float] = field(default_factory=_zeros3)
+    """Rotation from `attach_to`: intrinsic xyz Euler angles, degrees."""
 
 
 @dataclass
@@ -70,13 +101,23 @@ class RobotSpec:
     """
 
     path: str | Path = ""
+    """The robot's MJCF or URDF file. Required."""
     prefix: str = ""
+    """Added to every name of the robot (bodies, joints, actuators, ...), e.g. "left/"."""
     attach_to: AttachTarget | None = None
+    """Where to mount the robot (a body, site or frame of an object or an earlier robot); None: the
+    world."""
     pos: list[float] = field(default_factory=_zeros3)
+    """Position of the robot's root in the world or in `attach_to`, metres."""
     euler: list[float] = field(default_factory=_zeros3)
+    """Orientation of the robot's root: intrinsic xyz Euler angles, degrees."""
     attachments: list[AttachmentSpec] = field(default_factory=list)
+    """Tools mounted on the robot, in order (each may mount on what an earlier one added)."""
     srdf: str | Path = ""
+    """URDF only: an SRDF whose `disable_collisions` pairs are excluded ("": one next to the URDF,
+    if any)."""
     floating: bool = False
+    """URDF only: give the root link a free joint (a mobile or floating base)."""
 
 
 @dataclass
@@ -87,17 +128,30 @@ class SceneObject:
     by `Scene.set_body_pose` and never by physics (a MuJoCo mocap body)."""
 
     name: str = ""
+    """Unique body name of the object (MJCF objects' inner names get `name/` in front). Required."""
     mjcf_path: str | Path = ""
+    """An MJCF file for the object; "" for a primitive (then `shape` is required)."""
     shape: Shape | None = None
+    """The primitive's shape; required when there is no `mjcf_path`."""
     size: list[float] = field(default_factory=list)
+    """The primitive's size in MuJoCo's geom convention (half-sizes for a box, radius for a sphere,
+    ...), metres."""
     rgba: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.5, 1.0])
+    """The primitive's colour, red, green, blue, alpha in [0, 1]."""
     mass: float = 0.0
+    """The primitive's mass in kg; required (> 0) unless `fixed` or `marker`."""
     friction: list[float] = field(default_factory=lambda: [1.0, 0.005, 0.0001])
+    """The primitive's sliding, torsional and rolling friction (MuJoCo's default)."""
     condim: Condim = Condim.Sliding
+    """The primitive's contact dimensionality."""
     pos: list[float] = field(default_factory=_zeros3)
+    """Position in the world, metres."""
     euler: list[float] = field(default_factory=_zeros3)
+    """Orientation: intrinsic xyz Euler angles, degrees."""
     fixed: bool = False
+    """Welded to the world; otherwise the object gets a free joint."""
     marker: bool = False
+    """Only shows: no collisions, no mass, placed by `Scene.set_body_pose` (a mocap body)."""
 
 
 @dataclass
@@ -109,10 +163,16 @@ class CameraSpec:
     """
 
     name: str = ""
-    pos: list[float] | None = None
+    """Unique camera name (`Scene.camera_names()`, `use_camera`). Required."""
+    pos: list[float] = REQUIRED
+    """Position in the world (or in `attach_to`), metres. Required."""
     euler: list[float] = field(default_factory=_zeros3)
-    fovy: float | None = None
+    """Orientation: intrinsic xyz Euler angles, degrees; all zero looks along -z (down) with +y up
+    in the image."""
+    fovy: float = REQUIRED
+    """Vertical field of view, degrees. Required."""
     attach_to: AttachTarget | None = None
+    """A body or site the camera moves with (a wrist camera); None: fixed in the world."""
 
 
 @dataclass
@@ -120,8 +180,11 @@ class ForceTorqueSensorSpec:
     """A force/torque sensor pair (MuJoCo `force` and `torque` sensor names)."""
 
     name: str = ""
+    """The name `Robot.ft_sensor(name)` takes. Required."""
     force_sensor: str = ""
+    """MuJoCo `force` sensor name (without the robot's prefix). Required."""
     torque_sensor: str = ""
+    """MuJoCo `torque` sensor name (without the robot's prefix). Required."""
 
 
 @dataclass
@@ -133,23 +196,37 @@ class ToolFrameSpec:
     """
 
     tool_body: str = ""
+    """Root body of the tool subtree below the tip (its inertia and joints join the robot's model);
+    "": none."""
     tcp_site: str = ""
+    """Site of the tool centre point; "": the tip body's frame."""
     tcp_pos: list[float] = field(default_factory=_zeros3)
+    """Offset of the TCP from `tcp_site` (or the tip body), metres."""
     tcp_euler: list[float] = field(default_factory=_zeros3)
+    """Rotation of the TCP from `tcp_site` (or the tip body): xyz Euler angles, degrees."""
     ft_sensors: list[ForceTorqueSensorSpec] = field(default_factory=list)
+    """Force/torque sensors of the tool, read with `Robot.ft_sensor(name)`."""
 
 
 @dataclass
 class SceneSpec:
     """A whole scene. `timestep`, `add_floor` and `add_skybox` must be set explicitly."""
 
-    timestep: float | None = None
-    add_floor: bool | None = None
-    add_skybox: bool | None = None
+    timestep: float = REQUIRED
+    """Physics timestep in seconds. Required: building without it raises, naming it."""
+    add_floor: bool = REQUIRED
+    """Add a floor plane at z = 0. Required: building without it raises, naming it."""
+    add_skybox: bool = REQUIRED
+    """Add a sky texture (rendering only). Required: building without it raises, naming it."""
     gravity_z: float = -9.81
+    """Gravity along world z, m/s²."""
     robots: list[RobotSpec] = field(default_factory=list)
+    """Robots, built after the objects in this order (a robot may mount on an object or an earlier
+    robot)."""
     objects: list[SceneObject] = field(default_factory=list)
+    """Objects, built first, in this order."""
     cameras: list[CameraSpec] = field(default_factory=list)
+    """Cameras, added last."""
 
 
 @dataclass
@@ -157,7 +234,9 @@ class ResetOptions:
     """How `Env.reset` starts: from MuJoCo's defaults or from a keyframe (index or name)."""
 
     keyframe: int | str = 0
+    """The keyframe to reset to, by index or name (only with `use_keyframe`)."""
     use_keyframe: bool = False
+    """Reset to `keyframe` instead of MuJoCo's defaults (`qpos0`, zero velocities)."""
 
 
 @dataclass
@@ -165,17 +244,24 @@ class ResetContext:
     """What a reset hook receives."""
 
     env: Any
+    """The `Env` being reset."""
     model: mujoco.MjModel
+    """Its MuJoCo model (edits to it last until the next rebuild)."""
     data: mujoco.MjData
+    """Its MuJoCo data, already reset; the hook may write qpos, qvel, ctrl."""
     options: ResetOptions
+    """The options `reset` was called with."""
 
 
 class CtrlMode(enum.Enum):
     """How `Robot.update()` drives the joints."""
 
     POSITION = "position"
+    """Position servos track `jnt_pos_cmd` (gravity feed-forward added)."""
     VELOCITY = "velocity"
+    """Velocity servos track `jnt_vel_cmd` (gravity feed-forward added)."""
     TORQUE = "torque"
+    """Motors apply `jnt_trq_cmd` (plus gravity with `gravity_compensation`)."""
 
 
 def scene_object_site_name(obj: SceneObject, site: str) -> str:

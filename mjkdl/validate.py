@@ -29,6 +29,7 @@ from .spec import (
     SceneSpec,
     Shape,
     ToolFrameSpec,
+    _Required,
 )
 
 # Sane ranges: beyond them MuJoCo either fails deep inside or simulates nonsense.
@@ -58,7 +59,7 @@ def validate_scene_spec(spec: SceneSpec) -> None:
     if not isinstance(spec, SceneSpec):
         raise SpecTypeError(f"expected a SceneSpec, got {type(spec).__name__}")
     for name in ("timestep", "add_floor", "add_skybox"):
-        if getattr(spec, name) is None:
+        if _unset(getattr(spec, name)):
             raise SpecError(f"SceneSpec.{name} is required and has no default: set it")
     _in_range(real(spec.timestep, "SceneSpec.timestep"), TIMESTEP_RANGE, "SceneSpec.timestep")
     floor = flag(spec.add_floor, "SceneSpec.add_floor")
@@ -79,6 +80,11 @@ def validate_scene_spec(spec: SceneSpec) -> None:
 
 
 # ----------------------------------------------------------------------------- scalars
+
+
+def _unset(value: object) -> bool:
+    """A required field left at its default (`spec.REQUIRED`) or set to None."""
+    return value is None or isinstance(value, _Required)
 
 
 def real(value: object, field: str) -> float:
@@ -351,9 +357,9 @@ def check_tool(tool: object, field: str = "tool") -> None:
 
 
 def _check_camera(cam: CameraSpec, field: str) -> None:
-    if cam.pos is None:
+    if _unset(cam.pos):
         raise SpecError(f"{field}.pos is required")
-    if cam.fovy is None:
+    if _unset(cam.fovy):
         raise SpecError(f"{field}.fovy is required (vertical field of view, degrees)")
     _pose(cam.pos, cam.euler, field)
     fovy = real(cam.fovy, f"{field}.fovy")

@@ -66,20 +66,48 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 
 def _menagerie_has(name: str) -> bool:
-    """True when `name` resolves without a download (MENAGERIE_ROOT or the package cache)."""
-    import mujoco_menagerie
+    """True when `name` resolves without a download (MENAGERIE_ROOT or the package's cache)."""
+    return name in mjk.menagerie.available()
 
-    root = os.environ.get("MENAGERIE_ROOT")
-    if root:
-        return (Path(root) / name).is_dir()
-    return mujoco_menagerie.Cache().is_cached(mujoco_menagerie.get(name))
+
+_MENAGERIE_SKIP = "MuJoCo Menagerie model"
+
+
+def _menagerie_missing(what: str) -> str:
+    """Why `what` (one model's name, or several) is not on this machine."""
+    where = mjk.menagerie.source()
+    return where.problem() or (
+        f"not under MENAGERIE_ROOT={where.root}"
+        if where.root is not None
+        else f"MENAGERIE_ROOT is not set and the package's cache {where.cache} does not hold "
+        f"{what} (tests never download)"
+    )
 
 
 def menagerie(name: str) -> str:
     """Path of a Menagerie model, or skip the test when it is not on this machine."""
     if not _menagerie_has(name):
-        pytest.skip(f"MuJoCo Menagerie model {name!r} not available (set MENAGERIE_ROOT)")
+        pytest.skip(f"{_MENAGERIE_SKIP} {name!r} not available: {_menagerie_missing('it')}")
     return mjk.menagerie.model_path(name)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:
+    """Say how many tests skipped for want of Menagerie models, and why: a run without them
+    still looks green, yet much of the suite did not run."""
+    reasons = [
+        str(report.longrepr[2])
+        for report in terminalreporter.stats.get("skipped", [])
+        if isinstance(report.longrepr, tuple) and _MENAGERIE_SKIP in str(report.longrepr[2])
+    ]
+    if not reasons:
+        return
+    models = sorted({r.split("'")[1] for r in reasons})
+    terminalreporter.write_sep("=", "MuJoCo Menagerie", yellow=True)
+    terminalreporter.write_line(
+        f"{len(reasons)} tests skipped for want of Menagerie models ({', '.join(models)}): "
+        f"{_menagerie_missing('them')}. README.md says how to get them; "
+        "`python -m mjkdl.menagerie` lists what is found where."
+    )
 
 
 def base_spec(**kw) -> mjk.SceneSpec:
@@ -204,3 +232,24 @@ def deadline(seconds: float, what: str) -> Iterator[None]:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+# ---------------------------------------------------------------------- Panda, two shelves, a wall
+
+SHELF_TOP = 0.30  # m, the shelves' upper surface
+DOWN = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]  # TCP z pointing down
+
+
+def shelf_objects() -> list[mjk.SceneObject]:
+    """Two shelves either side of the Panda's x axis and a wall between them, 0.7 m tall."""
+
+    def board(name: str, size: list[float], pos: list[float]) -> mjk.SceneObject:
+        return mjk.SceneObject(
+            name=name, shape=mjk.Shape.BOX, size=size, pos=pos, fixed=True, rgba=[0.6, 0.5, 0.4, 1]
+        )
+
+    return [
+        board("shelf_a", [0.12, 0.12, 0.01], [0.45, 0.35, SHELF_TOP - 0.01]),
+        board("shelf_b", [0.12, 0.12, 0.01], [0.45, -0.35, SHELF_TOP - 0.01]),
+        board("wall", [0.25, 0.01, 0.35], [0.55, 0.0, 0.35]),
+    ]

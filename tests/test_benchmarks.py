@@ -52,9 +52,14 @@ def run_benchmark(name: str, *args: str) -> str:
             r"recording:",
         ),
         (
+            "planning",
+            ("--queries", "3", "--execute", "1"),
+            r"Gen3 \+ 2F-85: 3 random queries.*\n\s+solved:",
+        ),
+        (
             "task_env",
             ("--blocks", "1", "--camera-blocks", "1", "--vector-seconds", "0.5"),
-            r"async vector env, 1 sub-env\(s\):",
+            r"async vector env, 128x128 camera, 1 sub-env\(s\):",
         ),
     ],
 )

@@ -1463,3 +1463,43 @@ def test_floor_and_skybox_flags_each_add_only_their_own_assets():
     sky_only = compile_scene(base_spec(add_floor=False, add_skybox=True))
     assert [sky_only.texture(i).name for i in range(sky_only.ntex)] == ["mjkdl_sky"]
     assert sky_only.ngeom == 0 and sky_only.nmat == 0
+
+
+def test_a_marker_shows_but_neither_collides_nor_falls():
+    goal = mjk.SceneObject(
+        name="goal", shape=mjk.Shape.SPHERE, size=[0.02], rgba=[1, 0, 0, 0.5], marker=True
+    )
+    ball = mjk.SceneObject(name="ball", shape=mjk.Shape.SPHERE, size=[0.02], mass=0.1)
+    scene = _build(
+        mjk.SceneSpec(timestep=0.002, add_floor=True, add_skybox=False, objects=[goal, ball])
+    )
+    m, d = scene.model, scene.data
+    body = m.body("goal").id
+    assert m.body_mocapid[body] == 0 and m.body_jntnum[body] == 0
+    geom = m.geom("goal").id
+    assert m.geom_contype[geom] == 0 and m.geom_conaffinity[geom] == 0
+    assert m.geom_rgba[geom].tolist() == [1, 0, 0, 0.5]
+    scene.set_body_pose("goal", [0.3, 0.0, 0.5])
+    scene.set_body_pose("ball", [0.3, 0.0, 0.55])  # dropped through the marker
+    scene.step(200)
+    np.testing.assert_array_equal(d.xpos[body], [0.3, 0.0, 0.5])
+    assert d.xpos[m.body("ball").id][2] < 0.1  # fell through the marker
+    scene.close()
+
+
+@pytest.mark.parametrize(
+    ("fields", "error", "message"),
+    [
+        ({"fixed": True}, mjk.SpecError, "objects[0] ('m'): a marker is a massless primitive"),
+        ({"mass": 0.1}, mjk.SpecError, "give it no mjcf_path, fixed or mass"),
+        ({"marker": "yes"}, mjk.SpecTypeError, "objects[0] ('m').marker must be True or False"),
+    ],
+)
+def test_bad_markers_are_refused(fields, error, message):
+    obj = mjk.SceneObject(name="m", shape=mjk.Shape.SPHERE, size=[0.02], marker=True)
+    for k, v in fields.items():
+        setattr(obj, k, v)
+    spec = mjk.SceneSpec(timestep=0.002, add_floor=True, add_skybox=False, objects=[obj])
+    with pytest.raises(error) as caught:
+        _build(spec)
+    assert message in str(caught.value)

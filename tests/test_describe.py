@@ -9,10 +9,19 @@ import re
 import mujoco
 import numpy as np
 import pytest
-from conftest import base_spec, gripper, menagerie, table_object, tutorial_spec
+from conftest import (
+    PANDA_HOME,
+    PANDA_TCP,
+    ROOT,
+    base_spec,
+    gripper,
+    menagerie,
+    table_object,
+    tutorial_spec,
+)
 
 import mjkdl as mjk
-from mjkdl.describe import RobotSuggestion, suggest
+from mjkdl.describe import _DOCUMENTED_TCPS, RobotSuggestion, suggest
 from mjkdl.urdf import example_robot_data_path
 
 UR5 = "ur_description/urdf/ur5_robot.urdf"
@@ -143,14 +152,32 @@ def test_prefixed_second_arm() -> None:
         _tcp_matches(_build(scene, bare), scene, site="pinch_site")
 
 
-def test_panda_suggestion_splits_arm_and_hand() -> None:
-    arm = mjk.RobotSpec(path=menagerie("franka_emika_panda"))
+def test_panda_suggestion_is_the_one_recipe() -> None:
+    arm = mjk.RobotSpec(path=menagerie("franka_emika_panda"), prefix="p/")
     with mjk.Scene.build(base_spec(robots=[arm])) as scene:
         (s,) = suggest(scene.model, scene.spec)
-        assert s == RobotSuggestion("", "link0", "link7", "hand", "")
+        assert s == RobotSuggestion("p/", "link0", "hand", tcp_pos=tuple(PANDA_TCP))
+        assert s.call() == (
+            'create_robot("link0", "hand", prefix="p/", '
+            "tool=mjk.ToolFrameSpec(tcp_pos=[0.0, 0.0, 0.1034]))"
+        )
         robot = _build(scene, s)
-        assert robot.joint_names == [f"joint{i}" for i in range(1, 8)]  # fingers: the tool's
-        _tcp_matches(robot, scene, body="link7")
+        assert robot.joint_names == [f"p/joint{i}" for i in range(1, 8)]  # fingers: passive
+        # The TCP sits between the fingertip pads, on the hand's axis.
+        pads = [scene.model.body(f"p/{side}_finger").id for side in ("left", "right")]
+        robot.set_joint_pos(PANDA_HOME)
+        centre = np.mean([scene.data.xpos[b] for b in pads], axis=0)
+        hand = scene.data.xmat[scene.model.body("p/hand").id].reshape(3, 3)
+        offset = hand.T @ (robot.fk_frame().translation - centre)
+        assert np.abs(offset[:2]).max() < 1e-9
+
+
+def test_the_panda_recipe_is_franka_s_tcp_as_the_urdf_marks_it() -> None:
+    """The documented offset is the Panda URDF's `panda_hand_tcp`, read off that file."""
+    urdf = mjk.RobotSpec(path=example_robot_data_path("panda_description/urdf/panda.urdf"))
+    with mjk.Scene.build(base_spec(robots=[urdf])) as scene:
+        (s,) = suggest(scene.model, scene.spec)
+    assert s.tcp_pos == tuple(PANDA_TCP) == _DOCUMENTED_TCPS["franka_emika_panda/panda.xml"][1]
 
 
 def test_panda_urdf_tcp_is_its_hand_tcp_link() -> None:
@@ -235,3 +262,23 @@ def test_closed_scene() -> None:
     with pytest.raises(RuntimeError, match="closed"):
         scene.describe()
     assert str(scene) == "Scene (closed)"
+
+
+def test_one_panda_recipe_everywhere() -> None:
+    """The docs, the examples, the registered tasks and the tests use the call describe()
+    suggests for Menagerie's Panda."""
+    from mjkdl.task.registry import panda_arm  # the task layer, imported only here
+
+    tip, tcp = _DOCUMENTED_TCPS["franka_emika_panda/panda.xml"]
+    arm = panda_arm()
+    assert (arm.base_body, arm.tip_body, tuple(arm.tool.tcp_pos)) == ("link0", tip, tcp)
+    assert tuple(PANDA_TCP) == tcp
+    common = (ROOT / "examples" / "common.py").read_text()
+    assert f"PANDA_TCP = {list(tcp)}" in common and 'tip: str = "hand"' in common
+    calls = re.findall(
+        r'create_robot\("link0", "(\w+)", tool=mjk\.ToolFrameSpec\(tcp_pos=\[([^\]]*)\]\)\)',
+        (ROOT / "docs" / "control.md").read_text(),
+    )
+    assert calls and all(
+        t == tip and tuple(float(v) for v in pos.split(",")) == tcp for t, pos in calls
+    )

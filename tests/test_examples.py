@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import subprocess
@@ -36,13 +37,14 @@ def _models() -> None:
     menagerie("robotiq_2f85")
 
 
-def run_example(name: str, *args: str, timeout: float = 120.0) -> str:
-    """Run `examples/<name>.py --headless *args` in a fresh interpreter; return its stdout."""
+def run_example(name: str, *args: str, timeout: float = 120.0, cwd: Path = ROOT) -> str:
+    """Run `examples/<name>.py --headless *args` in a fresh interpreter (in `cwd`); return
+    its stdout."""
     env = dict(os.environ, MUJOCO_GL="egl")
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     proc = subprocess.run(
         [sys.executable, str(EXAMPLES / f"{name}.py"), "--headless", *args],
-        cwd=ROOT,
+        cwd=cwd,
         env=env,
         capture_output=True,
         text=True,
@@ -143,7 +145,7 @@ def test_record_video(tmp_path: Path) -> None:
     video = tmp_path / "pick_place.mp4"
     out = run_example(
         "record_video",
-        *("--output", str(video), "--width", "320", "--height", "240", "--fps", "20", "--preview"),
+        *("--out", str(video), "--width", "320", "--height", "240", "--fps", "20"),
     )
     assert "result: success" in out
     assert video.is_file() and video.stat().st_size > 10_000
@@ -151,6 +153,18 @@ def test_record_video(tmp_path: Path) -> None:
     simulated = number(r"fps, ", out)
     assert seconds == pytest.approx(simulated, abs=0.2)
     assert frames == pytest.approx(20 * simulated, abs=3)
+
+
+def test_record_video_writes_into_the_current_directory(tmp_path: Path) -> None:
+    import imageio_ffmpeg
+
+    out = run_example(
+        "record_video", *("--width", "160", "--height", "120", "--duration", "0.5"), cwd=tmp_path
+    )
+    # 0.5 s of the task, then the 0.5 s tail
+    assert "\nvideo: pick_place.mp4 (160x120 at 30 fps, 1.00 s simulated" in out
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(tmp_path / "pick_place.mp4"))
+    assert frames == pytest.approx(30, abs=1)
 
 
 # ---------------------------------------------------------------------- task environments
@@ -161,10 +175,10 @@ def test_rl_environment() -> None:
     out = run_example("rl_environment", "--duration", "4")
     assert "wrist_cam_depth: (64, 64) float32" in out and "goal_pose: (7,) float64" in out
     assert number("simulated:", out) == pytest.approx(4.0)
-    # The agent hovers 0.1 m above the ball: reward 1 - distance.
+    # The agent hovers 0.1 m above the ball: ReachReward's 0.5 * (1 - tanh(d / 0.25)).
     distance = number("distance:", out)
     assert distance == pytest.approx(0.1, abs=0.01)
-    assert number("reward:", out) == pytest.approx(1.0 - distance, abs=1e-4)
+    assert number("reward:", out) == pytest.approx(0.5 * (1 - math.tanh(distance / 0.25)), abs=2e-4)
     near, far = numbers(r"wrist depth:", out)[0], number(r"\.\. ", out)
     assert 0.0 < near < far < 1.0
 
@@ -277,3 +291,21 @@ def test_multiple_robots() -> None:
     ):
         assert re.search(rf"{name}: base at {pose} deg, 7 joints, QP optimal", out), out
     assert number("max difference between the motions in the base frames:", out) < 0.002
+
+
+@pytest.mark.usefixtures("_panda")
+def test_plan_shelves() -> None:
+    out = run_example("plan_shelves")
+    legs = re.findall(r"^(.+): planned in \d+ ms, ([\d.]+) s, max error ([\d.]+) mrad", out, re.M)
+    assert [leg[0] for leg in legs] == [
+        "down to the cube",
+        "lift",
+        "around the wall to shelf B",
+        "down to shelf B",
+        "retreat",
+        "back around the wall",
+    ]
+    assert max(float(leg[2]) for leg in legs) < 5.0  # the follower tracks within 5 mrad
+    assert numbers("cube at z", out)[2] > 0.45  # carried high, over or around the wall
+    assert number("place error:", out) < 0.02
+    assert "result: success" in out

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import menagerie
 
 from mjkdl.errors import SpecError
 from mjkdl.ik import IKResult, IKSolver
@@ -17,18 +15,10 @@ HOME = np.array([0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708])
 TOL_POS, TOL_ROT = 1e-6, 1e-5
 
 
-def _gen3_path() -> Path:
-    root = os.environ.get("MENAGERIE_ROOT")
-    base = Path(root) if root else Path(__file__).resolve().parents[2] / "shared" / "menagerie"
-    return base / "kinova_gen3" / "gen3.xml"
-
-
 @pytest.fixture(scope="module")
 def gen3() -> tuple[pin.Model, int, np.ndarray, np.ndarray]:
     """Gen3 model, the pinch_site frame id, and its joint limits (±inf when unlimited)."""
-    path = _gen3_path()
-    if not path.is_file():
-        pytest.skip(f"Kinova Gen3 MJCF not found at {path} (set MENAGERIE_ROOT)")
+    path = menagerie("kinova_gen3")  # skips, counted in the run's summary, when missing
     model = pin.buildModelFromMJCF(str(path))
     if not model.existFrame("pinch_site"):
         parent = model.getFrameId("bracelet_link")

@@ -981,3 +981,53 @@ def test_use_camera_needs_a_name(tmp_path: Path, name, error, message) -> None:
             rec.use_camera(name)
         assert type(err.value) is error and str(err.value) == message
         assert rec.record_frame()
+
+
+# ---------------------------------------------------------------------- save_image
+
+
+def test_save_image_writes_what_the_renderer_gives(tmp_path: Path) -> None:
+    with _ball_scene(0.002) as scene, mujoco.Renderer(scene.model, 48, 64) as renderer:
+        renderer.update_scene(scene.data)
+        rgb = renderer.render()
+    rgb[0, 0] = (255, 0, 0)  # a red pixel: the channel order must survive
+    path = mjk.save_image(tmp_path / "frame.png", rgb)
+    assert path == tmp_path / "frame.png"
+    back = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
+    assert np.array_equal(back, rgb)  # PNG is lossless
+    grey = rgb[:, :, 1].copy()
+    mjk.save_image(str(tmp_path / "grey.png"), grey)
+    assert np.array_equal(cv2.imread(str(tmp_path / "grey.png"), cv2.IMREAD_GRAYSCALE), grey)
+
+
+def test_save_image_refuses_bad_input_by_name(tmp_path: Path) -> None:
+    rgb = np.zeros((4, 5, 3), np.uint8)
+    cases = [
+        ((tmp_path / "a.png", rgb.tolist()), mjk.SpecTypeError, "must be a NumPy array, got list"),
+        (
+            (tmp_path / "a.png", rgb.astype(np.float32)),
+            mjk.SpecError,
+            r"save_image\(rgb\) must be uint8 of shape \(H, W, 3\) or \(H, W\), got float32 of "
+            r"shape \(4, 5, 3\)",
+        ),
+        ((tmp_path / "a.png", rgb[:, :, :2]), mjk.SpecError, r"got uint8 of shape \(4, 5, 2\)"),
+        ((tmp_path / "a.png", rgb[:0]), mjk.SpecError, r"save_image\(rgb\) is empty"),
+        ((None, rgb), mjk.SpecTypeError, r"save_image\(path\) must be a path"),
+        (
+            (tmp_path / "a.xyz", rgb),
+            mjk.ImageWriteError,
+            r"a\.xyz': no image writer for suffix '\.xyz'; use \.png",
+        ),
+        (
+            (tmp_path / "missing" / "a.png", rgb),
+            mjk.ImageWriteError,
+            r"folder '.*missing' does not exist",
+        ),
+    ]
+    for args, error, message in cases:
+        with pytest.raises(error, match=message):
+            mjk.save_image(*args)
+    (tmp_path / "dir.png").mkdir()
+    with pytest.raises(OSError, match=r"cannot write image '.*dir\.png'"):
+        mjk.save_image(tmp_path / "dir.png", rgb)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.png"]

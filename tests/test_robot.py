@@ -996,7 +996,8 @@ def test_every_mode_writes_mujocos_controls_on_every_path(tmp_path, arm: str, ca
         np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
         for other in sorted(set(_PORTS.values()) - {_PORTS[mode]}):
             setattr(robot, other, np.array([5.0, -7.0]))  # a port the mode does not drive
-            robot.step()
+            with pytest.warns(mjk.IgnoredCommandWarning, match=f"^{other} was written"):
+                robot.step()
             np.testing.assert_allclose(data.ctrl[acts], want, rtol=0, atol=1e-9)
         robot.update()
         cmd = np.array([0.3, -0.2])
@@ -1289,3 +1290,118 @@ def test_a_rebuild_applies_the_commands_at_the_new_state(tmp_path) -> None:
         want = _want_ctrl(scene, acts, dofs, mjk.CtrlMode.POSITION, False, True, [0.6, -0.6])
         robot.step()  # the feed-forward of the state the rebuild carried over
         np.testing.assert_allclose(scene.data.ctrl[acts], want, rtol=0, atol=1e-9)
+
+
+# ---------------------------------------------------------------------- ignored command ports
+
+
+@pytest.mark.parametrize(
+    ("mode", "port", "acting"),
+    [
+        ("TORQUE", "jnt_pos_cmd", "jnt_trq_cmd"),
+        ("POSITION", "jnt_vel_cmd", "jnt_pos_cmd"),
+        ("VELOCITY", "jnt_trq_cmd", "jnt_vel_cmd"),
+    ],
+)
+def test_a_port_the_mode_ignores_warns_once_at_the_step(gen3, mode, port, acting) -> None:
+    _, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode[mode]
+    robot.update()
+    value = np.full(7, 0.1)
+    setattr(robot, port, value)  # a float64 array: the descriptor's fast path
+    with pytest.warns(mjk.IgnoredCommandWarning) as caught:
+        robot.step()
+    assert len(caught) == 1
+    message = str(caught[0].message)
+    assert f"{port} was written" in message
+    assert f"is in {mode} mode, which applies {acting} only" in message
+    assert "'base_link' -> 'bracelet_link'" in message
+    assert caught[0].filename == __file__  # points at the user's call, not into mjkdl
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # once per robot and port
+        for _ in range(3):
+            robot.update()
+            setattr(robot, port, value.tolist())  # a list: the checked slow path
+            robot.step()
+
+
+def test_the_warning_names_the_mode_that_uses_the_port(gen3) -> None:
+    _, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.update()
+    robot.jnt_vel_cmd = [0.0] * 7
+    with pytest.warns(mjk.IgnoredCommandWarning, match=r"mjk\.CtrlMode\.VELOCITY to use"):
+        robot.update()
+
+
+def test_a_port_written_before_its_mode_is_set_does_not_warn(gen3) -> None:
+    _, robot = gen3
+    robot.update()  # POSITION
+    robot.jnt_trq_cmd = robot.gravity_torques()  # ready for the switch below
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        robot.update()
+        robot.step()
+        robot.jnt_trq_cmd = robot.gravity_torques()
+        robot.step()
+
+
+def test_internal_writers_never_warn(tutorial_scene) -> None:
+    scene = tutorial_scene(mjk.Env)
+    robot = scene.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+    scene.on_reset = lambda ctx: robot.set_joint_pos(HOME)
+    scene.reset()
+    controller = mjk.CartesianVelocityController(robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for mode in (mjk.CtrlMode.POSITION, mjk.CtrlMode.VELOCITY, mjk.CtrlMode.TORQUE):
+            robot.ctrl_mode = mode
+            for _ in range(3):
+                robot.update()
+                if mode is not mjk.CtrlMode.TORQUE:
+                    controller.command([0.01, 0, 0, 0, 0, 0])
+                robot.step()
+            robot.sync_commands()
+            scene.reset()
+            robot.step()
+
+
+def test_the_warning_is_per_robot(gen3) -> None:
+    scene, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.update()
+    robot.jnt_pos_cmd = HOME
+    with pytest.warns(mjk.IgnoredCommandWarning):
+        robot.step()
+    robot.close()
+    other = scene.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+    other.ctrl_mode = mjk.CtrlMode.TORQUE
+    other.update()
+    other.jnt_pos_cmd = HOME
+    with pytest.warns(mjk.IgnoredCommandWarning):
+        other.step()
+
+
+def test_last_update_time_stamps_the_measured_ports(gen3) -> None:
+    scene, robot = gen3
+    robot.update()
+    start = robot.last_update_time
+    assert start == scene.time()
+    for _ in range(5):
+        robot.step()
+    assert robot.last_update_time == start  # measured ports are as old as the stamp says
+    assert scene.time() - robot.last_update_time == pytest.approx(5 * scene.timestep())
+    robot.update()
+    assert robot.last_update_time == scene.time()
+
+
+def test_a_stray_write_warns_even_when_the_mode_is_set_again(gen3) -> None:
+    _, robot = gen3
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE
+    robot.update()
+    robot.jnt_pos_cmd = np.array(HOME)
+    robot.ctrl_mode = mjk.CtrlMode.TORQUE  # the same mode: update() could take its fast path
+    with pytest.warns(mjk.IgnoredCommandWarning, match="^jnt_pos_cmd was written"):
+        robot.update()  # applies the commands, so it is the one that warns
+        robot.step()

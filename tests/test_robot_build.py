@@ -328,7 +328,9 @@ def test_rebuild_keeps_commands_views_and_the_mode(build) -> None:
     robot.jnt_pos_cmd = np.array([0.1, 0.2])
     robot.jnt_vel_cmd = np.array([0.3, 0.4])
     robot.jnt_trq_cmd = np.array([0.5, 0.6])
-    robot.step()
+    with pytest.warns(mjk.IgnoredCommandWarning) as ignored:  # TORQUE ignores the other two
+        robot.step()
+    assert sorted(str(w.message)[:11] for w in ignored) == ["jnt_pos_cmd", "jnt_vel_cmd"]
     views = robot.jnt_pos_msr, robot.jnt_vel_msr, robot.jnt_trq_msr, robot.q, robot.v
     scene.add_object(mjk.SceneObject(name="cube", shape=mjk.Shape.BOX, size=[0.02] * 3, mass=0.1))
     assert robot.jnt_pos_cmd.tolist() == [0.1, 0.2]

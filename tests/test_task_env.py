@@ -82,7 +82,7 @@ def test_spaces_follow_the_spec_exactly(env: TaskEnv) -> None:
     ]
     obs, info = env.reset(seed=0)
     assert list(obs) == list(obs_space) and env.observation_space.contains(obs)
-    assert info == {"diverged": False}
+    assert info == {"is_success": False, "diverged": False}
 
 
 def test_joint_actuation_bounds_come_from_the_model() -> None:
@@ -220,7 +220,9 @@ def test_tcp_observations_match_pinocchio(env: TaskEnv) -> None:
 
 def test_gripper_observation_follows_the_action(env: TaskEnv) -> None:
     obs, _ = env.reset(seed=0)
-    assert obs["panda_gripper"][0] == pytest.approx(0.0, abs=0.05)  # qpos0: fingers shut
+    # Open from the first observation, although MuJoCo's qpos0 has the fingers shut.
+    assert obs["panda_gripper"][0] == pytest.approx(1.0, abs=0.002)
+    assert env.scene.data.time == 0.0
     for _ in range(10):
         obs, *_ = env.step(np.zeros(7))  # 0: open
     assert obs["panda_gripper"][0] == pytest.approx(1.0, abs=0.02)
@@ -388,6 +390,8 @@ def test_rgb_array_render_shows_the_named_camera() -> None:
     img = env.render()
     assert img.shape == (120, 160, 3) and img.dtype == np.uint8
     ref = mujoco.Renderer(env.scene.model, 120, 160)
+    for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
+        ref.scene.flags[flag] = 0  # off unless render_shadows=True
     ref.update_scene(env.scene.data, camera="front")
     np.testing.assert_array_equal(img, ref.render())
     ref.close()
@@ -470,6 +474,7 @@ def test_a_scene_that_raises_on_divergence_ends_the_episode(env: TaskEnv, monkey
     obs, reward, terminated, truncated, info = env.step(np.zeros(7))
     assert reward == 0.0 and not truncated
     assert terminated and info == {
+        "is_success": False,
         "diverged": True,
         "error": "the simulation failed by t = 0.05 s: NaN in QACC",
     }
@@ -747,3 +752,116 @@ def test_reward_helpers_observations_are_checked_at_build(fields, error, message
     with pytest.raises(error) as err:
         make(**fields)
     assert str(err.value) == message
+
+
+# ------------------------------------------------------------- success, termination, actions
+
+
+def test_success_fills_info_and_ends_the_episode_after_the_hold() -> None:
+    high = {"v": False}
+
+    def success(obs) -> bool:
+        return high["v"]
+
+    env = make(success=success, terminate_on_success=True, success_hold=0.2, time_limit=1.0)
+    env.reset(seed=0)
+    *_, terminated, _, info = env.step(np.zeros(7))
+    assert info["is_success"] is False and not terminated
+    high["v"] = True
+    ends = []
+    for _ in range(3):
+        *_, terminated, _, info = env.step(np.zeros(7))
+        ends.append((info["is_success"], terminated))
+    # Held at the first success step, 0.1 s later, 0.2 s later: the third ends it.
+    assert ends == [(True, False), (True, False), (True, True)]
+    env.close()
+
+
+def test_the_step_that_ends_on_success_pays_for_the_steps_it_cuts_off() -> None:
+    env = make(
+        reward=lambda obs: 0.25,
+        success=lambda obs: obs["time"][0] > 0.25,
+        terminate_on_success=True,
+        time_limit=1.0,
+    )
+    env.reset(seed=0)
+    rewards = [env.step(np.zeros(7))[1] for _ in range(3)]
+    # Success at the third of ten steps: its 0.25 counts for it and the seven cut off.
+    assert rewards == [0.25, 0.25, 0.25 * 8]
+    env.close()
+
+
+def test_normalised_actions_map_onto_the_bounds() -> None:
+    arm = panda_arm()
+    arm.actuation = Actuation.JOINT_POSITION
+    env = make(arms=[arm], normalize_actions=True)
+    low, high = env.robots["panda"].joint_limits.T
+    assert env.action_space == mjk_box(-1.0, 1.0, 8)
+    env.reset(seed=0)
+    target = np.array([0.5, -0.5, 0.0, -0.2, 0.1, 0.6, -0.9, 1.0])
+    for _ in range(25):
+        obs, *_ = env.step(target)
+    expected = low + (target[:7] + 1) / 2 * (high - low)
+    np.testing.assert_allclose(env.robots["panda"].jnt_pos_cmd, expected, atol=1e-12)
+    assert obs["panda_gripper"][0] < 0.1  # +1: closed
+    env.close()
+
+
+def mjk_box(low: float, high: float, n: int):
+    from gymnasium import spaces
+
+    return spaces.Box(low, high, (n,), np.float32)
+
+
+@pytest.mark.parametrize(
+    ("fields", "error", "message"),
+    [
+        ({"success": 3}, ValueError, "TaskSpec.success must be callable or None, got 3"),
+        (
+            {"terminate_on_success": True},
+            ValueError,
+            "TaskSpec.terminate_on_success needs a TaskSpec.success callable",
+        ),
+        ({"terminate_on_success": "yes"}, TypeError, "TaskSpec.terminate_on_success"),
+        ({"success_hold": -0.1}, ValueError, "TaskSpec.success_hold must be a non-negative"),
+        ({"success_hold": "1"}, TypeError, "TaskSpec.success_hold must be a number"),
+        ({"normalize_actions": 1}, TypeError, "TaskSpec.normalize_actions"),
+        ({"time_limit": 0}, ValueError, "TaskSpec.time_limit must be a positive number of "),
+    ],
+)
+def test_bad_success_fields_are_refused_by_name(fields: dict, error: type, message: str) -> None:
+    with pytest.raises(error) as caught:
+        make(**fields)
+    assert message in str(caught.value)
+
+
+def test_a_success_that_returns_no_bool_is_named() -> None:
+    env = make(success=lambda obs: "yes")
+    with pytest.raises(TypeError, match=r"TaskSpec\.success\(obs\)"):
+        env.reset(seed=0)
+    env.close()
+
+
+FREE_MOTORS = """<mujoco><worldbody><body name="base"><geom size="0.05"/>
+<body name="l1" pos="0 0 0.1"><joint name="j1" axis="0 1 0"/><geom size="0.03" mass="1"/>
+</body></body></worldbody><actuator><motor joint="j1"/></actuator></mujoco>"""
+
+
+def test_normalising_unbounded_torques_is_refused(tmp_path) -> None:
+    arm_file = tmp_path / "arm.xml"
+    arm_file.write_text(FREE_MOTORS)
+    scene = mjk.SceneSpec(
+        timestep=0.002, add_floor=False, add_skybox=False, robots=[mjk.RobotSpec(path=arm_file)]
+    )
+    arm = ArmSpec("a", "base", "l1", actuation=Actuation.JOINT_TORQUE)
+    with pytest.raises(ValueError, match=r"normalize_actions: action entries \['a\.j1'\] have"):
+        TaskEnv(TaskSpec(scene=scene, arms=[arm], normalize_actions=True))
+
+
+def test_without_a_time_limit_only_a_wrapper_ends_episodes() -> None:
+    env = make(time_limit=None)
+    env.reset(seed=0)
+    for _ in range(150):
+        *_, truncated, _ = env.step(np.zeros(7))
+        assert not truncated
+    env.close()

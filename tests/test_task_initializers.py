@@ -111,7 +111,11 @@ def test_impossible_box_names_the_prop() -> None:
             KeyError,
             r"'porp1' in PropPlacer\.bodies\[1\]",
         ),
-        (PropPlacer(["link3"], [0, 0, 0.1], [0, 0, 0.1]), ValueError, "'link3' is not a free"),
+        (
+            PropPlacer(["link3"], [0, 0, 0.1], [0, 0, 0.1]),
+            ValueError,
+            "'link3' is neither a free body",
+        ),
         (PropPlacer(["prop0"], [0, 0, 0.1], [0, 0]), ValueError, r"PropPlacer\.high"),
         (PropPlacer(["prop0"], [0, 0, 0.2], [0, 0, 0.1]), ValueError, "low must not exceed"),
         (PropPlacer("prop0", [0, 0, 0.1], [0, 0, 0.1]), ValueError, "list of body names"),

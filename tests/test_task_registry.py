@@ -1,7 +1,9 @@
-"""Registered Panda tasks: Gymnasium's checker, rendering, async vector envs."""
+"""Registered Panda tasks: checkers, success, rewards, actions, parameters, goal variants,
+rendering and async vector envs with cameras."""
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import gymnasium as gym
@@ -10,11 +12,15 @@ import pytest
 from conftest import menagerie
 from gymnasium.utils.env_checker import check_env
 
-import mjkdl.task  # noqa: F401  (registers the tasks)
+import mjkdl.task
+from mjkdl.errors import SpecError, SpecTypeError, UnknownNameError
 from mjkdl.task import TaskEnv
-from mjkdl.task.registry import BALL_RADIUS, CUBE_HALF
+from mjkdl.task.experts import expert_for
+from mjkdl.task.registry import CUBE_HALF, LIFT, TASKS
 
-TASKS = ["mjkdl/PandaReach-v0", "mjkdl/PandaPickCube-v0"]
+IDS = list(TASKS)
+REACH, PICK = "mjkdl/PandaReach-v0", "mjkdl/PandaPickCube-v0"
+REACH_GOAL, PICK_GOAL = "mjkdl/PandaReachGoal-v0", "mjkdl/PandaPickCubeGoal-v0"
 
 
 @pytest.fixture(autouse=True)
@@ -22,7 +28,26 @@ def _panda() -> None:
     menagerie("franka_emika_panda")
 
 
-@pytest.mark.parametrize("env_id", TASKS)
+def run(env: gym.Env, policy, seed: int) -> tuple[float, bool, int, list[dict]]:
+    """One episode: (return, final is_success, steps, infos)."""
+    obs, info = env.reset(seed=seed)
+    if hasattr(policy, "reset"):
+        policy.reset()
+    total, infos, steps = 0.0, [info], 0
+    done = False
+    while not done:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        total += reward
+        infos.append(info)
+        steps += 1
+        done = terminated or truncated
+    return total, bool(info["is_success"]), steps, infos
+
+
+# ------------------------------------------------------------------------- checkers, spaces
+
+
+@pytest.mark.parametrize("env_id", IDS)
 def test_registered_tasks_pass_gymnasiums_checker(env_id: str) -> None:
     env = gym.make(env_id)
     with warnings.catch_warnings(record=True) as caught:
@@ -31,48 +56,360 @@ def test_registered_tasks_pass_gymnasiums_checker(env_id: str) -> None:
     # Only the unbounded-state notices Gymnasium's own MuJoCo envs get too.
     others = [str(w.message) for w in caught if "infinity" not in str(w.message)]
     assert others == []
-    assert env.action_space.shape == (7,)
+    assert env.action_space == gym.spaces.Box(-1.0, 1.0, (7,), np.float32)
     assert env.unwrapped.control_timestep == pytest.approx(0.1)
     assert env.unwrapped.scene.timestep() == 0.002
+    assert env.spec is not None and env.spec.max_episode_steps == 100
     env.close()
 
 
-def test_reach_places_the_ball_on_the_floor_and_rewards_closeness() -> None:
-    env = gym.make("mjkdl/PandaReach-v0")
+@pytest.mark.parametrize("env_id", IDS)
+def test_every_step_reports_success_and_divergence(env_id: str) -> None:
+    env = gym.make(env_id)
+    _, info = env.reset(seed=0)
+    assert info == {"is_success": False, "diverged": False}
+    *_, info = env.step(env.action_space.sample())
+    assert set(info) == {"is_success", "diverged"}
+    assert type(info["is_success"]) is bool and info["diverged"] is False
+    env.close()
+
+
+def test_the_entry_points_are_classes_gymnasiums_wrappers_apply_to() -> None:
+    for env_id, cls in TASKS.items():
+        env = gym.make(env_id)
+        assert type(env.unwrapped) is cls and issubclass(cls, TaskEnv)
+        assert gym.spec(env_id).entry_point == f"mjkdl.task.registry:{cls.__name__}"
+        env.close()
+
+
+# ------------------------------------------------------------------------------ success
+
+
+def test_reach_succeeds_within_the_success_distance() -> None:
+    env = gym.make(REACH, success_distance=0.08).unwrapped
     obs, _ = env.reset(seed=3)
-    ball = obs["goal_pose"][:3]
-    assert 0.35 <= ball[0] <= 0.65 and -0.3 <= ball[1] <= 0.3
-    obs, reward, terminated, truncated, _ = env.step(np.zeros(7, np.float32))
-    distance = np.linalg.norm(obs["goal_pose"][:3] - obs["panda_tcp_pos"])
-    assert reward == pytest.approx(max(0.0, 1.0 - distance))
-    assert obs["goal_pose"][2] == pytest.approx(BALL_RADIUS, abs=2e-3)  # resting on the floor
-    assert not terminated and not truncated
+    goal = obs["goal_pose"][:3]
+    np.testing.assert_allclose(obs["goal_rel"], goal - obs["panda_tcp_pos"], atol=1e-12)
+    for offset, expected in ((0.079, True), (0.081, False)):
+        env.scene.set_body_pose("goal", (obs["panda_tcp_pos"] + [offset, 0.0, 0.0]).tolist())
+        obs, reward, terminated, _, info = env.step(np.zeros(7, np.float32))
+        d = np.linalg.norm(obs["goal_pose"][:3] - obs["panda_tcp_pos"])
+        assert info["is_success"] is bool(d <= 0.08) is expected
+        assert not terminated  # Reach goes on unless terminate_on_success
+        assert reward == pytest.approx(0.5 * (1 - math.tanh(d / 0.25)) + 0.5 * expected)
     env.close()
 
 
-def test_pick_cube_pays_for_a_lift() -> None:
-    env = gym.make("mjkdl/PandaPickCube-v0").unwrapped
-    obs, _ = env.reset(seed=0)
+def test_the_reach_goal_is_a_marker_the_hand_passes_through() -> None:
+    env = gym.make(REACH).unwrapped
+    obs, _ = env.reset(seed=1)
+    env.scene.set_body_pose("goal", obs["panda_tcp_pos"].tolist())
+    start = env.scene.data.mocap_pos.copy()
+    for _ in range(5):
+        obs, *_ = env.step(np.array([1, 0, -1, 0, 0, 0, -1], np.float32))
+    np.testing.assert_array_equal(env.scene.data.mocap_pos, start)
+    model = env.scene.model
+    goal = model.body("goal").id
+    geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == goal]
+    assert geoms and all(model.geom_contype[g] == model.geom_conaffinity[g] == 0 for g in geoms)
+    env.close()
+
+
+def test_pick_cube_succeeds_only_when_lifted_between_the_fingers() -> None:
+    env = gym.make(PICK).unwrapped
+    obs, info = env.reset(seed=0)
     assert obs["cube_pose"][2] == pytest.approx(CUBE_HALF + 0.002, abs=1e-9)
-    # Teleport the cube into the closed hand's reach, lifted: the episode ends with the bonus.
-    env.scene.set_body_pose("cube", [*obs["panda_tcp_pos"][:2], 0.2])
-    obs, reward, terminated, *_ = env.step(np.zeros(7, np.float32))
-    assert terminated and reward >= 1.0
+    assert not info["is_success"] and obs["cube_contacts"].tolist() == [0.0, 0.0]
+    # Lifted but not held (put in the air beside the hand): no success, no end.
+    env.scene.set_body_pose("cube", [0.3, 0.3, 0.3])
+    obs, reward, terminated, _, info = env.step(np.zeros(7, np.float32))
+    assert obs["cube_pose"][2] > CUBE_HALF + LIFT and not info["is_success"] and not terminated
+    assert reward < 0.25
     env.close()
 
 
-def test_rgb_array_render_of_a_registered_task() -> None:
-    env = gym.make(
-        "mjkdl/PandaReach-v0", render_mode="rgb_array", render_width=96, render_height=64
+def test_pick_cube_ends_after_half_a_second_of_success_and_pays_the_rest() -> None:
+    env = gym.make(PICK)
+    expert = expert_for(env)
+    obs, _ = env.reset(seed=4)
+    expert.reset()
+    successes, rewards, step = [], [], 0
+    terminated = truncated = False
+    while not (terminated or truncated):
+        obs, reward, terminated, truncated, info = env.step(expert(obs))
+        successes.append(info["is_success"])
+        rewards.append(reward)
+        step += 1
+    assert terminated and not truncated
+    # Six success steps in a row: the first, then 0.5 s more of holding.
+    assert successes[-6:] == [True] * 6 and not successes[-7]
+    assert rewards[-6:-1] == [1.0] * 5
+    assert rewards[-1] == pytest.approx(1.0 * (1 + 100 - step))
+    env.close()
+
+
+# ------------------------------------------------------------------------------ rewards
+
+
+def zero(obs) -> np.ndarray:
+    return np.zeros(7, np.float32)
+
+
+class Random:
+    def __init__(self, seed: int) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, obs) -> np.ndarray:
+        return self.rng.uniform(-1, 1, 7).astype(np.float32)
+
+
+class Hover:
+    """Goes over the cube (or goal) and stays 4 cm above it, gripper open: never succeeds."""
+
+    def __init__(self, key: str) -> None:
+        self.key = key
+
+    def __call__(self, obs) -> np.ndarray:
+        a = np.zeros(7, np.float32)
+        above = obs[self.key][:3] + np.array([0.0, 0.0, 0.09])
+        a[:3] = np.clip(4.0 * (above - obs["panda_tcp_pos"]) / 0.5, -1, 1)
+        a[6] = -1.0
+        return a
+
+
+@pytest.mark.parametrize(("env_id", "key"), [(REACH, "goal_pose"), (PICK, "cube_pose")])
+def test_the_expert_earns_more_than_failing_policies(env_id: str, key: str) -> None:
+    env = gym.make(env_id)
+    expert = expert_for(env)
+    for seed in range(6):
+        best, expert_success, *_ = run(env, expert, seed)
+        assert expert_success
+        for policy in (zero, Random(seed), Hover(key)):
+            ret, success, *_ = run(env, policy, seed)
+            assert not success
+            assert ret < best, (seed, policy)
+    env.close()
+
+
+def test_pick_cube_rewards_grow_through_the_stages() -> None:
+    """Reward before the grasp < 0.25; grasped, 0.25 more plus up to 0.25 for the height, at
+    most 0.75; success 1."""
+    env = gym.make(PICK)
+    expert = expert_for(env)
+    obs, _ = env.reset(seed=2)
+    expert.reset()
+    by_stage: dict[str, list[float]] = {"reach": [], "grasp": [], "success": []}
+    done = False
+    while not done:
+        obs, reward, terminated, truncated, info = env.step(expert(obs))
+        done = terminated or truncated
+        if info["is_success"]:
+            by_stage["success"].append(reward)
+        elif obs["cube_contacts"].all():
+            by_stage["grasp"].append(reward)
+        else:
+            by_stage["reach"].append(reward)
+    env.close()
+    assert max(by_stage["reach"]) < 0.25 + 1e-12
+    grasp = by_stage["grasp"]
+    assert grasp and max(by_stage["reach"]) + 0.2 < min(grasp) <= max(grasp) < 0.75
+    assert grasp[-1] > grasp[0] + 0.1  # the lift pays as the cube rises
+    assert by_stage["success"][0] == 1.0
+
+
+def test_sparse_rewards_pay_one_on_success_steps_only() -> None:
+    env = gym.make(REACH, reward_type="sparse")
+    expert = expert_for(env)
+    obs, _ = env.reset(seed=5)
+    paid = []
+    for _ in range(30):
+        obs, reward, _, _, info = env.step(expert(obs))
+        paid.append((reward, info["is_success"]))
+    env.close()
+    assert {r for r, _ in paid} == {0.0, 1.0}
+    assert all(r == float(s) for r, s in paid)
+
+
+# ------------------------------------------------------------------------------ actions
+
+
+def test_actions_are_normalised_to_the_twist_limits_and_the_gripper_closes_on_plus_one() -> None:
+    env = gym.make(PICK).unwrapped
+    obs, _ = env.reset(seed=0)
+    assert obs["panda_gripper"][0] > 0.99  # open at the first observation
+    start = obs["panda_tcp_pos"].copy()
+    for _ in range(3):
+        obs, *_ = env.step(np.array([0.5, 0, 0, 0, 0, 0, 1.0], np.float32))
+    # 0.5 of the 0.5 m/s bound for 0.3 s; the position servos lag a little at the start.
+    moved = obs["panda_tcp_pos"] - start
+    assert 0.05 < moved[0] < 0.08 and abs(moved[1]) < 0.01 and abs(moved[2]) < 0.01
+    assert obs["panda_gripper"][0] < 0.1  # closed
+    for _ in range(3):
+        obs, *_ = env.step(np.array([0, 0, 0, 0, 0, 0, -1.0], np.float32))
+    assert obs["panda_gripper"][0] > 0.9
+    env.close()
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+def test_episode_length_follows_max_episode_steps_and_time_limit() -> None:
+    for kwargs, steps in (
+        ({}, 100),
+        ({"max_episode_steps": 130}, 130),
+        ({"time_limit": 5.0}, 50),
+        ({"control_timestep": 0.05}, 100),
+        ({"control_timestep": 0.05, "time_limit": 1.0}, 20),
+    ):
+        env = gym.make(REACH, **kwargs)
+        _, _, n, _ = run(env, zero, seed=0)
+        assert n == steps, kwargs
+        env.close()
+
+
+def test_goal_and_cube_boxes_are_parameters() -> None:
+    env = gym.make(REACH, goal_low=[0.5, 0.1, 0.3], goal_high=[0.5, 0.1, 0.3])
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_allclose(obs["goal_pose"][:3], [0.5, 0.1, 0.3])
+    env.close()
+    env = gym.make(PICK, cube_low=[0.45, -0.05], cube_high=[0.5, 0.0])
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        x, y, _ = obs["cube_pose"][:3]
+        assert 0.45 <= x <= 0.5 and -0.05 <= y <= 0.0
+    env.close()
+
+
+def test_cameras_are_observations_of_the_asked_size() -> None:
+    env = gym.make(PICK, camera_names=["wrist", "front"], camera_size=(48, 64))
+    obs, _ = env.reset(seed=0)
+    for name in ("wrist", "front"):
+        assert obs[f"{name}_rgb"].shape == (48, 64, 3) and obs[f"{name}_rgb"].dtype == np.uint8
+        assert obs[f"{name}_rgb"].std() > 5
+        assert env.observation_space[f"{name}_rgb"].shape == (48, 64, 3)
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"goal_hight": [1, 1, 1]}, SpecError, "unknown parameter(s) ['goal_hight']; valid: "),
+        ({"reward_type": "shaped"}, SpecError, "reward_type must be one of ['dense', 'sparse']"),
+        ({"camera_names": ["top"]}, UnknownNameError, "'top'"),
+        ({"camera_names": "wrist"}, SpecTypeError, "camera_names must be a list of camera"),
+        ({"camera_size": (64,)}, SpecError, "camera_size must be (height, width), got (64,)"),
+        ({"success_distance": 0}, SpecError, "success_distance must be a positive number"),
+        ({"goal_low": [1, 0, 0]}, SpecError, "goal_low must not exceed goal_high"),
+        ({"time_limit": -1}, SpecError, "TaskSpec.time_limit must be a positive number"),
+        ({"terminate_on_success": "yes"}, SpecTypeError, "terminate_on_success"),
+    ],
+)
+def test_bad_parameters_are_refused_by_name(kwargs: dict, error: type, message: str) -> None:
+    with pytest.raises(error) as caught:
+        gym.make(REACH, **kwargs)
+    assert message in str(caught.value)
+
+
+def test_an_unknown_parameter_lists_the_valid_ones() -> None:
+    with pytest.raises(SpecError) as caught:
+        gym.make(PICK, goal_low=[0, 0, 0])
+    assert str(caught.value).startswith(
+        "PandaPickCubeEnv: unknown parameter(s) ['goal_low']; valid: render_mode, time_limit, "
+        "control_timestep, cube_low, cube_high, reward_type, terminate_on_success, "
     )
+
+
+# ------------------------------------------------------------------------------ goals
+
+
+@pytest.mark.parametrize("env_id", [REACH_GOAL, PICK_GOAL])
+def test_goal_variants_compute_the_reward_step_pays(env_id: str) -> None:
+    env = gym.make(env_id)
+    obs, _ = env.reset(seed=1)
+    assert list(obs)[:3] == ["observation", "achieved_goal", "desired_goal"]
+    inner = env.unwrapped
+    expert = expert_for(env)
+    rewards, achieved, desired = [], [], []
+    for _ in range(40):
+        obs, reward, _, _, info = env.step(expert(obs))
+        rewards.append(reward)
+        achieved.append(obs["achieved_goal"])
+        desired.append(obs["desired_goal"])
+        assert info["is_success"] == (
+            np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"])
+            <= inner.goal_reward.threshold
+        )
+    batch = inner.compute_reward(np.array(achieved), np.array(desired), [{}] * 40)
+    np.testing.assert_array_equal(batch, rewards)
+    assert set(rewards) == {0.0, 1.0}  # sparse by default, and the expert gets there
+    env.close()
+
+
+def test_goal_observations_leave_out_what_depends_on_the_goal() -> None:
+    env = gym.make(REACH_GOAL).unwrapped
+    keys = [k for k, _ in env.observation_layout]
+    assert "goal_pose" not in keys and "goal_rel" not in keys and "time" not in keys
+    assert keys[:2] == ["panda_joint_pos", "panda_joint_vel"]
+    obs, _ = env.reset(seed=0)
+    assert obs["observation"].shape == (sum(n for _, n in env.observation_layout),)
+    env.close()
+
+
+# ------------------------------------------------------------------------------ experts
+
+
+@pytest.mark.parametrize("env_id", [REACH, PICK])
+def test_the_experts_succeed_on_at_least_95_of_100_seeds(env_id: str) -> None:
+    env = gym.make(env_id)
+    expert = expert_for(env)
+    wins = sum(run(env, expert, seed)[1] for seed in range(100))
+    env.close()
+    assert wins >= 95
+
+
+def test_an_env_without_an_expert_is_named() -> None:
+    env = gym.make("CartPole-v1")
+    with pytest.raises(UnknownNameError, match="no expert for CartPoleEnv; experts exist for"):
+        expert_for(env)
+
+
+# ---------------------------------------------------------------------------- rendering
+
+
+def test_rgb_and_depth_frames_of_a_registered_task() -> None:
+    env = gym.make(REACH, render_mode="rgb_array", render_width=96, render_height=64)
     env.reset(seed=0)
     frame = env.render()
     assert frame.shape == (64, 96, 3) and frame.dtype == np.uint8 and frame.std() > 5
     env.close()
+    env = gym.make(REACH, render_mode="depth_array", render_width=96, render_height=64)
+    env.reset(seed=0)
+    depth = env.render()
+    assert depth.shape == (64, 96) and depth.dtype == np.float32
+    assert 0.5 < float(depth.min()) < float(depth.max()) < 50.0  # metres from the front camera
+    env.close()
+
+
+def test_rgb_array_list_collects_a_frame_per_reset_and_step() -> None:
+    env = gym.make(REACH, render_mode="rgb_array_list", render_width=32, render_height=24)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(np.zeros(7, np.float32))
+    frames = env.render()
+    assert len(frames) == 4 and frames[0].shape == (24, 32, 3)
+    env.close()
+
+
+def test_a_taskenv_refuses_rgb_array_list_and_says_where_it_comes_from() -> None:
+    with pytest.raises(SpecError, match=r"gymnasium.make adds it around 'rgb_array'"):
+        mjkdl.task.registry.PandaReachEnv(render_mode="rgb_array_list")
+
+
+# ------------------------------------------------------------------------ vector envs
 
 
 def rollout(env, seeds: list[int], actions: np.ndarray) -> np.ndarray:
-    """Observed TCP positions and rewards of sequential episodes, one per seed."""
+    """TCP positions and rewards of sequential episodes, one per seed."""
     out = []
     for k, seed in enumerate(seeds):
         obs, _ = env.reset(seed=seed)
@@ -88,8 +425,7 @@ def test_async_vector_env_repeats_sequential_episodes() -> None:
     rng = np.random.default_rng(0)
     n, steps = 2, 4
     actions = rng.uniform(-1, 1, (steps, n, 7)).astype(np.float32)
-    actions[..., 6] = (actions[..., 6] > 0).astype(np.float32)
-    vec = gym.make_vec("mjkdl/PandaReach-v0", num_envs=n, vectorization_mode="async")
+    vec = gym.make_vec(REACH, num_envs=n, vectorization_mode="async")
     try:
         obs, _ = vec.reset(seed=100)
         traces = [[obs["panda_tcp_pos"][k]] for k in range(n)]
@@ -99,16 +435,57 @@ def test_async_vector_env_repeats_sequential_episodes() -> None:
                 traces[k] += [obs["panda_tcp_pos"][k], [reward[k]]]
     finally:
         vec.close()
-    env = gym.make("mjkdl/PandaReach-v0")
+    env = gym.make(REACH)
     sequential = rollout(env, [100, 101], actions)
     env.close()
     np.testing.assert_array_equal(np.array([np.concatenate(t) for t in traces]), sequential)
 
 
-def test_tasks_build_from_their_factories() -> None:
-    from mjkdl.task.registry import panda_pick_cube, panda_reach
+CAMERA_WORKERS = """
+import gymnasium as gym, numpy as np
+import mjkdl.task
+kwargs = dict(camera_names=["wrist"], camera_size=(32, 32))
+vec = gym.make_vec("mjkdl/PandaReach-v0", num_envs=2, vectorization_mode="async", **kwargs)
+assert vec.unwrapped.context is None  # the platform default: fork on Linux
+obs, _ = vec.reset(seed=7)
+frames = [obs["wrist_rgb"].copy()]
+obs, *_ = vec.step(np.zeros((2, 7), np.float32))
+frames.append(obs["wrist_rgb"].copy())
+vec.close()
+env = gym.make("mjkdl/PandaReach-v0", **kwargs)
+for k in range(2):
+    obs, _ = env.reset(seed=7 + k)
+    assert np.array_equal(obs["wrist_rgb"], frames[0][k])
+    obs, *_ = env.step(np.zeros(7, np.float32))
+    assert np.array_equal(obs["wrist_rgb"], frames[1][k])
+print("same frames", frames[0].std() > 5)
+"""
 
-    for factory in (panda_reach, panda_pick_cube):
-        env = factory()
-        assert isinstance(env, TaskEnv) and env.render_mode is None
-        env.close()
+
+def test_camera_envs_render_in_forked_workers() -> None:
+    """A script's async vector env of camera envs with Linux's default start method (fork;
+    Gymnasium builds one env in the parent first): each worker makes its own OpenGL context
+    and renders what one env renders alone."""
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [sys.executable, "-c", CAMERA_WORKERS], capture_output=True, text=True, timeout=240
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "same frames True"
+
+
+def test_a_worker_forked_after_its_parent_rendered_says_why_it_cannot() -> None:
+    env = gym.make(REACH, render_mode="rgb_array", render_width=32, render_height=32)
+    env.reset(seed=0)
+    env.render()  # this process now holds an EGL display that a fork cannot take along
+    env.close()
+    vec = gym.make_vec(
+        REACH, num_envs=1, vectorization_mode="async", camera_names=["wrist"], camera_size=(8, 8)
+    )
+    try:
+        with pytest.raises(Exception, match="forked from one that had already rendered"):
+            vec.reset(seed=0)
+    finally:
+        vec.close(terminate=True)

@@ -8,11 +8,24 @@ import numpy as np
 import pytest
 
 import mjkdl as mjk
-from mjkdl.task import Lifted, LiftReward, Reached, ReachReward, distance, height
+from mjkdl.task import (
+    Held,
+    Lifted,
+    LiftReward,
+    Reached,
+    ReachReward,
+    SparseReward,
+    distance,
+    height,
+)
 
 
-def obs(tcp, cube) -> dict[str, np.ndarray]:
-    return {"tcp_pos": np.array(tcp, float), "cube_pose": np.array([*cube, 1, 0, 0, 0], float)}
+def obs(tcp, cube, contacts=(0.0, 0.0)) -> dict[str, np.ndarray]:
+    return {
+        "tcp_pos": np.array(tcp, float),
+        "cube_pose": np.array([*cube, 1, 0, 0, 0], float),
+        "cube_contacts": np.array(contacts, float),
+    }
 
 
 def test_distance_and_height() -> None:
@@ -21,13 +34,21 @@ def test_distance_and_height() -> None:
     assert height(o, "cube_pose") == 0.0
 
 
-def test_reach_reward_is_one_minus_distance_clipped() -> None:
-    assert ReachReward("tcp_pos", "cube_pose")(obs([0, 0, 0], [0.3, 0.4, 0])) == pytest.approx(0.5)
-    assert ReachReward("tcp_pos", "cube_pose")(obs([0, 0, 0], [3, 4, 0])) == 0.0
-    assert ReachReward("tcp_pos", "cube_pose", scale=2.0)(obs([0, 0, 0], [0.6, 0.8, 0])) == (
-        pytest.approx(0.5)
-    )
-    assert ReachReward("tcp_pos", "cube_pose")(obs([1, 1, 1], [1, 1, 1])) == 1.0
+def test_reach_reward_halves_closeness_and_success() -> None:
+    r = ReachReward("tcp_pos", "cube_pose")
+    assert r(obs([0, 0, 0], [0.3, 0.4, 0])) == pytest.approx(0.5 * (1 - math.tanh(2.0)))
+    assert r(obs([0, 0, 0], [0.03, 0.04, 0])) == pytest.approx(0.5 * (1 - math.tanh(0.2)) + 0.5)
+    assert r(obs([1, 1, 1], [1, 1, 1])) == 1.0
+    wide = ReachReward("tcp_pos", "cube_pose", success_distance=0.6, scale=1.0)
+    assert wide(obs([0, 0, 0], [0.3, 0.4, 0])) == pytest.approx(0.5 * (1 - math.tanh(0.5)) + 0.5)
+
+
+def test_reach_reward_never_pays_a_failure_more_than_a_success() -> None:
+    r = ReachReward("tcp_pos", "cube_pose", success_distance=0.05)
+    before = [r(obs([0, 0, 0], [d, 0, 0])) for d in np.linspace(0.0501, 0.6, 200)]
+    after = [r(obs([0, 0, 0], [d, 0, 0])) for d in np.linspace(0.0, 0.05, 50)]
+    assert max(before) < min(after)
+    assert all(np.diff(before) < 0) and all(np.diff(after) < 0)  # closer pays more
 
 
 def test_reached_and_lifted() -> None:
@@ -37,14 +58,33 @@ def test_reached_and_lifted() -> None:
     assert not Lifted("cube_pose", rest_z=0.02, lift=0.1)(obs([0, 0, 0], [0, 0, 0.1199]))
 
 
-def test_lift_reward_sparse_plus_shaped() -> None:
-    r = LiftReward("tcp_pos", "cube_pose", rest_z=0.02, lift=0.1, reach_scale=0.1)
+def test_lift_reward_stages() -> None:
+    r = LiftReward("tcp_pos", "cube_pose", "cube_contacts", rest_z=0.02, lift=0.05)
     # Far away, at rest: 0.25 * (1 - tanh(5)).
     assert r(obs([0, 0, 0.52], [0, 0, 0.02])) == pytest.approx(0.25 * (1 - math.tanh(5.0)))
-    # TCP on the cube, raised half way: 0.25 * 1 * (1 + 0.5).
-    assert r(obs([0, 0, 0.07], [0, 0, 0.07])) == pytest.approx(0.375)
-    # Lifted: the sparse 1 plus the full shaped 0.5.
-    assert r(obs([0, 0, 0.13], [0, 0, 0.13])) == pytest.approx(1.5)
+    # TCP on the cube, one finger touching: reach only.
+    assert r(obs([0, 0, 0.02], [0, 0, 0.02], (1, 0))) == pytest.approx(0.25)
+    # Grasped at rest, then raised 2 cm of 5: 0.25 + 0.25 + 0.25 * 0.4.
+    assert r(obs([0, 0, 0.02], [0, 0, 0.02], (1, 1))) == pytest.approx(0.5)
+    assert r(obs([0, 0, 0.04], [0, 0, 0.04], (1, 1))) == pytest.approx(0.6)
+    # Lifted and held: success pays 1; lifted without the fingers: only the reach.
+    assert r(obs([0, 0, 0.07], [0, 0, 0.07], (1, 1))) == 1.0
+    assert r(obs([0, 0, 0.07], [0, 0, 0.07])) == pytest.approx(0.25)
+
+
+def test_held_needs_the_height_and_every_contact() -> None:
+    held = Held("cube_pose", "cube_contacts", rest_z=0.02, lift=0.05)
+    assert held(obs([0, 0, 0], [0, 0, 0.0701], (1, 1)))
+    assert not held(obs([0, 0, 0], [0, 0, 0.0699], (1, 1)))
+    assert not held(obs([0, 0, 0], [0, 0, 0.2], (1, 0)))
+
+
+def test_sparse_reward_is_the_success() -> None:
+    sparse = SparseReward(Reached("tcp_pos", "cube_pose", 0.05))
+    assert sparse(obs([0, 0, 0], [0.03, 0.04, 0])) == 1.0
+    assert sparse(obs([0, 0, 0], [0.03, 0.041, 0])) == 0.0
+    with pytest.raises(TypeError, match=r"SparseReward\.success must be callable, got 3"):
+        SparseReward(3)
 
 
 def test_unknown_observation_names_it() -> None:
@@ -116,22 +156,22 @@ NAN = float("nan")
             "Lifted.rest_z must be a number, got True",
         ),
         (
-            lambda: LiftReward("t", "o", rest_z=None, lift=0.1),
+            lambda: LiftReward("t", "o", "c", rest_z=None, lift=0.1),
             mjk.SpecTypeError,
             "LiftReward.rest_z must be a number, got None",
         ),
         (
-            lambda: LiftReward("t", "o", rest_z=0.0, lift=0),
+            lambda: LiftReward("t", "o", "c", rest_z=0.0, lift=0),
             mjk.SpecError,
             "LiftReward.lift must be positive, got 0",
         ),
         (
-            lambda: LiftReward("t", "o", 0.0, 0.1, reach_scale=0),
+            lambda: LiftReward("t", "o", "c", 0.0, 0.1, reach_scale=0),
             mjk.SpecError,
             "LiftReward.reach_scale must be positive, got 0",
         ),
         (
-            lambda: LiftReward(5, "o", 0.0, 0.1),
+            lambda: LiftReward(5, "o", "c", 0.0, 0.1),
             mjk.SpecTypeError,
             "LiftReward.tcp must be a string, got 5",
         ),

@@ -37,6 +37,12 @@ def test_run_episode_depends_on_the_seed_alone() -> None:
     env = gym.make("mjkdl/PandaReach-v0")
     zero = run_episode(env, 0, policy=lambda obs: np.zeros(7, np.float32))
     assert zero.steps == 100 and zero.truncated and not zero.terminated  # 10 s of 0.1 s
+    assert not zero.success
+    from mjkdl.task.experts import expert_for
+
+    expert = expert_for(env)
+    expert.reset()
+    assert run_episode(env, 0, policy=expert).success
     with pytest.raises(ValueError, match="max_steps"):
         run_episode(env, 0, max_steps=0)
     env.close()

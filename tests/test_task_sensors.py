@@ -9,7 +9,15 @@ import pytest
 from conftest import menagerie
 
 import mjkdl as mjk
-from mjkdl.task import BodyPoseSensor, CameraSensor, TaskEnv, TaskSpec, intrinsics
+from mjkdl.task import (
+    BodyPoseSensor,
+    CameraSensor,
+    ContactSensor,
+    RelativePositionSensor,
+    TaskEnv,
+    TaskSpec,
+    intrinsics,
+)
 from mjkdl.task.registry import panda_arm, panda_scene
 
 HEIGHT = 1.2  # the test camera's height over the floor
@@ -79,8 +87,9 @@ def test_cameras_of_one_size_share_a_renderer() -> None:
         CameraSensor("down2", width=32, height=32, name="other"),
         CameraSensor("front", width=48, height=32),
     )
-    assert sorted(env._renderers) == [(32, 32), (48, 32)]
+    assert env._renderers == {}  # made at the first frame, in the process that renders
     obs, _ = env.reset(seed=0)
+    assert sorted(env._renderers) == [(32, 32), (48, 32)]
     diff = np.abs(obs["down_rgb"].astype(int) - obs["other_rgb"].astype(int))
     assert diff.mean() < 2.0  # same pose, same picture (up to the floor's reflection)
     assert obs["front_rgb"].shape == (32, 48, 3)
@@ -91,7 +100,7 @@ def test_wrist_camera_moves_with_the_arm() -> None:
     scene = panda_scene([])
     scene.cameras.append(
         mjk.CameraSpec(
-            name="wrist",
+            name="hand_down",
             pos=[0.1, 0, 0],
             euler=[180, 0, -90],
             fovy=90,
@@ -100,7 +109,7 @@ def test_wrist_camera_moves_with_the_arm() -> None:
     )
     env = TaskEnv(
         TaskSpec(
-            scene=scene, arms=[panda_arm()], sensors=[CameraSensor("wrist", 32, 32, depth=True)]
+            scene=scene, arms=[panda_arm()], sensors=[CameraSensor("hand_down", 32, 32, depth=True)]
         )
     )
     before, _ = env.reset(seed=0)
@@ -110,7 +119,7 @@ def test_wrist_camera_moves_with_the_arm() -> None:
     centre = (slice(14, 18), slice(14, 18))
     rise = after["panda_tcp_pos"][2] - before["panda_tcp_pos"][2]
     assert rise == pytest.approx(0.1, abs=0.02)
-    assert float(np.mean(after["wrist_depth"][centre] - before["wrist_depth"][centre])) == (
+    assert float(np.mean(after["hand_down_depth"][centre] - before["hand_down_depth"][centre])) == (
         pytest.approx(rise, abs=0.01)
     )
     env.close()
@@ -301,3 +310,54 @@ def test_user_sensor_values_must_fit_their_space(value, error, message) -> None:
     obs, _ = env.reset(seed=0)
     assert obs["x"].tolist() == [0.5] and obs["n"].tolist() == [7]
     env.close()
+
+
+# ----------------------------------------------------------- contacts, relative positions
+
+
+def cube_env(*sensors: object) -> TaskEnv:
+    cube = mjk.SceneObject(
+        name="cube", shape=mjk.Shape.BOX, size=[0.02] * 3, mass=0.05, pos=[0.5, 0.0, 0.03]
+    )
+    return TaskEnv(TaskSpec(scene=panda_scene([cube]), arms=[panda_arm()], sensors=list(sensors)))
+
+
+def test_contact_sensor_reports_which_bodies_touch() -> None:
+    env = cube_env(ContactSensor("cube", ["left_finger", "right_finger", "world"]))
+    assert env.observation_space["cube_contacts"].shape == (3,)
+    obs, _ = env.reset(seed=0)
+    assert obs["cube_contacts"].tolist() == [0.0, 0.0, 0.0]  # the cube falls onto the floor
+    for _ in range(3):
+        obs, *_ = env.step(np.zeros(7))
+    assert obs["cube_contacts"].tolist() == [0.0, 0.0, 1.0]
+    env.close()
+
+
+def test_relative_position_is_the_body_minus_the_tcp() -> None:
+    env = cube_env(BodyPoseSensor("cube"), RelativePositionSensor("cube", "panda", name="c"))
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_allclose(obs["c_rel"], obs["cube_pose"][:3] - obs["panda_tcp_pos"], 0, 1e-15)
+    obs, *_ = env.step(np.array([0.2, 0, 0, 0, 0, 0, 0]))
+    np.testing.assert_allclose(obs["c_rel"], obs["cube_pose"][:3] - obs["panda_tcp_pos"], 0, 1e-15)
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("sensor", "error", "message"),
+    [
+        (ContactSensor("cub", ["left_finger"]), KeyError, "'cub' in TaskSpec.sensors[0].body"),
+        (ContactSensor("cube", []), ValueError, "TaskSpec.sensors[0].others must name at least"),
+        (ContactSensor("cube", "left_finger"), TypeError, "others must be a list of body names"),
+        (
+            ContactSensor("cube", ["left_fingr"]),
+            KeyError,
+            "'left_fingr' in TaskSpec.sensors[0].others[0]",
+        ),
+        (RelativePositionSensor("cube", "pand"), KeyError, "no arm named 'pand'"),
+        (RelativePositionSensor(3, "panda"), TypeError, "TaskSpec.sensors[0].body"),
+    ],
+)
+def test_bad_contact_and_relative_sensors_are_named(sensor, error, message) -> None:
+    with pytest.raises(error) as caught:
+        cube_env(sensor)
+    assert message in str(caught.value)

@@ -104,7 +104,7 @@ def test_view_bad_input() -> None:
     with pytest.raises(ValueError, match="TaskEnv"):
         view(gym.make("CartPole-v1"))
     env.close()
-    assert mjkdl.task.TaskEnv is type(env.unwrapped)
+    assert isinstance(env.unwrapped, mjkdl.task.TaskEnv)
 
 
 def test_gymnasiums_checker_with_its_render_modes(display: str) -> None:  # noqa: F811

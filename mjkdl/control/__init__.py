@@ -1,6 +1,7 @@
-"""Controllers usable from any control script: Cartesian velocity control and grippers."""
+"""Controllers usable from any control script: Cartesian velocity, operational space, grippers."""
 
 from .cartesian import CartesianVelocityController, SolveStatus
 from .gripper import Gripper
+from .osc import OperationalSpaceController
 
-__all__ = ["CartesianVelocityController", "Gripper", "SolveStatus"]
+__all__ = ["CartesianVelocityController", "Gripper", "OperationalSpaceController", "SolveStatus"]

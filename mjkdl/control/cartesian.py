@@ -625,9 +625,10 @@ def _frame_rotation(model: mujoco.MjModel, data: mujoco.MjData, name: str) -> np
     raise unknown_name("site or body", name, known, where="the scene (control_frame)")
 
 
-def _pair_names(avoid: object) -> list[tuple[str, str]]:
+def _pair_names(avoid: object, field: str = "avoid") -> list[tuple[str, str]]:
+    """`avoid` as a list of (body, body) name pairs; errors name `field`."""
     if isinstance(avoid, (str, bytes)) or not isinstance(avoid, Sequence):
-        raise SpecError(f"avoid must be a sequence of (body_a, body_b) pairs, got {avoid!r}")
+        raise SpecError(f"{field} must be a sequence of (body_a, body_b) pairs, got {avoid!r}")
     pairs = []
     for i, pair in enumerate(avoid):
         if (
@@ -635,7 +636,7 @@ def _pair_names(avoid: object) -> list[tuple[str, str]]:
             or len(pair) != 2
             or not all(isinstance(b, str) and b for b in pair)
         ):
-            raise SpecError(f"avoid[{i}] must be a pair of body names, got {pair!r}")
+            raise SpecError(f"{field}[{i}] must be a pair of body names, got {pair!r}")
         pairs.append((pair[0], pair[1]))
     return pairs
 

@@ -1,9 +1,12 @@
 """Gymnasium task environments on mjkdl scenes: `TaskSpec` -> `TaskEnv`.
 
-Importing this package registers `mjkdl/PandaReach-v0` and `mjkdl/PandaPickCube-v0`.
+Importing this package registers `mjkdl/PandaReach-v0`, `mjkdl/PandaPickCube-v0` and their
+goal-conditioned variants `mjkdl/PandaReachGoal-v0` and `mjkdl/PandaPickCubeGoal-v0`;
+`mjkdl.task.experts.expert_for(env)` gives each a scripted expert.
 """
 
 from .env import Sensor, TaskEnv
+from .goal import GoalReward, GoalTaskEnv
 from .initializers import JointInitializer, PhysicsRandomizer, PoseInitializer, PropPlacer
 from .registry import register as _register
 from .rewards import (
@@ -39,6 +42,8 @@ __all__ = [
     "CameraSensor",
     "ContactSensor",
     "Episode",
+    "GoalReward",
+    "GoalTaskEnv",
     "GripperSpec",
     "Held",
     "JointInitializer",

@@ -127,6 +127,7 @@ class PickCubeExpert:
         """Start from the approach."""
         self.phase = _Phase.ABOVE
         self._closing = 0
+        self._lift_from = np.zeros(3)
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         o = self._out.named(obs)
@@ -136,7 +137,7 @@ class PickCubeExpert:
         square = _yaw(o["cube_pose"][3:])
         if self.phase is _Phase.LIFT and not held and cube[2] < CUBE_HALF + 0.01:
             self.phase = _Phase.ABOVE  # dropped: try again
-        target = cube + [0.0, 0.0, self._hover]
+        target = cube + np.array([0.0, 0.0, self._hover])
         close = False
         if self.phase is _Phase.ABOVE:
             err = target - tcp
@@ -152,6 +153,7 @@ class PickCubeExpert:
             self._closing += 1
             if self._closing >= 4 and held:
                 self.phase = _Phase.LIFT
+                self._lift_from = tcp.copy()  # straight up from here: the cube moves with us
             elif self._closing >= 10:
                 self.phase = _Phase.ABOVE  # closed on nothing: reopen
         if self.phase is _Phase.LIFT:
@@ -159,10 +161,13 @@ class PickCubeExpert:
             if "desired_goal" in o:
                 target = o["desired_goal"] + (tcp - cube)
             else:
-                target = np.array([cube[0], cube[1], CUBE_HALF + 3 * LIFT])
+                target = self._lift_from + np.array([0.0, 0.0, LIFT + 0.03])
         twist = np.zeros(6)
-        twist[:3] = self._gain * (target - tcp)
-        twist[3:] = _upright(quat, 4.0, square)
+        # Lift gently: MuJoCo's soft friction lets a fast-lifted cube creep out of the grip.
+        gain = self._gain if self.phase is not _Phase.LIFT else 0.5 * self._gain
+        twist[:3] = gain * (target - tcp)
+        # Square to the cube until the fingers close on it; then only keep the hand upright.
+        twist[3:] = _upright(quat, 4.0, None if self.phase is _Phase.LIFT else square)
         return self._out.action(twist, close=close)
 
 
@@ -179,7 +184,7 @@ def expert_for(env: gym.Env) -> Expert:
     inner = env.unwrapped
     for env_id, cls in TASKS.items():
         if type(inner) is cls:
-            return _EXPERTS[env_id](inner)  # type: ignore[no-any-return]
+            return _EXPERTS[env_id](inner)
     raise UnknownNameError(
         f"no expert for {type(inner).__name__}; experts exist for {', '.join(_EXPERTS)}"
     )

@@ -42,7 +42,7 @@ class GoalReward:
     desired: str
     threshold: float
     kind: str = "sparse"
-    scale: float = 0.1
+    scale: float = 0.25
 
     def __post_init__(self) -> None:
         text(self.achieved, "GoalReward.achieved")

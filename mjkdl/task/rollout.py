@@ -18,13 +18,15 @@ Policy = Callable[[Mapping[str, np.ndarray]], Any]
 
 @dataclass(frozen=True)
 class Episode:
-    """What one episode gave: its seed, length, summed reward and how it ended."""
+    """What one episode gave: its seed, length, summed reward, how it ended, and whether its
+    last step reported success (`info["is_success"]`; False for envs without one)."""
 
     seed: int
     steps: int
     total_reward: float
     terminated: bool
     truncated: bool
+    success: bool = False
 
 
 def run_episode(
@@ -44,12 +46,14 @@ def run_episode(
         env.action_space.seed(seed)
     total, steps = 0.0, 0
     terminated = truncated = False
+    info: dict[str, Any] = {}
     while not (terminated or truncated) and (max_steps is None or steps < max_steps):
         action = env.action_space.sample() if policy is None else policy(obs)
-        obs, reward, terminated, truncated, _ = env.step(action)
+        obs, reward, terminated, truncated, info = env.step(action)
         total += float(reward)
         steps += 1
-    return Episode(seed, steps, total, bool(terminated), bool(truncated))
+    success = bool(info.get("is_success", False))
+    return Episode(seed, steps, total, bool(terminated), bool(truncated), success)
 
 
 def _check_run(policy: object, max_steps: object) -> None:

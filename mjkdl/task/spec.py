@@ -20,9 +20,14 @@ class Actuation(enum.Enum):
     """What an arm's part of the action commands."""
 
     JOINT_POSITION = "joint_position"
+    """One joint position per joint (POSITION mode), within the joint limits."""
     JOINT_VELOCITY = "joint_velocity"
+    """One joint velocity per joint (VELOCITY mode), within the model's velocity limits."""
     JOINT_TORQUE = "joint_torque"
+    """One torque per joint on top of gravity compensation (TORQUE mode)."""
     CARTESIAN_VELOCITY = "cartesian_velocity"
+    """A TCP twist `[vx, vy, vz, wx, wy, wz]` along the control frame, bounded by the arm's
+    maximum velocities."""
 
 
 @dataclass
@@ -34,9 +39,13 @@ class GripperSpec:
     """
 
     actuator: str
+    """The gripper's actuator, without the arm's prefix. Required."""
     open: float
+    """The actuator's ctrl value that opens the gripper (action 0). Required."""
     closed: float
+    """The actuator's ctrl value that closes the gripper (action 1). Required."""
     binary: bool = True
+    """Open below 0.5, close from 0.5 on; False: ctrl linear in the action."""
 
 
 @dataclass
@@ -52,16 +61,28 @@ class ArmSpec:
     """
 
     name: str
+    """Prefix of the arm's observations and action labels (`{name}_joint_pos`). Required."""
     base_body: str
+    """First body of the chain, without `prefix` (as in `Scene.create_robot`). Required."""
     tip_body: str
+    """Last body of the chain, without `prefix`. Required."""
     prefix: str = ""
+    """The robot's prefix in the scene (`RobotSpec.prefix`)."""
     tool: ToolFrameSpec | None = None
+    """The tool and TCP below the tip; None: the TCP is the tip body."""
     actuation: Actuation = Actuation.CARTESIAN_VELOCITY
+    """What the arm's part of the action commands."""
     control_frame: str = ""
+    """Site or body (full name) whose axes the Cartesian action is along; "": the world."""
     gripper: GripperSpec | None = None
+    """The gripper, which adds one action entry; None: no gripper."""
     home: list[float] | None = None
+    """Joint positions (chain order) at every reset; None keeps the model's `qpos0`."""
     max_linear_velocity: float = 0.5
+    """Bound of the Cartesian action's linear part, m/s."""
     max_angular_velocity: float = 1.0
+    """Bound of the Cartesian action's angular part, rad/s (and of the joint velocity
+    action where the model has no velocity limit)."""
 
 
 @dataclass
@@ -75,12 +96,19 @@ class CameraSensor:
     """
 
     camera: str
+    """The scene camera's name. Required."""
     width: int = 128
+    """Image width, pixels."""
     height: int = 128
+    """Image height, pixels."""
     depth: bool = False
+    """Also observe `{name}_depth` (metres along the optical axis)."""
     name: str = ""
+    """Observation prefix; "": the camera's name."""
     shadows: bool = False
+    """Render shadows (much slower on software OpenGL)."""
     reflections: bool = False
+    """Render reflections (much slower on software OpenGL)."""
 
 
 @dataclass
@@ -88,7 +116,9 @@ class BodyPoseSensor:
     """World pose of a body: `{name}_pose` = [x, y, z, qw, qx, qy, qz]; `name` defaults to it."""
 
     body: str
+    """The body's full name. Required."""
     name: str = ""
+    """Observation prefix; "": the body's name."""
 
 
 @dataclass
@@ -98,8 +128,11 @@ class RelativePositionSensor:
     `body`."""
 
     body: str
+    """The body's full name. Required."""
     arm: str
+    """The arm (`ArmSpec.name`) whose TCP it is seen from. Required."""
     name: str = ""
+    """Observation prefix; "": the body's name."""
 
 
 @dataclass
@@ -109,8 +142,11 @@ class ContactSensor:
     `name` defaults to `body`."""
 
     body: str
+    """The body whose contacts count. Required."""
     others: Sequence[str]
+    """The bodies it may touch, one observation entry each. Required."""
     name: str = ""
+    """Observation prefix; "": the body's name."""
 
 
 @dataclass
@@ -135,14 +171,27 @@ class TaskSpec:
     """
 
     scene: SceneSpec
+    """The scene the task runs in. Required."""
     arms: list[ArmSpec]
+    """The controlled arms, in action order. Required."""
     control_timestep: float = 0.1
+    """Seconds each action is held: a whole number of physics timesteps."""
     time_limit: float | None = 10.0
+    """Episode length in seconds; reaching it sets `truncated`. None: no limit of its own."""
     sensors: Sequence[Any] = field(default_factory=list)
+    """`CameraSensor`, `BodyPoseSensor`, `ContactSensor`, `RelativePositionSensor` or any
+    `mjkdl.task.Sensor`."""
     initializers: Sequence[Initializer] = field(default_factory=list)
+    """Callables `(env, rng)` run in order at every reset, after `home`."""
     reward: Callable[[Observation], float] | None = None
+    """`reward(obs)` -> a finite real number; None: reward 0."""
     terminated: Callable[[Observation], bool] | None = None
+    """`terminated(obs)` -> True/False; None: never terminated."""
     success: Callable[[Observation], bool] | None = None
+    """`success(obs)` -> True/False, reported as `info["is_success"]`; None: never."""
     terminate_on_success: bool = False
+    """End the episode once success has held for `success_hold` seconds."""
     success_hold: float = 0.0
+    """Seconds success must hold before `terminate_on_success` ends the episode."""
     normalize_actions: bool = False
+    """Every action entry in [-1, 1], mapped linearly onto the arm's bounds."""

@@ -1,0 +1,291 @@
+"""Proof by learning: standard learners on the registered tasks, with measured curves.
+
+On demand, not in CI (minutes to an hour on 2 cores). Needs the `rl` extra:
+`pip install -e ".[rl]"` (Stable-Baselines3, sb3-contrib; PyTorch, CPU is enough).
+
+    python benchmarks/learning.py ppo-reach            # PPO defaults, MultiInputPolicy, 150k steps
+    python benchmarks/learning.py her-reach            # SAC + HER on PandaReachGoal-v0, 30k steps
+    python benchmarks/learning.py bc-pick              # behaviour cloning of the expert, PickCube
+    python benchmarks/learning.py plot                 # docs/learning.png from the saved curves
+
+Each run evaluates the deterministic policy on 20 held-out seeds (10000..10019) at checkpoints
+and writes its curve, with wall time and steps/s of training and of the env alone, to
+`benchmarks/results/<run>.json`; `plot` draws them. Success is `info["is_success"]` at the last
+step of an episode (what SB3's `success_rate` reads).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
+
+import mjkdl.task  # noqa: F401  (registers the tasks)
+from mjkdl.task.experts import expert_for
+
+RESULTS = Path(__file__).resolve().parent / "results"
+EVAL_SEEDS = range(10_000, 10_020)
+Policy = Callable[[dict[str, np.ndarray]], np.ndarray]
+
+
+def evaluate(env_id: str, policy: Policy, seeds: range = EVAL_SEEDS) -> float:
+    """Fraction of `seeds` whose episode ends in success under `policy`."""
+    env = gym.make(env_id)
+    wins = 0
+    for seed in seeds:
+        obs, info = env.reset(seed=seed)
+        done = False
+        while not done:
+            obs, _, terminated, truncated, info = env.step(policy(obs))
+            done = terminated or truncated
+        wins += bool(info["is_success"])
+    env.close()
+    return wins / len(seeds)
+
+
+def env_steps_per_second(env_id: str, steps: int = 2000) -> float:
+    """Control steps/s of the env alone under random actions (the learner's ceiling)."""
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    start = time.perf_counter()
+    for _ in range(steps):
+        *_, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 7).astype(np.float32))
+        if terminated or truncated:
+            env.reset()
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate
+
+
+def save(run: str, record: dict[str, Any]) -> None:
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{run}.json").write_text(json.dumps(record, indent=1))
+    last = record["curve"][-1]
+    print(
+        f"{run}: {last['success']:.0%} success after {last['steps']} steps, "
+        f"{record['wall_seconds']:.0f} s wall, training {record['train_steps_per_s']:.0f} "
+        f"steps/s, env alone {record['env_steps_per_s']:.0f} steps/s"
+    )
+
+
+def sb3_run(run: str, env_id: str, make_model: Callable[[gym.Env], Any], steps: int, every: int):
+    """Train an SB3 model with evaluation checkpoints; returns the record it saves."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    curve: list[dict[str, float]] = []
+    train_time = [0.0]
+
+    class Checkpoints(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.last = time.perf_counter()
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps % every == 0:
+                now = time.perf_counter()
+                train_time[0] += now - self.last
+
+                def policy(obs: dict[str, np.ndarray]) -> np.ndarray:
+                    return self.model.predict(obs, deterministic=True)[0]
+
+                rate = evaluate(env_id, policy)
+                curve.append({"steps": self.num_timesteps, "success": rate})
+                print(f"  {self.num_timesteps:>7} steps: {rate:.0%} ({train_time[0]:.0f} s)")
+                self.last = time.perf_counter()
+            return True
+
+    env = gym.make(env_id)
+    model = make_model(env)
+    start = time.perf_counter()
+    model.learn(total_timesteps=steps, callback=Checkpoints())
+    wall = time.perf_counter() - start
+    record = {
+        "run": run,
+        "env_id": env_id,
+        "curve": curve,
+        "wall_seconds": wall,
+        "train_seconds": train_time[0],
+        "train_steps_per_s": steps / train_time[0],
+        "env_steps_per_s": env_steps_per_second(env_id),
+        "torch_threads": __import__("torch").get_num_threads(),
+    }
+    env.close()
+    return record
+
+
+def ppo_reach(steps: int) -> None:
+    """SB3 PPO with its default hyperparameters, MultiInputPolicy, one env, no wrappers."""
+    from stable_baselines3 import PPO
+
+    record = sb3_run(
+        "ppo-reach",
+        "mjkdl/PandaReach-v0",
+        lambda env: PPO("MultiInputPolicy", env, seed=0, verbose=0),
+        steps,
+        every=10_000,
+    )
+    record["recipe"] = "PPO('MultiInputPolicy', env) with SB3's defaults, seed 0"
+    save("ppo-reach", record)
+
+
+def her_reach(steps: int) -> None:
+    """SAC + HER (SB3's HerReplayBuffer, 4 future goals) on the goal-conditioned Reach."""
+    from stable_baselines3 import SAC, HerReplayBuffer
+
+    record = sb3_run(
+        "her-reach",
+        "mjkdl/PandaReachGoal-v0",
+        lambda env: SAC(
+            "MultiInputPolicy",
+            env,
+            replay_buffer_class=HerReplayBuffer,
+            replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
+            learning_starts=1000,
+            seed=0,
+            verbose=0,
+        ),
+        steps,
+        every=2_000,
+    )
+    record["recipe"] = (
+        "SAC('MultiInputPolicy', env, replay_buffer_class=HerReplayBuffer, "
+        "replay_buffer_kwargs={'n_sampled_goal': 4, 'goal_selection_strategy': 'future'}, "
+        "learning_starts=1000), otherwise SB3's defaults, seed 0"
+    )
+    save("her-reach", record)
+
+
+def bc_pick(demos: int, epochs: int) -> None:
+    """Behaviour cloning of the scripted expert on PickCube: an MLP (256, 256) regressing
+    the expert's action from the observation vector, trained with Adam on `demos` episodes."""
+    import torch
+
+    env_id = "mjkdl/PandaPickCube-v0"
+    env = gym.make(env_id)
+    keys = [k for k, b in env.observation_space.spaces.items() if k != "time"]
+    expert = expert_for(env)
+
+    def flat(obs: dict[str, np.ndarray]) -> np.ndarray:
+        return np.concatenate([np.ravel(obs[k]) for k in keys]).astype(np.float32)
+
+    start = time.perf_counter()
+    xs, ys = [], []
+    for seed in range(demos):
+        obs, _ = env.reset(seed=seed)
+        expert.reset()
+        done = False
+        while not done:
+            action = expert(obs)
+            xs.append(flat(obs))
+            ys.append(action)
+            obs, _, terminated, truncated, _ = env.step(action)
+            done = terminated or truncated
+    collect = time.perf_counter() - start
+    x, y = torch.tensor(np.array(xs)), torch.tensor(np.array(ys))
+    mean, std = x.mean(0), x.std(0) + 1e-6
+    torch.manual_seed(0)
+    net = torch.nn.Sequential(
+        torch.nn.Linear(x.shape[1], 256),
+        torch.nn.ReLU(),
+        torch.nn.Linear(256, 256),
+        torch.nn.ReLU(),
+        torch.nn.Linear(256, y.shape[1]),
+        torch.nn.Tanh(),
+    )
+    opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+
+    def policy(obs: dict[str, np.ndarray]) -> np.ndarray:
+        with torch.no_grad():
+            out = net((torch.tensor(flat(obs)) - mean) / std).numpy()
+        return out
+
+    curve = []
+    train = 0.0
+    every = max(1, epochs // 10)
+    for epoch in range(1, epochs + 1):
+        t0 = time.perf_counter()
+        order = torch.randperm(len(x))
+        for i in range(0, len(x), 256):
+            idx = order[i : i + 256]
+            loss = torch.nn.functional.mse_loss(net((x[idx] - mean) / std), y[idx])
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+        train += time.perf_counter() - t0
+        if epoch % every == 0:
+            rate = evaluate(env_id, policy)
+            curve.append({"steps": epoch, "success": rate, "loss": float(loss)})
+            print(f"  epoch {epoch}: loss {float(loss):.4f}, {rate:.0%}")
+    env.close()
+    save(
+        "bc-pick",
+        {
+            "run": "bc-pick",
+            "env_id": env_id,
+            "recipe": f"behaviour cloning: {demos} expert episodes ({len(x)} steps), MLP "
+            f"256x256 + tanh, Adam 1e-3, batch 256, MSE, {epochs} epochs, seed 0",
+            "curve": curve,
+            "x_label": "epochs",
+            "wall_seconds": time.perf_counter() - start,
+            "collect_seconds": collect,
+            "train_seconds": train,
+            "train_steps_per_s": len(x) * epochs / train,
+            "env_steps_per_s": env_steps_per_second(env_id),
+            "torch_threads": torch.get_num_threads(),
+        },
+    )
+
+
+def plot() -> None:
+    """docs/learning.png: the saved curves side by side."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = [json.loads(p.read_text()) for p in sorted(RESULTS.glob("*.json"))]
+    fig, axes = plt.subplots(1, len(runs), figsize=(4 * len(runs), 3.2), squeeze=False)
+    for ax, run in zip(axes[0], runs, strict=True):
+        steps = [c["steps"] for c in run["curve"]]
+        ax.plot(steps, [100 * c["success"] for c in run["curve"]], marker="o")
+        ax.set_title(f"{run['run']} ({run['env_id'].split('/')[1]})", fontsize=9)
+        ax.set_xlabel(run.get("x_label", "environment steps"))
+        ax.set_ylabel("success, 20 held-out seeds (%)")
+        ax.set_ylim(-5, 105)
+        ax.axhline(90 if "reach" in run["run"] else 50, color="grey", lw=0.8, ls="--")
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    out = Path(__file__).resolve().parents[1] / "docs" / "learning.png"
+    fig.savefig(out, dpi=110)
+    print(f"wrote {out}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run", choices=["ppo-reach", "her-reach", "bc-pick", "plot"])
+    parser.add_argument("--steps", type=int, default=0, help="training steps (0: the run's own)")
+    parser.add_argument("--demos", type=int, default=200, help="bc-pick: expert episodes")
+    parser.add_argument("--epochs", type=int, default=200, help="bc-pick: training epochs")
+    args = parser.parse_args()
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    if args.run == "ppo-reach":
+        ppo_reach(args.steps or 150_000)
+    elif args.run == "her-reach":
+        her_reach(args.steps or 30_000)
+    elif args.run == "bc-pick":
+        bc_pick(args.demos, args.epochs)
+    else:
+        plot()
+
+
+if __name__ == "__main__":
+    main()

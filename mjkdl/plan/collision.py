@@ -1,0 +1,256 @@
+"""Is a joint configuration of a robot collision-free? MuJoCo's own collision detection.
+
+A `CollisionChecker` runs `mj_kinematics` and `mj_collision` on a scratch `MjData` of a
+private copy of the scene's model, with every colliding geom's margin set to the clearance
+asked for: MuJoCo reports a contact for each pair closer than that, with the geoms the
+simulation uses, its parent/child filter and `<exclude>`s. Everything that is not moved by the
+arm stays where it was at the last `sync()`. Contacts between two bodies the arm does not move
+(a cube on its table) are not the arm's business: the copy's contype/conaffinity bits are
+rewritten so MuJoCo never even generates them, and each contact it does report is checked
+against the original bits, so nothing the simulation would not collide counts either.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from ..control.cartesian import _number, _pair_names
+from ..errors import SpecError, SpecTypeError
+from ..names import model_id
+from ..robot import Robot
+
+# Each group of arm links gets one of MuJoCo's 32 contype bits (the sign bit left alone).
+_MAX_GROUPS = 31
+
+
+class CollisionChecker:
+    """Collision checks for the arm of `robot` at joint positions `q`, with `margin` clearance.
+
+    `reach` (>= margin, default margin): distances up to it are measured (`clearance`), so
+    one collision pass answers "at least `margin`" and "at least `reach`". `allowed_contacts`:
+    pairs of body names whose contacts never count (a held object and the fingers).
+    `carry(body)`: a free body that moves rigidly with the arm's tip (a grasped cube).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        margin: float,
+        allowed_contacts: Sequence[tuple[str, str]] = (),
+        reach: float | None = None,
+    ) -> None:
+        if not isinstance(robot, Robot):
+            raise SpecTypeError(f"CollisionChecker: robot must be a Robot, got {robot!r}")
+        self._robot = robot
+        self._margin = _number(margin, "margin")
+        self._reach = max(self._margin, _number(reach, "reach") if reach is not None else 0.0)
+        self._allowed_names = _pair_names(allowed_contacts, "allowed_contacts")
+        self._model: mujoco.MjModel | None = None
+        self._carry_name: str | None = None
+        self._bind()
+
+    # ------------------------------------------------------------------ setup
+
+    def _bind(self) -> None:
+        """Copy the scene's current model and find the arm's bodies (again after a rebuild)."""
+        scene = self._robot.scene
+        source = scene.model
+        self._source = source
+        model = copy.copy(source)
+        self._model = model
+        self._data = mujoco.MjData(model)
+        joints = [
+            model_id(model, mujoco.mjtObj.mjOBJ_JOINT, "joint", j, "the robot")
+            for j in self._robot.joint_names
+        ]
+        self._qadr = np.array([model.jnt_qposadr[j] for j in joints])
+        if len(joints) > _MAX_GROUPS:
+            raise SpecError(
+                f"CollisionChecker: {len(joints)} joints; MuJoCo's 32 contype bits give "
+                f"groups for {_MAX_GROUPS} at most"
+            )
+        self._tip = int(model.jnt_bodyid[joints[-1]])
+        first, count = int(self._qadr[0]), len(self._qadr)
+        # A view of the arm's qpos, written per check, when the joints are consecutive.
+        consecutive = np.array_equal(self._qadr, np.arange(first, first + count))
+        self._arm_qpos = self._data.qpos[first : first + count] if consecutive else None
+        self._moving = _subtree(model, int(model.jnt_bodyid[joints[0]]))
+        # Bodies the arm moves, numbered by the last arm joint between them and the base.
+        self._groups = np.full(model.nbody, -1)
+        for k, j in enumerate(joints):
+            self._groups[_subtree(model, int(model.jnt_bodyid[j]))] = k
+        self._colliding = (source.geom_contype != 0) | (source.geom_conaffinity != 0)
+        self._allowed = set()
+        for i, (a, b) in enumerate(self._allowed_names):
+            where = f"allowed_contacts[{i}]"
+            ia = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", a, where)
+            ib = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", b, where)
+            self._allowed.add((min(ia, ib), max(ia, ib)))
+        self._carried = -1
+        self._carry_qadr = -1
+        self._masks(self._moving)
+        model.geom_margin[self._colliding] = self._reach
+        model.geom_gap[:] = 0.0
+        self.sync()
+
+    def _masks(self, moving: np.ndarray) -> None:
+        """Bits that make MuJoCo pair geoms the arm moves relative to each other or to the
+        rest, and never two that keep their relative pose (two static bodies, the fingers and
+        the hand): each group of bodies between two arm joints gets a bit of its own."""
+        model = self._model
+        assert model is not None
+        group = self._groups.copy()
+        if self._carried >= 0:
+            group[self._carried] = group[self._tip]
+        every = (1 << (int(group.max()) + 1)) - 1
+        geom_group = group[model.geom_bodyid]
+        on_arm = moving[model.geom_bodyid] & self._colliding
+        static = ~moving[model.geom_bodyid] & self._colliding
+        bit = np.left_shift(1, np.maximum(geom_group, 0))
+        model.geom_contype[on_arm] = bit[on_arm]
+        model.geom_conaffinity[on_arm] = every & ~bit[on_arm]
+        model.geom_contype[static] = 0
+        model.geom_conaffinity[static] = every
+        self._arm_body = moving
+
+    def carry(self, body: str | None) -> None:
+        """Move free body `body` with the tip from now on (None: stop carrying)."""
+        model = self._model
+        assert model is not None
+        moving = self._moving.copy()
+        carried, qadr = -1, -1
+        if body is not None:
+            b = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", body, "the scene (carry)")
+            joint = int(model.body_jntadr[b])
+            if model.body_jntnum[b] != 1 or model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
+                raise SpecError(f"carry: body {body!r} is not a free body (it needs a free joint)")
+            if self._moving[b]:
+                raise SpecError(f"carry: body {body!r} already moves with the arm")
+            carried, qadr = b, int(model.jnt_qposadr[joint])
+            moving[b] = True
+        self._carried, self._carry_qadr = carried, qadr
+        self._carry_name = body
+        self._masks(moving)
+        self.sync()
+
+    def sync(self) -> None:
+        """Take the positions of everything the arm does not move from the scene, now."""
+        if self._robot.scene.model is not self._source:
+            self._bind()
+            if self._carry_name is not None:
+                self.carry(self._carry_name)
+            return
+        scene_data = self._robot.scene.data
+        data = self._data
+        data.qpos[:] = scene_data.qpos
+        data.mocap_pos[:] = scene_data.mocap_pos
+        data.mocap_quat[:] = scene_data.mocap_quat
+        if self._carried >= 0:
+            # The carried body's pose in the tip's frame, as it is in the scene now.
+            tip_pos, tip_mat = scene_data.xpos[self._tip], scene_data.xmat[self._tip].reshape(3, 3)
+            body_pos = scene_data.xpos[self._carried]
+            body_mat = scene_data.xmat[self._carried].reshape(3, 3)
+            self._rel_pos = tip_mat.T @ (body_pos - tip_pos)
+            self._rel_mat = tip_mat.T @ body_mat
+            self._quat = np.zeros(4)
+
+    @property
+    def margin(self) -> float:
+        """Clearance every pair of geoms involving the arm must keep (m)."""
+        return self._margin
+
+    @property
+    def reach(self) -> float:
+        """Distance (m) up to which `clearance` measures; beyond it, inf."""
+        return self._reach
+
+    @property
+    def arm_qpos_adr(self) -> np.ndarray:
+        """Where the arm's joints sit in MuJoCo's qpos."""
+        return self._qadr
+
+    # ------------------------------------------------------------------ checks
+
+    def _place(self, q: np.ndarray | Sequence[float]) -> None:
+        model, data = self._model, self._data
+        if self._arm_qpos is not None:
+            self._arm_qpos[...] = q
+        else:
+            data.qpos[self._qadr] = q
+        _kinematics(model, data)
+        if self._carried >= 0:
+            tip_mat = data.xmat[self._tip].reshape(3, 3)
+            adr = self._carry_qadr
+            data.qpos[adr : adr + 3] = data.xpos[self._tip] + tip_mat @ self._rel_pos
+            mujoco.mju_mat2Quat(self._quat, (tip_mat @ self._rel_mat).ravel())
+            data.qpos[adr + 3 : adr + 7] = self._quat
+            mujoco.mj_kinematics(model, data)
+        _collision(model, data)
+
+    def valid(self, q: np.ndarray | Sequence[float]) -> bool:
+        """Whether the arm at `q` keeps the margin from everything (itself included)."""
+        return self.clearance(q) >= self._margin
+
+    def clearance(self, q: np.ndarray | Sequence[float]) -> float:
+        """The smallest distance (m) between a geom the arm moves and another geom, at `q`;
+        inf when nothing is within `reach` (negative: penetration)."""
+        self._place(q)
+        data = self._data
+        if data.ncon == 0:
+            return math.inf
+        counted = self._counted()
+        return float(data.contact.dist[counted].min()) if len(counted) else math.inf
+
+    def contacts(self, q: np.ndarray | Sequence[float]) -> list[tuple[str, str, float]]:
+        """The pairs of bodies closer than `reach` at `q`, nearest first: (body, body, m)."""
+        self._place(q)
+        model, data = self._model, self._data
+        assert model is not None
+        out = []
+        for i in self._counted().tolist():
+            c = data.contact[i]
+            b1, b2 = model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]
+            out.append((model.body(b1).name, model.body(b2).name, float(c.dist)))
+        nearest: dict[tuple[str, str], tuple[str, str, float]] = {}
+        for a, b, d in sorted(out, key=lambda x: x[2]):
+            nearest.setdefault((min(a, b), max(a, b)), (a, b, d))
+        return list(nearest.values())
+
+    def _counted(self) -> np.ndarray:
+        """Indices of the contacts that count: between geoms the simulation collides, one of
+        them moving with the arm, and not an allowed pair."""
+        model, data = self._model, self._data
+        assert model is not None
+        con = data.contact
+        g1, g2 = con.geom1[: data.ncon], con.geom2[: data.ncon]
+        bits = self._source
+        collide = ((bits.geom_contype[g1] & bits.geom_conaffinity[g2]) != 0) | (
+            (bits.geom_contype[g2] & bits.geom_conaffinity[g1]) != 0
+        )
+        b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
+        # Some pair functions (box-box, multi-point mesh contacts) report points beyond the
+        # margin next to the one within it.
+        keep = collide & (self._arm_body[b1] | self._arm_body[b2]) & (con.dist < self._reach)
+        if self._allowed:
+            lo, hi = np.minimum(b1, b2), np.maximum(b1, b2)
+            keep &= np.array(
+                [(x, y) not in self._allowed for x, y in zip(lo, hi, strict=True)], dtype=bool
+            )
+        return np.flatnonzero(keep)
+
+
+_kinematics, _collision = mujoco.mj_kinematics, mujoco.mj_collision
+
+
+def _subtree(model: mujoco.MjModel, root: int) -> np.ndarray:
+    """Mask of the bodies in `root`'s subtree (parents come before their children)."""
+    inside = np.zeros(model.nbody, dtype=bool)
+    inside[root] = True
+    for b in range(root + 1, model.nbody):
+        inside[b] = inside[model.body_parentid[b]]
+    return inside

@@ -1,0 +1,122 @@
+"""TrajectoryFollower: feed-forward closes the position servos' lag; computed torque tracks."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import menagerie, panda_arm, panda_spec
+
+import mjkdl as mjk
+from mjkdl.plan import JointTrajectory, TrajectoryFollower
+
+RADIUS = 0.1  # the figure eight of examples/cartesian_velocity.py: 0.2 m wide, 0.1 m tall
+
+
+@pytest.fixture
+def env():
+    menagerie("franka_emika_panda")
+    with mjk.Env.build(panda_spec()) as scene:
+        yield scene
+
+
+def eight(robot: mjk.Robot) -> tuple[JointTrajectory, callable]:
+    """One lap (2π s) of the eight through IK every 10 ms, and the TCP path it should trace."""
+    start = robot.fk_frame()
+    times = np.arange(0.0, 2.0 * math.pi, 0.01)
+
+    def path(t: np.ndarray) -> np.ndarray:
+        offset = [RADIUS * np.sin(t), 0.5 * RADIUS * np.sin(2.0 * t), 0.0 * t]
+        return start.translation + np.array(offset).T
+
+    q, positions = robot.jnt_pos_msr.copy(), []
+    for point in path(times):
+        result = robot.ik(pin.SE3(start.rotation, point), q)
+        assert result.success
+        q = result.q
+        positions.append(q)
+    positions = np.array(positions)
+    velocities = np.gradient(positions, times, axis=0)
+    return JointTrajectory(
+        times, positions, velocities, np.gradient(velocities, times, axis=0)
+    ), path
+
+
+def tcp_error(
+    env: mjk.Env, robot: mjk.Robot, mode: mjk.CtrlMode, feedforward: bool = True
+) -> float:
+    """The largest distance of the measured TCP from the eight over one lap."""
+    traj, path = eight(robot)
+    follower = TrajectoryFollower(robot)
+    follower.start(traj)
+    t0, worst = env.time(), 0.0
+    while not follower.finished:
+        robot.update()
+        worst = max(
+            worst, float(np.linalg.norm(robot.fk_frame().translation - path(env.time() - t0)))
+        )
+        follower.command()
+        if not feedforward:  # the plain setpoint, as a position controller would send it
+            robot.jnt_pos_cmd = traj.sample(env.time() - t0)[0]
+        robot.step()
+    return worst
+
+
+def test_position_mode_tracks_the_eight_within_3_mm_with_feedforward(env) -> None:
+    robot = panda_arm(env, mjk.CtrlMode.POSITION)
+    with_ff = tcp_error(env, robot, mjk.CtrlMode.POSITION)
+    env.reset()
+    robot.update()
+    plain = tcp_error(env, robot, mjk.CtrlMode.POSITION, feedforward=False)
+    assert with_ff <= 0.003
+    assert plain > 5 * with_ff  # the setpoint alone trails by the servos' kv/kp = 0.1 s
+
+
+def test_torque_mode_tracks_the_eight_with_computed_torque(env) -> None:
+    robot = panda_arm(env, mjk.CtrlMode.TORQUE)
+    assert tcp_error(env, robot, mjk.CtrlMode.TORQUE) <= 0.003
+
+
+def test_torque_mode_with_gravity_compensation_does_not_add_gravity_twice(env) -> None:
+    robot = panda_arm(env, mjk.CtrlMode.TORQUE)
+    robot.gravity_compensation = True
+    assert tcp_error(env, robot, mjk.CtrlMode.TORQUE) <= 0.003
+
+
+def test_run_returns_the_largest_joint_error_and_ends_at_the_goal(env) -> None:
+    robot = panda_arm(env, mjk.CtrlMode.POSITION)
+    start = robot.jnt_pos_msr.copy()
+    goal = start + np.array([0.3, -0.2, 0.2, 0.3, -0.3, 0.2, 0.4])
+    traj = JointTrajectory([0.0, 1.0], [start, goal], np.zeros((2, 7)), np.zeros((2, 7)))
+    error = TrajectoryFollower(robot).run(traj)
+    assert 0.0 < error < 0.01
+    assert np.abs(robot.jnt_pos_msr - goal).max() < 0.002
+    assert env.time() == pytest.approx(1.0, abs=2 * env.timestep())
+
+
+def test_bad_use_is_refused_by_name(env) -> None:
+    robot = panda_arm(env, mjk.CtrlMode.VELOCITY)
+    q = robot.jnt_pos_msr
+    traj = JointTrajectory([0.0, 1.0], [q, q], np.zeros((2, 7)), np.zeros((2, 7)))
+    follower = TrajectoryFollower(robot)
+    with pytest.raises(
+        mjk.SpecError, match=r"needs the robot in POSITION or TORQUE mode, not VELOCITY"
+    ):
+        follower.start(traj)
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    with pytest.raises(RuntimeError, match=r"call start\(trajectory\) first"):
+        follower.command()
+    short = JointTrajectory([0.0, 1.0], [q[:6], q[:6]], np.zeros((2, 6)), np.zeros((2, 6)))
+    with pytest.raises(mjk.SpecError, match=r"the trajectory has 6 joints, the robot 7 \(joint1, "):
+        follower.start(short)
+    far = JointTrajectory(
+        [0.0, 1.0], [q + np.array([0, 0, 0.2, 0, 0, 0, 0]), q], np.zeros((2, 7)), np.zeros((2, 7))
+    )
+    with pytest.raises(mjk.SpecError, match=r"starts 0.2 rad from the robot at joint 'joint3'"):
+        follower.start(far)
+    with pytest.raises(mjk.SpecTypeError, match=r"expected a JointTrajectory"):
+        follower.start(q)
+    with pytest.raises(mjk.SpecError, match=r"bandwidth must be a finite number > 0"):
+        TrajectoryFollower(robot, bandwidth=0)

@@ -1,0 +1,302 @@
+"""MotionPlanner: collision-free trajectories around a wall, and every bad input by name."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import (
+    DOWN,
+    PANDA_TCP,
+    SHELF_TOP,
+    base_spec,
+    menagerie,
+    panda_spec,
+    shelf_objects,
+    two_link_arm,
+)
+
+import mjkdl as mjk
+from mjkdl.plan import CollisionChecker, MotionPlanner, PlanningError, TrajectoryFollower
+
+ABOVE_A = pin.SE3(np.array(DOWN), np.array([0.45, 0.35, SHELF_TOP + 0.15]))
+ABOVE_B = pin.SE3(np.array(DOWN), np.array([0.45, -0.35, SHELF_TOP + 0.15]))
+HOME = np.array([0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853])
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """The Panda above shelf A, the wall between it and shelf B (shared: tests reset it)."""
+    menagerie("franka_emika_panda")
+    env = mjk.Env.build(panda_spec(objects=shelf_objects()))
+    robot = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
+    q_a = robot.ik(ABOVE_A, HOME).q
+    q_b = robot.ik(ABOVE_B, HOME).q
+    env.on_reset = lambda ctx: robot.set_joint_pos(q_a, call_forward=False)
+    yield env, robot, q_a, q_b
+    env.close()
+
+
+@pytest.fixture
+def panda(scene):
+    env, robot, q_a, q_b = scene
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    env.reset()
+    robot.update()
+    return env, robot, q_a, q_b
+
+
+def test_plan_around_the_wall_keeps_the_margin_and_the_limits(panda) -> None:
+    _env, robot, q_a, q_b = panda
+    planner = MotionPlanner(robot)
+    traj = planner.plan(q_b)
+    assert np.abs(traj.positions[0] - q_a).max() < 1e-12
+    assert np.abs(traj.positions[-1] - q_b).max() < 1e-12
+    assert np.abs(traj.velocities[[0, -1]]).max() < 1e-9
+    # The straight joint-space line goes through the wall; the plan does not.
+    line = [q_a + s * (q_b - q_a) for s in np.linspace(0, 1, 50)]
+    assert not all(planner.checker.valid(q) for q in line)
+    clearance = [
+        planner.checker.clearance(traj.sample(t)[0]) for t in np.arange(0, traj.duration, 0.002)
+    ]
+    assert min(clearance) >= planner.margin
+    # toppra's limits, sampled between the knots too
+    samples = [traj.sample(t) for t in np.linspace(0, traj.duration, 700)]
+    velocity = np.abs([s[1] for s in samples]).max(axis=0)
+    acceleration = np.abs([s[2] for s in samples]).max(axis=0)
+    assert np.all(velocity <= planner.velocity_limits * 1.01)
+    assert np.all(acceleration <= planner.acceleration_limits * 1.02)
+    assert velocity.max() > 0.5 * planner.velocity_limits.min()  # not crawling either
+
+
+def test_plan_to_a_pose_reaches_it_and_the_executed_motion_is_collision_free(panda) -> None:
+    env, robot, _q_a, _ = panda
+    planner = MotionPlanner(robot)
+    traj = planner.plan(ABOVE_B)
+    end = robot.fk_frame(traj.positions[-1])
+    assert np.linalg.norm(end.translation - ABOVE_B.translation) < 1e-5
+    assert np.linalg.norm(pin.log3(end.rotation.T @ ABOVE_B.rotation)) < 1e-4
+    # Executed in the simulation: the measured arm keeps the margin at every step.
+    watch = CollisionChecker(robot, planner.margin, reach=0.05)
+    closest = []
+    TrajectoryFollower(robot).run(
+        traj, after_step=lambda: closest.append(watch.clearance(env.data.qpos[watch.arm_qpos_adr]))
+    )
+    assert len(closest) == pytest.approx(traj.duration / env.timestep(), abs=2)
+    assert min(closest) >= planner.margin
+    assert np.linalg.norm(robot.fk_frame().translation - ABOVE_B.translation) < 0.002
+
+
+@pytest.mark.parametrize("name", ["RRTConnect", "RRT", "BKPIECE1"])
+def test_planners_are_chosen_by_name(panda, name: str) -> None:
+    _env, robot, _q_a, q_b = panda
+    traj = MotionPlanner(robot, planner=name).plan(q_b, timeout=5.0)
+    assert np.abs(traj.positions[-1] - q_b).max() < 1e-12
+
+
+def test_plan_cartesian_follows_a_straight_line(panda) -> None:
+    _env, robot, _q_a, _ = panda
+    target = pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + np.array([0.0, 0.0, -0.12]))
+    traj = MotionPlanner(robot).plan_cartesian(target, step=0.005)
+    line = np.array(
+        [robot.fk_frame(traj.sample(t)[0]).translation for t in np.linspace(0, traj.duration, 60)]
+    )
+    off = np.linalg.norm(line[:, :2] - ABOVE_A.translation[:2], axis=1)
+    assert off.max() < 0.001
+    assert np.all(np.diff(line[:, 2]) <= 1e-6)  # straight down, never back up
+    assert np.linalg.norm(line[-1] - target.translation) < 1e-5
+
+
+def test_plan_cartesian_into_the_shelf_names_the_collision(panda) -> None:
+    _env, robot, *_ = panda
+    target = pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + np.array([0.0, 0.0, -0.2]))
+    with pytest.raises(
+        PlanningError,
+        match=r"plan_cartesian: the pose at \d+% .* collision: bodies '(shelf_a|\w+_finger)' "
+        r"and '(shelf_a|\w+_finger)'",
+    ):
+        MotionPlanner(robot).plan_cartesian(target)
+
+
+# ---------------------------------------------------------------------- bad input
+
+
+def test_start_in_collision_names_the_two_bodies(panda) -> None:
+    _env, robot, q_a, q_b = panda
+    low = robot.ik(pin.SE3(ABOVE_A.rotation, ABOVE_A.translation - np.array([0, 0, 0.2])), q_a).q
+    with pytest.raises(
+        PlanningError, match=r"the start is in collision: bodies '\w+' and '\w+'"
+    ) as error:
+        MotionPlanner(robot).plan(q_b, start=low)
+    assert "shelf_a" in str(error.value)
+    assert isinstance(error.value, mjk.MjkdlError)
+
+
+def test_goal_in_collision_names_the_two_bodies(panda) -> None:
+    _env, robot, _q_a, _ = panda
+    inside = robot.ik(pin.SE3(np.array(DOWN), np.array([0.45, 0.0, 0.5])), HOME).q
+    with pytest.raises(PlanningError, match=r"the goal is in collision: bodies .*'wall'"):
+        MotionPlanner(robot).plan(inside)
+
+
+def test_pose_goal_in_collision_and_unreachable(panda) -> None:
+    _env, robot, *_ = panda
+    planner = MotionPlanner(robot, ik_attempts=4)
+    with pytest.raises(PlanningError, match=r"every IK solution is in collision .*'wall'"):
+        planner.plan(pin.SE3(np.array(DOWN), np.array([0.45, 0.0, 0.5])))
+    with pytest.raises(PlanningError, match=r"unreachable: no IK solution from 4 seeds"):
+        planner.plan(pin.SE3(np.array(DOWN), np.array([2.0, 0.0, 0.5])))
+
+
+def test_timeout_says_what_was_tried(tmp_path) -> None:
+    """A two-link arm whose first link would have to pass through a wall: no path exists."""
+    path = tmp_path / "two_link.xml"
+    path.write_text(two_link_arm())
+    walls = [
+        mjk.SceneObject(
+            name=f"wall_{side}",
+            shape=mjk.Shape.BOX,
+            size=[0.4, 0.01, 0.5],
+            pos=[side * 0.55, 0.0, 0.5],
+            fixed=True,
+        )
+        for side in (-1, 1)
+    ]
+    with mjk.Scene.build(
+        base_spec(add_floor=False, robots=[mjk.RobotSpec(path=str(path))], objects=walls)
+    ) as scene:
+        arm = scene.create_robot("base", "l2")
+        arm.set_joint_pos([np.pi / 2, 0.0])
+        planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
+        with pytest.raises(
+            PlanningError,
+            match=r"RRTConnect found no collision-free path within 0.2 s \(\d+ states checked, "
+            r"status Approximate solution",
+        ):
+            planner.plan([-np.pi / 2, 0.0], timeout=0.2)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"velocity_limits": [1.0] * 6}, r"velocity_limits needs 7 values"),
+        (
+            {"velocity_limits": [1.0] * 6 + [0.0]},
+            r"velocity_limits\[6\] \(joint 'joint7'\) must be positive",
+        ),
+        (
+            {"acceleration_limits": [-1.0] * 7},
+            r"acceleration_limits\[0\] \(joint 'joint1'\) must be positive",
+        ),
+        (
+            {"acceleration_limits": [1.0, "a"] + [1.0] * 5},
+            r"acceleration_limits must hold real numbers",
+        ),
+        (
+            {"planner": "RRTConect"},
+            r"planner must be one of OMPL's RRTConnect, .*; got 'RRTConect'",
+        ),
+        ({"margin": -0.01}, r"margin must be a finite number >= 0"),
+        (
+            {"allowed_contacts": [("hand", "shelf")]},
+            r"no body named 'shelf' in allowed_contacts\[0\]; close matches: shelf_b, shelf_a",
+        ),
+        (
+            {"allowed_contacts": "hand"},
+            r"allowed_contacts must be a sequence of \(body_a, body_b\) pairs",
+        ),
+    ],
+)
+def test_bad_settings_are_refused_by_name(panda, kwargs, message) -> None:
+    _env, robot, *_ = panda
+    with pytest.raises((mjk.SpecError, mjk.UnknownNameError), match=message):
+        MotionPlanner(robot, **kwargs)
+
+
+def test_bad_goals_are_refused_by_name(panda) -> None:
+    _env, robot, q_a, _ = panda
+    planner = MotionPlanner(robot)
+    with pytest.raises(mjk.SpecError, match=r"goal needs 7 values"):
+        planner.plan([0.0] * 6)
+    with pytest.raises(
+        PlanningError, match=r"goal: joint 'joint4' at 0.5 is outside \[-3.0718, -0.0698\]"
+    ):
+        planner.plan([0.0, 0.0, 0.0, 0.5, 0.0, 1.0, 0.0])
+    with pytest.raises(mjk.SpecError, match=r"timeout must be a finite number > 0"):
+        planner.plan(q_a, timeout=0.0)
+    with pytest.raises(mjk.SpecTypeError, match=r"pose must be a pinocchio.SE3"):
+        planner.plan_cartesian([0.4, 0.0, 0.4])
+
+
+def test_limits_default_to_the_datasheet_and_unknown_arms_must_give_them(tutorial_scene) -> None:
+    env = tutorial_scene()
+    gen3 = env.create_robot("base_link", "bracelet_link")
+    planner = MotionPlanner(gen3)
+    assert planner.velocity_limits.tolist() == [1.3963] * 4 + [1.2218] * 3
+    assert planner.acceleration_limits.tolist() == [8.6] * 7
+    # A chain that is neither a Panda nor a Gen3, and whose model has no limits.
+    part = env.create_robot("base_link", "forearm_link")
+    with pytest.raises(
+        mjk.SpecError,
+        match=r"velocity_limits: the model has none for joints joint_1, joint_2, joint_3, "
+        r"joint_4 .*pass velocity_limits=\[...\] \(4 values\)",
+    ):
+        MotionPlanner(part)
+
+
+def test_unlimited_joints_are_planned_beyond_pi(tutorial_scene) -> None:
+    """The Gen3's joint_3 rests at 3.14 rad (home); a goal a turn and a half away is reached."""
+    env = tutorial_scene(mjk.Env)
+    gen3 = env.create_robot("base_link", "bracelet_link")
+    home = np.array([0.0, 0.2618, 3.1416, -2.2689, 0.0, 0.9599, 1.5708])
+    gen3.set_joint_pos(home)
+    gen3.update()
+    goal = home + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.5])  # joint_7 to 6.07 rad
+    traj = MotionPlanner(gen3).plan(goal)
+    assert np.abs(traj.positions[-1] - goal).max() < 1e-12
+    with pytest.raises(PlanningError, match=r"joint 'joint_7' at 7.5708 is outside .* ±2π"):
+        MotionPlanner(gen3).plan(home + np.array([0.0] * 6 + [6.0]))
+
+
+def test_a_carried_body_moves_with_the_hand_in_the_checks() -> None:
+    menagerie("franka_emika_panda")
+    cube = mjk.SceneObject(
+        name="cube", shape=mjk.Shape.BOX, size=[0.02] * 3, pos=[0.0, 0.0, 0.02], mass=0.05
+    )
+    with mjk.Env.build(panda_spec(objects=[*shelf_objects(), cube])) as env:
+        arm = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
+        q_a = arm.ik(ABOVE_A, HOME).q
+        arm.set_joint_pos(q_a)
+        # Hanging 10 cm below the TCP, its bottom 3 cm above shelf A.
+        env.set_body_pose("cube", ABOVE_A.translation - np.array([0.0, 0.0, 0.1]))
+        env.forward()
+        lower = arm.ik(
+            pin.SE3(ABOVE_A.rotation, ABOVE_A.translation - np.array([0, 0, 0.03])), q_a
+        ).q
+        checker = CollisionChecker(arm, 0.005)
+        assert checker.valid(lower)  # the cube stays where it is: nothing touches
+        checker.carry("cube")
+        assert [pair[:2] for pair in checker.contacts(lower)] == [("shelf_a", "cube")]
+        wide = CollisionChecker(arm, 0.005, reach=0.05)  # measures distances up to 5 cm
+        wide.carry("cube")
+        gaps = [d for a, b, d in wide.contacts(q_a) if "cube" in (a, b)]
+        assert gaps == [pytest.approx(0.03, abs=2e-4)]  # the cube's bottom above shelf A
+        assert env.data.body("cube").xpos[2] == pytest.approx(0.35)  # the scene's did not move
+        checker.carry(None)
+        assert checker.valid(lower)
+        with pytest.raises(mjk.SpecError, match=r"carry: body 'wall' is not a free body"):
+            checker.carry("wall")
+        with pytest.raises(
+            mjk.UnknownNameError, match=r"no body named 'cub' in the scene \(carry\)"
+        ):
+            checker.carry("cub")
+
+
+def test_collision_checker_settings_are_refused_by_name(panda) -> None:
+    env, robot, *_ = panda
+    with pytest.raises(mjk.SpecError, match=r"margin must be a finite number >= 0"):
+        CollisionChecker(robot, -0.001)
+    with pytest.raises(mjk.SpecTypeError, match=r"reach must be a finite number >= 0"):
+        CollisionChecker(robot, 0.005, reach="far")
+    with pytest.raises(mjk.SpecTypeError, match=r"CollisionChecker: robot must be a Robot"):
+        CollisionChecker(env, 0.005)

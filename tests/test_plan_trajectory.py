@@ -1,0 +1,77 @@
+"""JointTrajectory sampling and toppra's timing under limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mjkdl as mjk
+from mjkdl.plan import JointTrajectory, TimeParametrizer
+
+V = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+A = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
+
+
+def test_sample_reproduces_a_cubic_and_holds_the_ends() -> None:
+    times = np.array([0.0, 0.3, 0.5, 1.0])
+    cubic = lambda t: np.stack([t**3 - t, 2 * t**2], axis=-1)  # noqa: E731
+    speed = lambda t: np.stack([3 * t**2 - 1, 4 * t], axis=-1)  # noqa: E731
+    accel = lambda t: np.stack([6 * t, 4 + 0 * t], axis=-1)  # noqa: E731
+    traj = JointTrajectory(times, cubic(times), speed(times), accel(times))
+    assert traj.duration == 1.0 and traj.n_joints == 2
+    for t in (0.0, 0.1, 0.3, 0.42, 0.77, 1.0):
+        q, qd, qdd = traj.sample(t)
+        assert np.allclose(q, cubic(np.array(t)), atol=1e-12)
+        assert np.allclose(qd, speed(np.array(t)), atol=1e-12)
+        assert np.allclose(qdd, accel(np.array(t)), atol=1e-12)  # linear in t: exact
+    many = traj.positions_at(np.array([-1.0, 0.1, 0.42, 1.0, 2.0]))
+    assert np.allclose(many, [traj.sample(t)[0] for t in (0.0, 0.1, 0.42, 1.0, 1.0)], atol=1e-14)
+    assert np.array_equal(traj.sample(-1.0)[0], traj.positions[0])
+    assert np.array_equal(traj.sample(5.0)[1], traj.velocities[-1])
+    with pytest.raises(ValueError, match="read-only"):
+        traj.positions[0, 0] = 1.0
+
+
+@pytest.mark.parametrize(
+    ("times", "positions", "message"),
+    [
+        ([0.0], [[0.0]], r"times needs at least 2 knots, got 1"),
+        ([0.0, 0.0], [[0.0], [1.0]], r"times must start at 0 and increase strictly"),
+        ([0.1, 0.2], [[0.0], [1.0]], r"times must start at 0"),
+        ([0.0, 1.0], [[0.0]], r"positions needs one row per time \(2\), got 1"),
+        ([0.0, 1.0], [0.0, 1.0], r"positions must be 2-D, got shape \(2,\)"),
+        ([0.0, np.nan], [[0.0], [1.0]], r"times must be finite"),
+        ([0.0, 1.0], [["a"], [1.0]], r"positions must hold numbers"),
+    ],
+)
+def test_bad_knots_are_refused_by_field(times, positions, message) -> None:
+    width = np.shape(positions)[-1] if np.ndim(positions) == 2 else 1
+    zeros = np.zeros((len(times), width))
+    with pytest.raises(mjk.SpecError, match=message):
+        JointTrajectory(times, positions, zeros, zeros)
+
+
+def test_toppra_timing_passes_the_waypoints_within_the_limits() -> None:
+    rng = np.random.default_rng(1)
+    waypoints = np.cumsum(rng.normal(0.0, 0.5, (5, 7)), axis=0)
+    traj = TimeParametrizer(V, A)(waypoints)
+    assert np.array_equal(traj.positions[[0, -1]], waypoints[[0, -1]])
+    assert np.abs(traj.velocities[[0, -1]]).max() == 0.0  # at rest at both ends
+    samples = [traj.sample(t) for t in np.linspace(0.0, traj.duration, 3000)]
+    assert (np.abs([s[1] for s in samples]).max(axis=0) / V).max() <= 1.01
+    assert (np.abs([s[2] for s in samples]).max(axis=0) / A).max() <= 1.02
+    # Time-optimal: some joint runs at its velocity or acceleration limit.
+    assert (np.abs([s[1] for s in samples]).max(axis=0) / V).max() > 0.95
+    # The path goes through every waypoint (a spline through them, in order).
+    path = np.array([s[0] for s in samples])
+    for point in waypoints[1:-1]:
+        assert np.linalg.norm(path - point, axis=1).min() < 0.01
+    # Velocities are the positions' derivative.
+    t = np.linspace(0.1, traj.duration - 0.1, 50)
+    numeric = np.array([(traj.sample(x + 1e-6)[0] - traj.sample(x - 1e-6)[0]) / 2e-6 for x in t])
+    assert np.abs(numeric - np.array([traj.sample(x)[1] for x in t])).max() < 1e-4
+
+
+def test_a_path_of_one_point_is_a_standstill() -> None:
+    traj = TimeParametrizer(V, A)(np.zeros((3, 7)))
+    assert traj.duration > 0 and not traj.velocities.any() and not traj.positions.any()
