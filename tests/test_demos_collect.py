@@ -98,6 +98,7 @@ BAD = [
     ([PICK, "--random", "--env-kwargs", "{oops"], "--env-kwargs is not valid JSON"),
     ([PICK, "--random", "--env-kwargs", "[1]"], "--env-kwargs must be a JSON object, got [1]"),
     ([PICK, "--random", "--episodes", "0"], "--episodes must be a positive integer, got 0"),
+    (["CartPole-v1", "--random"], "CartPoleEnv is not an mjkdl task env (it has no .scene"),
 ]  # fmt: skip
 
 
@@ -126,8 +127,6 @@ def test_expert_demos_are_successes_and_other_envs_have_none(tmp_path: Path) -> 
         assert all(d.success and d.dones[-1] == 1 and d.num_samples < 100 for d in f)
         grip = f.demo(0).actions[:, 6]
         assert grip[0] == -1.0 and grip[-1] == 1.0  # opens, then closes on the cube
-    r2 = cli("collect", "CartPole-v1", "--expert", "--episodes", "1", "--out",
-             str(tmp_path / "c.hdf5"))  # fmt: skip
+    r2 = cli("evaluate", "CartPole-v1", "--expert", "--episodes", "1")
     assert r2.returncode == 2
     assert "error: no expert for CartPoleEnv; experts exist for mjkdl/PandaReach-v0" in r2.stderr
-    assert not (tmp_path / "c.hdf5").exists()

@@ -20,8 +20,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from .. import task  # noqa: F401  (registers the tasks with Gymnasium)
 from ..errors import SpecError, SpecTypeError, unknown_name
 from ..record import VideoRecorder
+from ..scene import Scene
 from .hdf5 import EpisodeBuffer, EpisodeData
 from .policy import Policy, PolicySource, checked_action, make_policy
 
@@ -54,8 +56,6 @@ class EpisodeResult:
 def make_env(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
     """`gymnasium.make(env_id, **env_kwargs)` with mjkdl's tasks registered; an unknown id
     lists the registered ones."""
-    import mjkdl.task  # noqa: F401  (registers the tasks)
-
     if not isinstance(env_id, str):
         raise SpecTypeError(f"env id must be a string, got {env_id!r}")
     if ":" not in env_id and env_id not in gym.registry:  # "module:id" imports module first
@@ -76,11 +76,10 @@ def parse_env_kwargs(text: str | None) -> dict[str, Any]:
     return value
 
 
-def success_of(info: Mapping[str, Any], terminated: bool) -> bool:
-    """`info["is_success"]`; an env without it counts a termination that is not a divergence."""
-    if "is_success" in info:
-        return bool(info["is_success"])
-    return bool(terminated) and not info.get("diverged", False)
+def success_of(info: Mapping[str, Any]) -> bool:
+    """`info["is_success"]` (Gymnasium-Robotics' key); an env without it never succeeds: a
+    termination alone may be a failure (a pole that fell)."""
+    return bool(info.get("is_success", False))
 
 
 def run_episode(
@@ -98,20 +97,17 @@ def run_episode(
     reset = getattr(policy, "reset", None)
     if callable(reset):
         reset()
-    scene = env.unwrapped.scene  # type: ignore[attr-defined]
-    buffer = EpisodeBuffer() if record else None
+    buffer = EpisodeBuffer(scene_of(env)) if record else None
     recorder = video_recorder(env, video) if video is not None else None
     space = env.action_space
-    assert isinstance(space, gym.spaces.Box)
     total, steps, done = 0.0, 0, False
-    terminated = False
     try:
         if recorder is not None:
             recorder.record_frame()
         while not done:
             action = checked_action(policy(obs), space, source, seed, steps)
             if buffer is not None:
-                buffer.before_step(scene, obs)
+                buffer.before_step(obs)
             obs, reward, terminated, truncated, info = env.step(action)
             done = bool(terminated or truncated)
             if buffer is not None:
@@ -123,9 +119,21 @@ def run_episode(
     finally:
         if recorder is not None:
             recorder.close()
-    success = success_of(info, terminated)
-    data = buffer.finish(seed, success, scene) if buffer is not None else None
+    success = success_of(info)
+    data = buffer.finish(seed, success) if buffer is not None else None
     return EpisodeResult(seed, success, total, steps, bool(info.get("diverged", False)), data)
+
+
+def scene_of(env: gym.Env) -> Scene:
+    """The mjkdl scene under `env` (`env.unwrapped.scene`), which recording and videos need."""
+    scene = getattr(env.unwrapped, "scene", None)
+    if not isinstance(scene, Scene):
+        name = type(env.unwrapped).__name__
+        raise SpecError(
+            f"{name} is not an mjkdl task env (it has no .scene holding MuJoCo's model and "
+            "data): recording states and filming need one; evaluate it without --video"
+        )
+    return scene
 
 
 def video_recorder(env: gym.Env, video: Video) -> VideoRecorder:
@@ -133,7 +141,7 @@ def video_recorder(env: gym.Env, video: Video) -> VideoRecorder:
     unwrapped: Any = env.unwrapped
     period = float(getattr(unwrapped, "control_timestep", 0.1))
     rec = VideoRecorder.open(
-        unwrapped.scene,
+        scene_of(env),
         video.path,
         video.width,
         video.height,
@@ -190,6 +198,8 @@ def run_seeds(
     videos = dict(videos or {})
     env = make_env(env_id, kwargs)
     try:
+        if record or videos:
+            scene_of(env)
         policy = make_policy(source, env)
     except BaseException:
         env.close()

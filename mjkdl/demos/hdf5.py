@@ -68,17 +68,18 @@ class EpisodeData:
 
 @dataclass
 class EpisodeBuffer:
-    """Collects one episode step by step, in memory, until it is written or dropped."""
+    """Collects one episode of `scene` step by step, in memory, until written or dropped."""
 
+    scene: Scene
     states: list[np.ndarray] = field(default_factory=list)
     actions: list[np.ndarray] = field(default_factory=list)
     rewards: list[float] = field(default_factory=list)
     dones: list[bool] = field(default_factory=list)
     obs: dict[str, list[np.ndarray]] = field(default_factory=dict)
 
-    def before_step(self, scene: Scene, obs: Mapping[str, np.ndarray]) -> None:
+    def before_step(self, obs: Mapping[str, np.ndarray]) -> None:
         """Keep the state and observation the next action starts from."""
-        model, data = scene.model, scene.data
+        model, data = self.scene.model, self.scene.data
         state = np.empty(mujoco.mj_stateSize(model, STATE))
         mujoco.mj_getState(model, data, state, STATE)
         self.states.append(state)
@@ -91,10 +92,10 @@ class EpisodeBuffer:
         self.rewards.append(float(reward))
         self.dones.append(bool(done))
 
-    def finish(self, seed: int, success: bool, scene: Scene) -> EpisodeData:
+    def finish(self, seed: int, success: bool) -> EpisodeData:
         """The episode as arrays, with the scene's model for `model_file`/`model_hash`."""
         n = len(self.actions)
-        xml, fingerprint = scene_model(scene)
+        xml, fingerprint = scene_model(self.scene)
         return EpisodeData(
             seed=seed,
             actions=np.stack(self.actions),

@@ -100,10 +100,15 @@ def _expert(env: gym.Env) -> Policy:
 
 
 def checked_action(
-    action: object, space: gym.spaces.Box, source: PolicySource, seed: int, step: int
-) -> np.ndarray:
-    """`action` as an array of the space's shape with finite entries, or a PolicyError
-    naming the policy, the seed and the step."""
+    action: object, space: gym.Space, source: PolicySource, seed: int, step: int
+) -> Any:
+    """`action` checked against the action space (a Box: an array of its shape with finite
+    entries), or a PolicyError naming the policy, the seed and the step."""
+    if not isinstance(space, gym.spaces.Box):
+        if space.contains(action):
+            return action
+        where = f"policy {describe(source)} (seed {seed}, step {step})"
+        raise PolicyError(f"{where} returned {action!r}, which the action space {space} lacks")
     try:
         a = np.asarray(action, dtype=space.dtype)
     except (TypeError, ValueError):

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import MjkdlError, SpecError
 from ..record import VideoRecorder, offscreen_renderer
 from ..scene import mujoco_version
-from .episodes import Video, make_env, success_of, video_recorder
+from .episodes import Video, make_env, scene_of, success_of, video_recorder
 from .hdf5 import STATE, Demo, DemoFile, mjkdl_version, scene_model
 
 MODES = ("actions", "states")
@@ -52,7 +52,7 @@ def mismatches(demos: DemoFile, demo: Demo, env: gym.Env) -> list[str]:
         if then != now:
             name = "mjkdl" if key == "mjkdl_version" else "MuJoCo"
             out.append(f"{demos.path} was recorded with {name} {then}, this is {now}")
-    scene = env.unwrapped.scene  # type: ignore[attr-defined]
+    scene = scene_of(env)
     if demo.model_hash and demo.model_hash != scene_model(scene)[1]:
         out.append(
             f"{demos.path}:{demo.name} was recorded with another model than "
@@ -93,12 +93,11 @@ def _state(scene: Any, out: np.ndarray) -> np.ndarray:
 
 def _replay_actions(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResult:
     env.reset(seed=demo.seed)
-    scene = env.unwrapped.scene  # type: ignore[attr-defined]
+    scene = scene_of(env)
     state = np.empty(demo.states.shape[1])
     worst, first = 0.0, -1
     recorder = video_recorder(env, video) if video is not None else None
     info: dict[str, Any] = {}
-    terminated = False
     try:
         for t, action in enumerate(demo.actions):
             if recorder is not None:
@@ -124,14 +123,14 @@ def _replay_actions(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResu
         worst,
         first,
         -1,
-        success_of(info, terminated),
+        success_of(info),
         demo.success,
     )
 
 
 def _replay_states(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResult:
     env.reset(seed=demo.seed)
-    scene = env.unwrapped.scene  # type: ignore[attr-defined]
+    scene = scene_of(env)
     model, data = scene.model, scene.data
     cameras = {
         key[: -len("_rgb")]: frames

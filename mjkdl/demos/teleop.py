@@ -13,11 +13,12 @@ import mujoco
 import numpy as np
 
 from ..errors import SpecError
+from ..scene import Scene
 from ..task._check import integer
 from ..viewer.overlays import Text
 from ..viewer.window import Window
 from .devices import KEYS_HELP, Command, KeyboardDevice, SpaceMouseDevice, open_device
-from .episodes import make_env, success_of
+from .episodes import make_env, scene_of, success_of
 from .hdf5 import EpisodeBuffer, EpisodeWriter
 
 __all__ = ["KEYS_HELP", "Teleop", "teleop"]
@@ -60,9 +61,15 @@ class Teleop:
         self._closed_gripper = False
         self._last_success = False
         self.saved = 0
-        self._buffer = EpisodeBuffer()
+        self._scene = scene_of(env)
+        self._buffer = EpisodeBuffer(self._scene)
         self._obs: dict[str, np.ndarray] = {}
         self._status = ""
+
+    @property
+    def scene(self) -> Scene:
+        """The mjkdl scene the session records."""
+        return self._scene
 
     def action(self, twist: np.ndarray) -> np.ndarray:
         """The env action for a device twist in [-1, 1]^6 and the gripper state."""
@@ -76,13 +83,12 @@ class Teleop:
     def start(self) -> None:
         """Reset to the current seed with a fresh buffer and the gripper open."""
         self._obs, _ = self.env.reset(seed=self.seed)
-        self._buffer = EpisodeBuffer()
+        self._buffer = EpisodeBuffer(self._scene)
         self._closed_gripper = self._last_success = False
 
     def _save(self, success: bool) -> None:
         if self._buffer.actions:
-            scene = self.env.unwrapped.scene  # type: ignore[attr-defined]
-            self.writer.write(self._buffer.finish(self.seed, success, scene))
+            self.writer.write(self._buffer.finish(self.seed, success))
             self.saved += 1
             self._status = f"saved demo {self.saved} (seed {self.seed})"
         self.seed += 1
@@ -103,13 +109,12 @@ class Teleop:
                 self._status = f"dropped seed {self.seed}"
                 self.seed += 1
                 return self.start()
-        scene = self.env.unwrapped.scene  # type: ignore[attr-defined]
         action = self.action(reading.twist)
-        self._buffer.before_step(scene, self._obs)
+        self._buffer.before_step(self._obs)
         self._obs, reward, terminated, truncated, info = self.env.step(action)
         done = bool(terminated or truncated)
         self._buffer.after_step(action, float(reward), done)
-        self._last_success = success_of(info, terminated)
+        self._last_success = success_of(info)
         if done:
             if self._last_success:
                 return self._save(success=True)
@@ -157,7 +162,7 @@ def teleop(
         with EpisodeWriter(out, env_id, kwargs, append=True) as writer:
             session = Teleop(env, dev, writer, seed=seed, speed=speed)
             session.start()
-            scene = env.unwrapped.scene  # type: ignore[attr-defined]
+            scene = session.scene
             window = Window.launch(scene.model, scene.data, dev.on_key)
             period = float(getattr(env.unwrapped, "control_timestep", 0.1))
             try:
