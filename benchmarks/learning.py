@@ -164,9 +164,12 @@ def her_reach(steps: int) -> None:
     save("her-reach", record)
 
 
-def bc_pick(demos: int, epochs: int) -> None:
+def bc_pick(demos: int, epochs: int, noise: float) -> None:
     """Behaviour cloning of the scripted expert on PickCube: an MLP (256, 256) regressing
-    the expert's action from the observation vector, trained with Adam on `demos` episodes."""
+    the expert's action from the observation vector, trained with Adam on `demos` episodes.
+    The demonstrations execute the expert's action plus Gaussian noise of std `noise` while
+    recording the expert's own action (DART): the clone sees, and learns to leave, the states
+    its own small errors lead to."""
     import torch
 
     env_id = "mjkdl/PandaPickCube-v0"
@@ -179,6 +182,7 @@ def bc_pick(demos: int, epochs: int) -> None:
 
     start = time.perf_counter()
     xs, ys = [], []
+    rng = np.random.default_rng(0)
     for seed in range(demos):
         obs, _ = env.reset(seed=seed)
         expert.reset()
@@ -187,7 +191,8 @@ def bc_pick(demos: int, epochs: int) -> None:
             action = expert(obs)
             xs.append(flat(obs))
             ys.append(action)
-            obs, _, terminated, truncated, _ = env.step(action)
+            noisy = np.clip(action + rng.normal(0.0, noise, action.shape), -1, 1)
+            obs, _, terminated, truncated, _ = env.step(noisy.astype(np.float32))
             done = terminated or truncated
     collect = time.perf_counter() - start
     x, y = torch.tensor(np.array(xs)), torch.tensor(np.array(ys))
@@ -223,16 +228,17 @@ def bc_pick(demos: int, epochs: int) -> None:
         train += time.perf_counter() - t0
         if epoch % every == 0:
             rate = evaluate(env_id, policy)
-            curve.append({"steps": epoch, "success": rate, "loss": float(loss)})
-            print(f"  epoch {epoch}: loss {float(loss):.4f}, {rate:.0%}")
+            curve.append({"steps": epoch, "success": rate, "loss": loss.item()})
+            print(f"  epoch {epoch}: loss {loss.item():.4f}, {rate:.0%}")
     env.close()
     save(
         "bc-pick",
         {
             "run": "bc-pick",
             "env_id": env_id,
-            "recipe": f"behaviour cloning: {demos} expert episodes ({len(x)} steps), MLP "
-            f"256x256 + tanh, Adam 1e-3, batch 256, MSE, {epochs} epochs, seed 0",
+            "recipe": f"behaviour cloning (DART noise {noise}): {demos} expert episodes "
+            f"({len(x)} steps), MLP 256x256 + tanh, Adam 1e-3, batch 256, MSE, {epochs} "
+            "epochs, seed 0",
             "curve": curve,
             "x_label": "epochs",
             "wall_seconds": time.perf_counter() - start,
@@ -273,16 +279,26 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", choices=["ppo-reach", "her-reach", "bc-pick", "plot"])
     parser.add_argument("--steps", type=int, default=0, help="training steps (0: the run's own)")
-    parser.add_argument("--demos", type=int, default=200, help="bc-pick: expert episodes")
-    parser.add_argument("--epochs", type=int, default=200, help="bc-pick: training epochs")
+    parser.add_argument("--demos", type=int, default=300, help="bc-pick: expert episodes")
+    parser.add_argument("--epochs", type=int, default=50, help="bc-pick: training epochs")
+    parser.add_argument(
+        "--noise", type=float, default=0.3, help="bc-pick: action noise while demonstrating"
+    )
+    parser.add_argument(
+        "--threads", type=int, default=1, help="PyTorch threads (small networks: 1 is fastest)"
+    )
     args = parser.parse_args()
     os.environ.setdefault("MUJOCO_GL", "egl")
+    if args.run != "plot":
+        import torch
+
+        torch.set_num_threads(args.threads)
     if args.run == "ppo-reach":
         ppo_reach(args.steps or 150_000)
     elif args.run == "her-reach":
         her_reach(args.steps or 30_000)
     elif args.run == "bc-pick":
-        bc_pick(args.demos, args.epochs)
+        bc_pick(args.demos, args.epochs, args.noise)
     else:
         plot()
 

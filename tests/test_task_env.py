@@ -865,3 +865,28 @@ def test_without_a_time_limit_only_a_wrapper_ends_episodes() -> None:
         *_, truncated, _ = env.step(np.zeros(7))
         assert not truncated
     env.close()
+
+
+def test_hidden_observations_reach_the_reward_but_not_the_agent() -> None:
+    seen = []
+    env = make(hide=["panda_joint_torques", "time"], reward=lambda obs: seen.append(obs) or 0.0)
+    assert "panda_joint_torques" not in env.observation_space.spaces
+    obs, _ = env.reset(seed=0)
+    assert list(obs) == list(env.observation_space.spaces) and "time" not in obs
+    obs, *_ = env.step(np.zeros(7))
+    assert "panda_joint_torques" not in obs and seen[-1]["time"][0] == pytest.approx(0.1)
+    assert seen[-1]["panda_joint_torques"].shape == (7,)
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("hide", "error", "message"),
+    [
+        (["panda_joint_torqes"], KeyError, "'panda_joint_torqes' in TaskSpec.hide[0]"),
+        ("time", TypeError, "TaskSpec.hide must be a list of observation names"),
+    ],
+)
+def test_hiding_unknown_observations_is_refused(hide, error, message) -> None:
+    with pytest.raises(error) as caught:
+        make(hide=hide)
+    assert message in str(caught.value)

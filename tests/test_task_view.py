@@ -48,7 +48,7 @@ def test_human_render_opens_the_viewer(display: str) -> None:  # noqa: F811
         import gymnasium as gym, numpy as np
         import mjkdl.task
 
-        env = gym.make("mjkdl/PandaReach-v0", render_mode="human")
+        env = gym.make("mjkdl/PandaReach-v0", render_mode="human", hide_observations=())
         env.reset(seed=0)
         viewer = env.unwrapped._viewer
         opened = viewer is not None and viewer.is_running()
@@ -68,7 +68,7 @@ def test_view_runs_the_policy_with_plots_and_resets_on_backspace(display: str) -
         from mjkdl.task import view
         from mjkdl.viewer import overlays as keys
 
-        env = gym.make("mjkdl/PandaReach-v0")
+        env = gym.make("mjkdl/PandaReach-v0", hide_observations=())
         task = env.unwrapped
         seen, viewers = [], []
 

@@ -15,14 +15,14 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike
 
 from ..control import CartesianVelocityController, Gripper
-from ..errors import SimulationError, SpecError, SpecTypeError, UnknownNameError
+from ..errors import SimulationError, SpecError, SpecTypeError, UnknownNameError, unknown_name
 from ..names import model_id
 from ..record import check_offscreen_size, offscreen_renderer
 from ..robot import Robot
 from ..scene import MAX_STEPS, Env
 from ..spec import CtrlMode, SceneSpec
 from ..validate import flag, real, real_array, text, vector
-from ._check import integer
+from ._check import integer, names
 from .rewards import check_positions
 from .sensors import (
     ArmReader,
@@ -368,10 +368,12 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
         self._render_camera_name = render_camera
         self._render_size = (render_width, render_height)
-        self._task_space = self._bind()
+        every = self._bind()
+        self._shown = _shown_keys(spec.hide, every.spaces)
+        self._task_space = spaces.Dict({k: every.spaces[k] for k in self._shown}, sort_keys=False)
         self.observation_space = self._task_space
         for field in ("reward", "terminated", "success"):
-            check_positions(getattr(spec, field), self._task_space.spaces, f"TaskSpec.{field}")
+            check_positions(getattr(spec, field), every.spaces, f"TaskSpec.{field}")
         if self.render_mode in ("rgb_array", "depth_array"):
             check_offscreen_size(scene.model, render_width, render_height)  # now, not at render()
         self._steps = 0
@@ -419,7 +421,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
     def _follow_rebuild(self) -> None:
         """Rebind to a rebuilt scene; its observations must keep their names and shapes."""
-        new, old = self._bind().spaces, self._task_space.spaces
+        new = {k: v for k, v in self._bind().spaces.items() if k in self._task_space.spaces}
+        old = self._task_space.spaces
         changed = sorted(k for k in new.keys() | old.keys() if new.get(k) != old.get(k))
         if changed:
             raise SpecError(
@@ -543,7 +546,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         obs = self._observe()
         if self.render_mode == "human":
             self.render()
-        return obs, {"is_success": self._success(obs), "diverged": False}
+        return self._shown_part(obs), {"is_success": self._success(obs), "diverged": False}
 
     def step(
         self, action: np.ndarray
@@ -564,11 +567,11 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         truncated = self._steps >= self._max_steps
         if why is not None:
             self._diverged = why
-            obs = {k: b.copy() for k, b in self._buffers}  # the last finite observation
-            info = {"is_success": False, "diverged": True, "error": why}
+            obs = {k: b.copy() for k, b in self._buffers if k in self._task_space.spaces}
+            info = {"is_success": False, "diverged": True, "error": why}  # obs: the last finite
             return obs, 0.0, True, truncated, info
         _refresh_kinematics(self.scene.model, self.scene.data)
-        obs = self._observe()
+        obs = self._observe()  # every observation: rewards may read hidden ones
         spec = self.task_spec
         reward, terminated = 0.0, False
         if spec.reward is not None:
@@ -587,7 +590,14 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             horizon = self._horizon()
             if math.isfinite(horizon):
                 reward *= 1 + max(0, horizon - self._steps)
-        return obs, reward, terminated, truncated, {"is_success": success, "diverged": False}
+        info = {"is_success": success, "diverged": False}
+        return self._shown_part(obs), reward, terminated, truncated, info
+
+    def _shown_part(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """What the agent gets of an observation: all but `TaskSpec.hide`, in order."""
+        if len(self._shown) == len(obs):
+            return obs
+        return {k: obs[k] for k in self._shown}
 
     def _success(self, obs: dict[str, np.ndarray]) -> bool:
         fn = self.task_spec.success
@@ -779,6 +789,15 @@ def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
             return True
         body = int(model.body_parentid[body])
     return False
+
+
+def _shown_keys(hide: object, every: Mapping[str, spaces.Space]) -> list[str]:
+    """The observation keys left after `TaskSpec.hide`, which must name existing ones."""
+    hidden = names(hide, "TaskSpec.hide", "observation")
+    for i, key in enumerate(hidden):
+        if key not in every:
+            raise unknown_name("observation", key, every, where=f"TaskSpec.hide[{i}]")
+    return [k for k in every if k not in hidden]
 
 
 def _controller(robot: Robot, arm: ArmSpec) -> CartesianVelocityController:

@@ -51,6 +51,10 @@ GOAL_RADIUS = 0.02
 CUBE_HALF = 0.02
 LIFT = 0.05  # metres above its resting height that count as lifted
 HOLD = 0.5  # seconds a lift must be held before the episode ends
+# Observations computed but not given to the agent by default: joint torques (tens of N·m)
+# and the clock (up to 10 s) swamp a network's inputs next to positions in metres, and SB3's
+# PPO with its defaults learns Reach only without them (docs/task.md, Learning).
+HIDDEN = ("panda_joint_torques", "time")
 MAX_EPISODE_STEPS = 100  # Gymnasium's TimeLimit: 10 s at the default 0.1 s control period
 REACH_GOAL_LOW = (0.3, -0.3, 0.1)
 REACH_GOAL_HIGH = (0.7, 0.3, 0.5)
@@ -194,8 +198,10 @@ class _Registered(TaskEnv):
         reward: str,
         camera_names: Sequence[str],
         camera_size: Sequence[int],
+        hide_observations: Sequence[str],
     ) -> TaskSpec:
         """`spec` with the common parameters applied."""
+        spec.hide = hide_observations
         spec.time_limit = time_limit  # None: the registered TimeLimit (max_episode_steps)
         spec.control_timestep = control_timestep
         if reward_type(reward) == "sparse":
@@ -232,6 +238,7 @@ class PandaReachEnv(_Registered, TaskEnv):
         terminate_on_success: bool = False,
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
         render_height: int = 480,
@@ -243,7 +250,13 @@ class PandaReachEnv(_Registered, TaskEnv):
         spec = panda_reach_spec(goal_low, goal_high, success_distance)
         spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
         spec = self._episode(
-            spec, time_limit, control_timestep, reward_type, camera_names, camera_size
+            spec,
+            time_limit,
+            control_timestep,
+            reward_type,
+            camera_names,
+            camera_size,
+            hide_observations,
         )
         TaskEnv.__init__(
             self,
@@ -276,6 +289,7 @@ class PandaPickCubeEnv(_Registered, TaskEnv):
         terminate_on_success: bool = True,
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
         render_height: int = 480,
@@ -286,7 +300,13 @@ class PandaPickCubeEnv(_Registered, TaskEnv):
         spec = panda_pick_cube_spec(cube_low, cube_high)
         spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
         spec = self._episode(
-            spec, time_limit, control_timestep, reward_type, camera_names, camera_size
+            spec,
+            time_limit,
+            control_timestep,
+            reward_type,
+            camera_names,
+            camera_size,
+            hide_observations,
         )
         TaskEnv.__init__(
             self,
@@ -319,6 +339,7 @@ class PandaReachGoalEnv(_Registered, GoalTaskEnv):
         reward_type: str = "sparse",
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
         render_height: int = 480,
@@ -328,7 +349,15 @@ class PandaReachGoalEnv(_Registered, GoalTaskEnv):
         self._refuse_unknown(unknown)
         success_distance = _positive(success_distance, "success_distance")
         spec = panda_reach_spec(goal_low, goal_high, success_distance)
-        spec = self._episode(spec, time_limit, control_timestep, "dense", camera_names, camera_size)
+        spec = self._episode(
+            spec,
+            time_limit,
+            control_timestep,
+            "dense",
+            camera_names,
+            camera_size,
+            hide_observations,
+        )
         GoalTaskEnv.__init__(
             self,
             spec,
@@ -368,6 +397,7 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         reward_type: str = "sparse",
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
         render_height: int = 480,
@@ -382,7 +412,15 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         spec.sensors = [*spec.sensors, BodyPoseSensor("target")]
         spec.initializers = [*spec.initializers, PropPlacer(["target"], lo, hi, random_yaw=False)]
         spec.terminate_on_success = False
-        spec = self._episode(spec, time_limit, control_timestep, "dense", camera_names, camera_size)
+        spec = self._episode(
+            spec,
+            time_limit,
+            control_timestep,
+            "dense",
+            camera_names,
+            camera_size,
+            hide_observations,
+        )
         GoalTaskEnv.__init__(
             self,
             spec,

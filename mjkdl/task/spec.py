@@ -195,3 +195,6 @@ class TaskSpec:
     """Seconds success must hold before `terminate_on_success` ends the episode."""
     normalize_actions: bool = False
     """Every action entry in [-1, 1], mapped linearly onto the arm's bounds."""
+    hide: Sequence[str] = ()
+    """Observation keys left out of what `reset` and `step` return (rewards, success and
+    termination still see them), e.g. joint torques in N·m that swamp a learner's inputs."""
