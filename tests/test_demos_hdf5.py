@@ -68,7 +68,7 @@ def test_layout_is_robomimics(tmp_path: Path) -> None:
         assert d["actions"].shape == (6, 7) and d["actions"].dtype == np.float32
         assert d["rewards"].shape == (6,) and d["dones"][()].tolist() == [0] * 5 + [1]
         assert d["states"].shape == (6, nstate)
-        assert set(d["obs"]) >= {"panda_tcp_pos", "cube_pose", "panda_joint_pos", "time"}
+        assert set(d["obs"]) >= {"panda_tcp_pos", "cube_pose", "panda_joint_pos", "cube_rel"}
         assert d["obs/panda_tcp_pos"].shape == (6, 3)
         assert d.attrs["num_samples"] == 6 and d.attrs["seed"] == 3
         assert d.attrs["model_file"].startswith("<mujoco") and len(d.attrs["model_hash"]) == 64
