@@ -47,6 +47,11 @@ def run_benchmark(name: str, *args: str) -> str:
         ("step_check", ("--blocks", "2", "--steps", "50"), r"scene\.step\(\) / raw mj_step:"),
         ("record", ("--frames", "4", "--rounds", "1"), r"\n\s+off"),
         (
+            "demos",
+            ("--episodes", "1", "--camera-episodes", "1", "--rounds", "1"),
+            r"recording:",
+        ),
+        (
             "planning",
             ("--queries", "3", "--execute", "1"),
             r"Gen3 \+ 2F-85: 3 random queries.*\n\s+solved:",

@@ -1,0 +1,51 @@
+"""Demonstrations: record episodes to HDF5 (robomimic's layout), replay them exactly,
+drive the arm by hand, evaluate policies, export to LeRobot.
+
+The command line is `python -m mjkdl.demos collect | replay | teleop | evaluate |
+export-lerobot`; each command is a function here too.
+"""
+
+from .collect import CollectResult, collect
+from .episodes import EpisodeResult, make_env, run_episode, run_seeds
+from .evaluate import Evaluation, evaluate, wilson_interval
+from .hdf5 import (
+    Demo,
+    DemoFile,
+    DemoFileError,
+    DemoWriteError,
+    EpisodeBuffer,
+    EpisodeData,
+    EpisodeWriter,
+)
+from .lerobot import ExportError, LeRobotExport, export_lerobot
+from .policy import Policy, PolicyError, PolicySource, make_policy
+from .replay import ReplayResult, ReplayWarning, replay
+
+__all__ = [
+    "CollectResult",
+    "Demo",
+    "DemoFile",
+    "DemoFileError",
+    "DemoWriteError",
+    "EpisodeBuffer",
+    "EpisodeData",
+    "EpisodeResult",
+    "EpisodeWriter",
+    "Evaluation",
+    "ExportError",
+    "LeRobotExport",
+    "Policy",
+    "PolicyError",
+    "PolicySource",
+    "ReplayResult",
+    "ReplayWarning",
+    "collect",
+    "evaluate",
+    "export_lerobot",
+    "make_env",
+    "make_policy",
+    "replay",
+    "run_episode",
+    "run_seeds",
+    "wilson_interval",
+]

@@ -1,0 +1,208 @@
+"""`python -m mjkdl.demos collect | replay | teleop | evaluate | export-lerobot`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from collections.abc import Sequence
+
+from ..errors import MjkdlError
+from .policy import PolicySource
+
+
+def _policy_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--expert", action="store_true", help="the task's scripted expert")
+    g.add_argument("--random", action="store_true", help="uniform random actions")
+    g.add_argument(
+        "--policy",
+        metavar="MODULE:FN",
+        help="fn(env) returns a policy(obs) -> action (with an optional reset())",
+    )
+
+
+def _source(args: argparse.Namespace) -> PolicySource:
+    if args.expert:
+        return "expert"
+    if args.random:
+        return "random"
+    return str(args.policy)
+
+
+def _run_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument("env_id", metavar="ENV_ID", help="a Gymnasium id, e.g. mjkdl/PandaPickCube-v0")
+    _policy_flags(p)
+    p.add_argument("--episodes", type=int, required=True, help="episodes to run")
+    p.add_argument("--seed", type=int, default=0, help="first seed (then seed+1, ...)")
+    p.add_argument("--env-kwargs", default="", metavar="JSON", help="gymnasium.make keywords")
+    p.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command line's parser (its `--help` texts are the reference)."""
+    from .teleop import KEYS_HELP
+
+    top = argparse.ArgumentParser(
+        prog="python -m mjkdl.demos",
+        description="Demonstrations: collect, replay, teleoperate, evaluate, export.",
+    )
+    sub = top.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("collect", help="record episodes of a policy into an HDF5 file")
+    _run_flags(p)
+    p.add_argument("--out", required=True, help="HDF5 file to write (robomimic layout)")
+    p.add_argument("--keep-failures", action="store_true", help="keep unsuccessful episodes")
+    p.add_argument("--append", action="store_true", help="add to an existing file")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing file")
+
+    p = sub.add_parser("replay", help="replay a recorded demo, exactly")
+    p.add_argument("file", metavar="FILE")
+    p.add_argument("--demo", default="all", help="demo index or 'all' (default)")
+    p.add_argument("--mode", choices=("actions", "states"), default="actions")
+    p.add_argument("--video", default=None, help="MP4 of the replay (one demo)")
+
+    p = sub.add_parser(
+        "teleop",
+        help="drive the arm by hand and record demos",
+        description="Drive the arm with a keyboard or a SpaceMouse in the viewer; record demos.",
+        epilog=KEYS_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("env_id", metavar="ENV_ID")
+    p.add_argument("--device", default="keyboard", help="keyboard (default) or spacemouse")
+    p.add_argument("--out", required=True, help="HDF5 file (appended to when it exists)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    p.add_argument("--env-kwargs", default="", metavar="JSON")
+    p.add_argument("--speed", type=float, default=1.0, help="fraction of full speed (0-1]")
+    p.add_argument("--deadzone", type=float, default=0.1, help="SpaceMouse dead zone [0-1)")
+    p.add_argument("--demos", type=int, default=None, help="stop after this many demos")
+
+    p = sub.add_parser("evaluate", help="success rate of a policy over many seeds")
+    _run_flags(p)
+    p.add_argument("--video", default=None, metavar="DIR", help="MP4s of the first episodes")
+    p.add_argument("--videos", type=int, default=3, help="how many episodes to film")
+
+    p = sub.add_parser("export-lerobot", help="write a LeRobot v3.0 dataset")
+    p.add_argument("file", metavar="FILE")
+    p.add_argument("--root", required=True, help="dataset folder to create")
+    p.add_argument("--repo-id", default="", help="name recorded in meta/info.json")
+    p.add_argument("--task", default="", help="task description (default: the env id)")
+    return top
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; a bad input prints its message and returns 2."""
+    args = parser().parse_args(argv)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            return _dispatch(args)
+    except MjkdlError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    return {
+        "collect": _collect,
+        "replay": _replay,
+        "teleop": _teleop,
+        "evaluate": _evaluate,
+        "export-lerobot": _export,
+    }[args.command](args)
+
+
+def _collect(args: argparse.Namespace) -> int:
+    from .collect import collect
+    from .episodes import parse_env_kwargs
+
+    r = collect(
+        args.env_id,
+        _source(args),
+        args.out,
+        episodes=args.episodes,
+        seed=args.seed,
+        env_kwargs=parse_env_kwargs(args.env_kwargs),
+        workers=args.workers,
+        keep_failures=args.keep_failures,
+        append=args.append,
+        overwrite=args.overwrite,
+    )
+    print(f"{r.path}: kept {r.kept} of {r.episodes} episodes ({r.successes} successful)")
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from .hdf5 import DemoFile
+    from .replay import replay
+
+    if args.demo == "all":
+        with DemoFile(args.file) as f:
+            demos: list[int | str] = list(f.names)
+    else:
+        demos = [int(args.demo) if args.demo.isdigit() else args.demo]
+    if args.video and len(demos) > 1:
+        print("error: --video films one demo: add --demo i", file=sys.stderr)
+        return 2
+    worst = 0.0
+    for d in demos:
+        r = replay(args.file, d, mode=args.mode, video=args.video)
+        if r.mode == "actions":
+            at = "" if r.first_mismatch < 0 else f", first at step {r.first_mismatch}"
+            print(f"{r.demo}: {r.steps} steps, max state error {r.max_state_error:g}{at}")
+            worst = max(worst, r.max_state_error)
+        else:
+            px = "no cameras" if r.max_pixel_error < 0 else f"{r.max_pixel_error} levels"
+            print(f"{r.demo}: {r.steps} states set, camera frames differ by at most {px}")
+    return 0 if worst == 0.0 else 1
+
+
+def _teleop(args: argparse.Namespace) -> int:
+    from .episodes import parse_env_kwargs
+    from .teleop import teleop
+
+    n = teleop(
+        args.env_id,
+        args.out,
+        device=args.device,
+        seed=args.seed,
+        env_kwargs=parse_env_kwargs(args.env_kwargs),
+        speed=args.speed,
+        deadzone=args.deadzone,
+        demos=args.demos,
+    )
+    print(f"{args.out}: {n} demos saved")
+    return 0
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from .episodes import parse_env_kwargs
+    from .evaluate import evaluate
+
+    ev = evaluate(
+        args.env_id,
+        _source(args),
+        episodes=args.episodes,
+        seed=args.seed,
+        env_kwargs=parse_env_kwargs(args.env_kwargs),
+        video_dir=args.video,
+        videos=args.videos,
+        workers=args.workers,
+    )
+    for e in ev.episodes:
+        print(f"seed {e.seed}: success={e.success} return={e.total_reward:.3f} length={e.length}")
+    print(ev.summary())
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from .lerobot import export_lerobot
+
+    out = export_lerobot(args.file, args.root, repo_id=args.repo_id, task=args.task)
+    print(f"{out.root}: {out.episodes} episodes, {out.frames} frames")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,246 @@
+"""Episodes from seeds, recorded or not, in this process or spread over worker processes.
+
+Workers are processes started with `spawn` (each builds its own env and GL context: a fork of
+a process holding one is unsafe); each runs whole episodes and sends them back, and results
+come out in seed order whatever order they finish in, so a file written from them is the same
+for any number of workers.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+from collections.abc import Iterator, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from .. import task  # noqa: F401  (registers the tasks with Gymnasium)
+from ..errors import SpecError, SpecTypeError, unknown_name
+from ..record import VideoRecorder
+from ..scene import Scene
+from .hdf5 import EpisodeBuffer, EpisodeData
+from .policy import Policy, PolicySource, checked_action, make_policy
+
+MAX_WORKERS = 256
+
+
+@dataclass(frozen=True)
+class Video:
+    """An MP4 of an episode through the env's render camera, one frame per control step
+    (shadows and reflections off: software rendering makes them cost more than physics)."""
+
+    path: Path
+    width: int = 640
+    height: int = 480
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """How one episode went: success (the last step's `info["is_success"]`), summed reward,
+    steps, and the recording when one was asked for."""
+
+    seed: int
+    success: bool
+    total_reward: float
+    length: int
+    diverged: bool
+    data: EpisodeData | None = None
+
+
+def make_env(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
+    """`gymnasium.make(env_id, **env_kwargs)` with mjkdl's tasks registered; an unknown id
+    lists the registered ones."""
+    if not isinstance(env_id, str):
+        raise SpecTypeError(f"env id must be a string, got {env_id!r}")
+    if ":" not in env_id and env_id not in gym.registry:  # "module:id" imports module first
+        raise unknown_name("env id", env_id, list(gym.registry), "Gymnasium's registry")
+    return gym.make(env_id, **dict(env_kwargs or {}))
+
+
+def parse_env_kwargs(text: str | None) -> dict[str, Any]:
+    """`--env-kwargs` JSON as a dict (the error names the flag)."""
+    if not text:
+        return {}
+    try:
+        value = json.loads(text)
+    except ValueError as err:
+        raise SpecError(f"--env-kwargs is not valid JSON: {err}") from None
+    if not isinstance(value, dict):
+        raise SpecError(f"--env-kwargs must be a JSON object, got {text}")
+    return value
+
+
+def success_of(info: Mapping[str, Any]) -> bool:
+    """`info["is_success"]` (Gymnasium-Robotics' key); an env without it never succeeds: a
+    termination alone may be a failure (a pole that fell)."""
+    return bool(info.get("is_success", False))
+
+
+def run_episode(
+    env: gym.Env,
+    policy: Policy,
+    seed: int,
+    *,
+    record: bool = False,
+    video: Video | None = None,
+    source: PolicySource = "policy",
+) -> EpisodeResult:
+    """Reset with `seed` (the action space too, for random actions) and act to the end."""
+    obs, info = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    reset = getattr(policy, "reset", None)
+    if callable(reset):
+        reset()
+    buffer = EpisodeBuffer(scene_of(env)) if record else None
+    recorder = video_recorder(env, video) if video is not None else None
+    space = env.action_space
+    total, steps, done = 0.0, 0, False
+    try:
+        if recorder is not None:
+            recorder.record_frame()
+        while not done:
+            action = checked_action(policy(obs), space, source, seed, steps)
+            if buffer is not None:
+                buffer.before_step(obs)
+            obs, reward, terminated, truncated, info = env.step(action)
+            done = bool(terminated or truncated)
+            if buffer is not None:
+                buffer.after_step(action, float(reward), done)
+            if recorder is not None:
+                recorder.record_frame()
+            total += float(reward)
+            steps += 1
+    finally:
+        if recorder is not None:
+            recorder.close()
+    success = success_of(info)
+    data = buffer.finish(seed, success) if buffer is not None else None
+    return EpisodeResult(seed, success, total, steps, bool(info.get("diverged", False)), data)
+
+
+def scene_of(env: gym.Env) -> Scene:
+    """The mjkdl scene under `env` (`env.unwrapped.scene`), which recording and videos need."""
+    scene = getattr(env.unwrapped, "scene", None)
+    if not isinstance(scene, Scene):
+        name = type(env.unwrapped).__name__
+        raise SpecError(
+            f"{name} is not an mjkdl task env (it has no .scene holding MuJoCo's model and "
+            "data): recording states and filming need one; evaluate it without --video"
+        )
+    return scene
+
+
+def video_recorder(env: gym.Env, video: Video) -> VideoRecorder:
+    """`video` of the env's render camera (`front` on the registered tasks)."""
+    unwrapped: Any = env.unwrapped
+    period = float(getattr(unwrapped, "control_timestep", 0.1))
+    rec = VideoRecorder.open(
+        scene_of(env),
+        video.path,
+        video.width,
+        video.height,
+        fps=1.0 / period,
+        shadows=False,
+        reflections=False,
+    )
+    camera = getattr(unwrapped, "_render_camera_name", "")
+    if camera:
+        rec.use_camera(camera)
+    return rec
+
+
+def check_workers(workers: object) -> int:
+    """`--workers` as a count from 1 to `MAX_WORKERS`."""
+    if not isinstance(workers, (int, np.integer)) or isinstance(workers, bool):
+        raise SpecTypeError(f"--workers must be a positive integer, got {workers!r}")
+    if not 1 <= workers <= MAX_WORKERS:
+        raise SpecError(f"--workers must be from 1 to {MAX_WORKERS}, got {workers}")
+    return int(workers)
+
+
+# Worker state: one env and policy per process, built by `_init`.
+_WORKER: dict[str, Any] = {}
+
+
+def _init(env_id: str, env_kwargs: dict[str, Any], source: PolicySource) -> None:
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    env = make_env(env_id, env_kwargs)
+    _WORKER.update(env=env, policy=make_policy(source, env), source=source)
+
+
+def _run(seed: int, record: bool, video: Video | None) -> EpisodeResult:
+    w = _WORKER
+    return run_episode(w["env"], w["policy"], seed, record=record, video=video, source=w["source"])
+
+
+def run_seeds(
+    env_id: str,
+    env_kwargs: Mapping[str, Any],
+    source: PolicySource,
+    seeds: Sequence[int],
+    *,
+    record: bool = False,
+    videos: Mapping[int, Video] | None = None,
+    workers: int = 1,
+) -> Iterator[EpisodeResult]:
+    """One episode per seed, yielded in seed order; `videos` maps seeds to MP4s.
+
+    The env and the policy are built here, before the first episode, so a bad id, keyword
+    or policy fails before anything is written."""
+    workers = check_workers(workers)
+    kwargs = dict(env_kwargs)
+    videos = dict(videos or {})
+    env = make_env(env_id, kwargs)
+    try:
+        if record or videos:
+            scene_of(env)
+        policy = make_policy(source, env)
+    except BaseException:
+        env.close()
+        raise
+    if workers == 1:
+        return _in_process(env, policy, source, seeds, record, videos)
+    env.close()
+    return _in_workers(env_id, kwargs, source, seeds, record, videos, workers)
+
+
+def _in_process(
+    env: gym.Env,
+    policy: Policy,
+    source: PolicySource,
+    seeds: Sequence[int],
+    record: bool,
+    videos: dict[int, Video],
+) -> Iterator[EpisodeResult]:
+    try:
+        for s in seeds:
+            yield run_episode(env, policy, s, record=record, video=videos.get(s), source=source)
+    finally:
+        env.close()
+
+
+def _in_workers(
+    env_id: str,
+    kwargs: dict[str, Any],
+    source: PolicySource,
+    seeds: Sequence[int],
+    record: bool,
+    videos: dict[int, Video],
+    workers: int,
+) -> Iterator[EpisodeResult]:
+    ctx = multiprocessing.get_context("spawn")
+    init = (env_id, kwargs, source)
+    with ProcessPoolExecutor(workers, ctx, initializer=_init, initargs=init) as pool:
+        futures = [pool.submit(_run, s, record, videos.get(s)) for s in seeds]
+        try:
+            for future in futures:
+                yield future.result()
+        finally:
+            for future in futures:
+                future.cancel()

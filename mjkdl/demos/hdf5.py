@@ -1,0 +1,430 @@
+"""Demonstrations in robomimic's HDF5 layout: one writer that never loses a finished demo,
+one reader that checks the file is one.
+
+Layout (what robomimic, robosuite, MimicGen and LIBERO read)::
+
+    data.attrs: env_args (JSON: env_name, env_kwargs, mjkdl_version, mujoco_version), total
+    data/demo_<i>/actions (T×A), rewards (T), dones (T), states (T×S), obs/<key> (T×...)
+    data/demo_<i>.attrs: num_samples, seed, model_file (MJCF), model_hash, success
+    mask/train, mask/valid: demo names, 90/10
+
+`states[t]` is MuJoCo's `mjSTATE_INTEGRATION` state *before* `actions[t]`, `obs/<key>[t]` the
+observation the policy saw then.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import warnings
+import weakref
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import mujoco
+import numpy as np
+
+from .. import __version__ as mjkdl_version
+from ..closable import Closable
+from ..compile import build_mjspec
+from ..errors import MjkdlError, unknown_name
+from ..scene import Scene, mujoco_version
+
+STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+_IMAGE_COMPRESSION = {"compression": "gzip", "compression_opts": 4}
+
+
+class DemoFileError(MjkdlError, ValueError):
+    """A file that is not a readable demonstration file (foreign, truncated, incomplete)."""
+
+
+class DemoWriteError(MjkdlError, OSError):
+    """A demo could not be written (disk full, file not writable); finished demos stay."""
+
+
+@dataclass
+class EpisodeData:
+    """One recorded episode: `states[t]` and `obs[key][t]` are before `actions[t]`."""
+
+    seed: int
+    actions: np.ndarray
+    rewards: np.ndarray
+    dones: np.ndarray
+    states: np.ndarray
+    obs: dict[str, np.ndarray]
+    success: bool
+    model_file: str = ""
+    model_hash: str = ""
+
+    @property
+    def num_samples(self) -> int:
+        """Steps in the episode (rows of `actions`)."""
+        return len(self.actions)
+
+
+@dataclass
+class EpisodeBuffer:
+    """Collects one episode of `scene` step by step, in memory, until written or dropped."""
+
+    scene: Scene
+    states: list[np.ndarray] = field(default_factory=list)
+    actions: list[np.ndarray] = field(default_factory=list)
+    rewards: list[float] = field(default_factory=list)
+    dones: list[bool] = field(default_factory=list)
+    obs: dict[str, list[np.ndarray]] = field(default_factory=dict)
+
+    def before_step(self, obs: Mapping[str, np.ndarray]) -> None:
+        """Keep the state and observation the next action starts from."""
+        model, data = self.scene.model, self.scene.data
+        state = np.empty(mujoco.mj_stateSize(model, STATE))
+        mujoco.mj_getState(model, data, state, STATE)
+        self.states.append(state)
+        for key, value in obs.items():
+            self.obs.setdefault(key, []).append(value)
+
+    def after_step(self, action: np.ndarray, reward: float, done: bool) -> None:
+        """Keep what the step did (`action` is copied)."""
+        self.actions.append(np.array(action, copy=True))
+        self.rewards.append(float(reward))
+        self.dones.append(bool(done))
+
+    def finish(self, seed: int, success: bool) -> EpisodeData:
+        """The episode as arrays, with the scene's model for `model_file`/`model_hash`."""
+        n = len(self.actions)
+        xml, fingerprint = scene_model(self.scene)
+        return EpisodeData(
+            seed=seed,
+            actions=np.stack(self.actions),
+            rewards=np.asarray(self.rewards, dtype=np.float64),
+            dones=np.asarray(self.dones, dtype=np.int64),
+            states=np.stack(self.states[:n]),
+            obs={k: np.stack(v[:n]) for k, v in self.obs.items()},
+            success=success,
+            model_file=xml,
+            model_hash=fingerprint,
+        )
+
+
+def scene_model(scene: Scene) -> tuple[str, str]:
+    """The scene's compiled MJCF (robomimic's `model_file`) and `model_hash`, from its spec
+    compiled afresh: a Robot rewrites actuator parameters of the live model for its control
+    mode, which must not change the fingerprint. Cached per scene."""
+    known = _SCENE_MODELS.get(scene)
+    if known is None:
+        with warnings.catch_warnings():  # MuJoCo's attach notes, already shown at build time
+            warnings.simplefilter("ignore")
+            spec = build_mjspec(scene.spec)
+            model = spec.compile()
+            known = (str(spec.to_xml()), model_hash(model))
+        _SCENE_MODELS[scene] = known
+    return known
+
+
+_SCENE_MODELS: weakref.WeakKeyDictionary[Scene, tuple[str, str]] = weakref.WeakKeyDictionary()
+
+
+def model_hash(model: mujoco.MjModel) -> str:
+    """SHA-256 of a compiled model's numbers (names and file paths left out, so the same
+    model found under another directory hashes the same)."""
+    h = hashlib.sha256()
+    for name in sorted(dir(model)):
+        if name.startswith("_") or "name" in name or "path" in name:
+            continue
+        value = getattr(model, name)
+        if isinstance(value, np.ndarray) and value.dtype.kind in "biuf":
+            h.update(name.encode())
+            h.update(np.ascontiguousarray(value).tobytes())
+    for name in sorted(n for n in dir(model.opt) if not n.startswith("_")):
+        value = getattr(model.opt, name)
+        if isinstance(value, (int, float, np.ndarray)):
+            h.update(name.encode())
+            h.update(np.asarray(value, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+def env_args(env_name: str, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """robomimic's `env_args` record, with the versions that made the file."""
+    return {
+        "env_name": env_name,
+        "env_kwargs": dict(env_kwargs),
+        "env_type": "mjkdl",
+        "mjkdl_version": mjkdl_version,
+        "mujoco_version": mujoco_version(),
+    }
+
+
+class EpisodeWriter(Closable):
+    """Appends finished episodes to an HDF5 file as `data/demo_<i>`, flushing after each.
+
+    A crash or SIGKILL loses at most the episode being written: every `write` ends with the
+    file complete on disk. An existing file is refused unless `append=True` (continue it: the
+    same env and kwargs) or `overwrite=True` (replace it).
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        env_name: str,
+        env_kwargs: Mapping[str, Any] | None = None,
+        *,
+        append: bool = False,
+        overwrite: bool = False,
+    ) -> None:
+        self._path = Path(path)
+        args = env_args(env_name, env_kwargs or {})
+        try:
+            json.dumps(args)
+        except TypeError as err:
+            raise DemoFileError(f"env_kwargs must be JSON-serialisable: {err}") from None
+        self._file: h5py.File | None = None
+        if self._path.exists() and not (append or overwrite):
+            raise DemoFileError(
+                f"{self._path} exists: pass --append to add demos to it or --overwrite to "
+                "replace it"
+            )
+        if append and self._path.exists():
+            DemoFile(self._path).close()  # a foreign or broken file is refused here
+            f = self._open(self._path, "a")
+            old = json.loads(f["data"].attrs["env_args"])
+            if (old["env_name"], old["env_kwargs"]) != (args["env_name"], args["env_kwargs"]):
+                f.close()
+                raise DemoFileError(
+                    f"{self._path} holds demos of {old['env_name']} with {old['env_kwargs']}; "
+                    f"cannot append {env_name} with {args['env_kwargs']}"
+                )
+            self._file = f
+        else:
+            f = self._open(self._path, "w")
+            data = f.create_group("data")
+            data.attrs["env_args"] = json.dumps(args)
+            data.attrs["total"] = 0
+            f.create_group("mask")
+            f.flush()
+            self._file = f
+        self._demos = sorted(_finished(self._file["data"]), key=_demo_index)
+        self._next = 1 + max((_demo_index(n) for n in self._file["data"]), default=-1)
+
+    @staticmethod
+    def _open(path: Path, mode: str) -> h5py.File:
+        try:
+            return h5py.File(path, mode)
+        except OSError as err:
+            raise DemoWriteError(f"cannot open {path} for writing: {err}") from None
+
+    @property
+    def path(self) -> Path:
+        """The HDF5 file."""
+        return self._path
+
+    @property
+    def num_demos(self) -> int:
+        """Finished demos in the file."""
+        return len(self._demos)
+
+    @property
+    def closed(self) -> bool:
+        return self._file is None
+
+    def write(self, episode: EpisodeData) -> str:
+        """Add `episode` as the next `demo_<i>`, flush the file; the demo's name."""
+        self._check_open()
+        f = self._file
+        assert f is not None
+        if episode.num_samples == 0:
+            raise DemoFileError("an episode of 0 steps has nothing to record")
+        name = f"demo_{self._next}"
+        try:
+            self._write_group(f["data"], name, episode)
+            self._demos.append(name)
+            f["data"].attrs["total"] = int(f["data"].attrs["total"]) + episode.num_samples
+            _write_masks(f, self._demos)
+            f.flush()
+        except (OSError, RuntimeError) as err:
+            self._demos = [d for d in self._demos if d != name]
+            kept = len(self._demos)
+            try:
+                if name in f["data"]:
+                    del f["data"][name]
+                f.flush()
+            except (OSError, RuntimeError, KeyError):
+                pass
+            why = " ".join(str(err).split())  # HDF5's message spans lines
+            raise DemoWriteError(
+                f"could not write {name} to {self._path} ({why}); the file keeps its {kept} "
+                "finished demos"
+            ) from None
+        self._next += 1
+        return name
+
+    @staticmethod
+    def _write_group(data: h5py.Group, name: str, ep: EpisodeData) -> None:
+        g = data.create_group(name)
+        g.create_dataset("actions", data=ep.actions)
+        g.create_dataset("rewards", data=ep.rewards)
+        g.create_dataset("dones", data=ep.dones)
+        g.create_dataset("states", data=ep.states)
+        obs = g.create_group("obs")
+        for key, value in ep.obs.items():
+            if value.dtype == np.uint8 and value.ndim >= 3:  # camera frames, one chunk each
+                obs.create_dataset(
+                    key, data=value, chunks=(1, *value.shape[1:]), **_IMAGE_COMPRESSION
+                )
+            else:
+                obs.create_dataset(key, data=value)
+        g.attrs["seed"] = ep.seed
+        g.attrs["model_file"] = ep.model_file
+        g.attrs["model_hash"] = ep.model_hash
+        g.attrs["success"] = bool(ep.success)
+        g.attrs["num_samples"] = ep.num_samples  # last: a demo without it is unfinished
+
+    def close(self) -> None:
+        """Flush and close the file (again: nothing)."""
+        if self._file is not None:
+            try:
+                self._file.close()
+            finally:
+                self._file = None
+
+
+def _demo_index(name: str) -> int:
+    try:
+        return int(name.rsplit("_", 1)[1])
+    except (IndexError, ValueError):
+        return -1
+
+
+def _finished(data: h5py.Group) -> list[str]:
+    return [n for n in data if n.startswith("demo_") and "num_samples" in data[n].attrs]
+
+
+def _write_masks(f: h5py.File, demos: list[str]) -> None:
+    """Every tenth demo (demo index 9, 19, ...) is for validation: 90/10, stable on append."""
+    valid = [d for d in demos if _demo_index(d) % 10 == 9]
+    train = [d for d in demos if _demo_index(d) % 10 != 9]
+    mask = f["mask"]
+    for key, names in (("train", train), ("valid", valid)):
+        if key in mask:
+            del mask[key]
+        mask.create_dataset(key, data=np.array(names, dtype="S"))
+
+
+@dataclass
+class Demo(EpisodeData):
+    """One demo read back (arrays in memory), with its name in the file."""
+
+    name: str = ""
+
+
+class DemoFile(Closable):
+    """A demonstration file opened for reading; a foreign or broken file is refused by name."""
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self._path = Path(path)
+        if not self._path.is_file():
+            raise DemoFileError(f"{self._path}: no such demonstration file")
+        try:
+            self._file: h5py.File | None = h5py.File(self._path, "r")
+        except OSError as err:
+            if "unable to lock file" in str(err):
+                raise DemoFileError(
+                    f"{self._path} is open for writing in another process (a collection or "
+                    "teleop session); read it when that ends"
+                ) from None
+            raise DemoFileError(
+                f"{self._path} is not a readable HDF5 file (truncated or foreign?): {err}"
+            ) from None
+        try:
+            self._args = self._read_args()
+        except BaseException:
+            self.close()
+            raise
+        data = self._file["data"]
+        self._names = sorted(_finished(data), key=_demo_index)
+
+    def _read_args(self) -> dict[str, Any]:
+        f = self._file
+        assert f is not None
+        if "data" not in f or "env_args" not in f["data"].attrs:
+            raise DemoFileError(
+                f"{self._path} is not a demonstration file: it has no data.attrs['env_args']"
+            )
+        try:
+            args = json.loads(f["data"].attrs["env_args"])
+        except (TypeError, ValueError) as err:
+            raise DemoFileError(
+                f"{self._path}: data.attrs['env_args'] is not JSON: {err}"
+            ) from None
+        if not isinstance(args, dict) or not isinstance(args.get("env_name"), str):
+            raise DemoFileError(f"{self._path}: data.attrs['env_args'] has no 'env_name'")
+        args.setdefault("env_kwargs", {})
+        return args
+
+    @property
+    def path(self) -> Path:
+        """The HDF5 file."""
+        return self._path
+
+    @property
+    def env_name(self) -> str:
+        """The Gymnasium id the demos were recorded in."""
+        return str(self._args["env_name"])
+
+    @property
+    def env_kwargs(self) -> dict[str, Any]:
+        """The keyword arguments of `gymnasium.make` they were recorded with."""
+        return dict(self._args["env_kwargs"])
+
+    @property
+    def env_args(self) -> dict[str, Any]:
+        """The whole `env_args` record (versions included)."""
+        return dict(self._args)
+
+    @property
+    def names(self) -> list[str]:
+        """Finished demos, in order (`demo_0`, `demo_1`, ...)."""
+        return list(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __iter__(self) -> Iterator[Demo]:
+        for name in self._names:
+            yield self.demo(name)
+
+    @property
+    def closed(self) -> bool:
+        return self._file is None
+
+    def demo(self, key: int | str) -> Demo:
+        """Demo `demo_<key>` (an int) or by name."""
+        self._check_open()
+        assert self._file is not None
+        name = f"demo_{key}" if isinstance(key, (int, np.integer)) else str(key)
+        if name not in self._names:
+            raise unknown_name("demo", name, self._names, str(self._path))
+        g = self._file["data"][name]
+        try:
+            return Demo(
+                name=name,
+                seed=int(g.attrs["seed"]),
+                actions=g["actions"][()],
+                rewards=g["rewards"][()],
+                dones=g["dones"][()],
+                states=g["states"][()],
+                obs={k: v[()] for k, v in g["obs"].items()} if "obs" in g else {},
+                success=bool(g.attrs.get("success", False)),
+                model_file=str(g.attrs.get("model_file", "")),
+                model_hash=str(g.attrs.get("model_hash", "")),
+            )
+        except (KeyError, OSError) as err:
+            raise DemoFileError(f"{self._path}: {name} is incomplete or damaged: {err}") from None
+
+    def close(self) -> None:
+        """Close the file (again: nothing)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
