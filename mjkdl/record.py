@@ -32,7 +32,7 @@ import sys
 import threading
 import warnings
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -309,24 +309,33 @@ class _FrameClock:
         return max(0, target - written)
 
 
+def h264_writer(
+    path: Path, width: int, height: int, fps: float, x264_params: list[str]
+) -> Generator[None, np.ndarray | None, None]:
+    """imageio-ffmpeg's started H.264 (yuv420p) writer of RGB frames into `path`; `send`
+    it H×W×3 uint8 frames, `close` it to finish the file."""
+    writer = imageio_ffmpeg.write_frames(
+        str(path),
+        (width, height),
+        fps=fps,
+        codec="libx264",
+        pix_fmt_in="rgb24",
+        pix_fmt_out="yuv420p",
+        quality=None,
+        macro_block_size=1,
+        ffmpeg_log_level="error",
+        output_params=x264_params,
+    )
+    writer.send(None)  # starts ffmpeg
+    return writer
+
+
 class _Encoder:
     """H.264 writer (imageio-ffmpeg) fed by a daemon thread from a bounded frame queue."""
 
     def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
         self._path = path
-        self._writer = imageio_ffmpeg.write_frames(
-            str(path),
-            (width, height),
-            fps=fps,
-            codec="libx264",
-            pix_fmt_in="rgb24",
-            pix_fmt_out="yuv420p",
-            quality=None,
-            macro_block_size=1,
-            ffmpeg_log_level="error",
-            output_params=_X264_PARAMS,
-        )
-        self._writer.send(None)  # starts ffmpeg
+        self._writer = h264_writer(path, width, height, fps, _X264_PARAMS)
         self._queue: queue.Queue[np.ndarray | None] = queue.Queue(maxsize=_QUEUE_FRAMES)
         self._error: Exception | None = None
         self._thread = threading.Thread(target=self._run, name="mjkdl-video-encoder", daemon=True)

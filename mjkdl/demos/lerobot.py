@@ -25,10 +25,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import imageio_ffmpeg
 import numpy as np
 
 from ..errors import MjkdlError
+from ..record import h264_writer
 from .episodes import make_env
 from .hdf5 import Demo, DemoFile
 
@@ -164,19 +164,7 @@ class _Video:
     def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.frames = 0
-        self._writer = imageio_ffmpeg.write_frames(
-            str(path),
-            (width, height),
-            fps=fps,
-            codec="libx264",
-            pix_fmt_in="rgb24",
-            pix_fmt_out="yuv420p",
-            quality=None,
-            macro_block_size=1,
-            ffmpeg_log_level="error",
-            output_params=_X264,
-        )
-        self._writer.send(None)
+        self._writer = h264_writer(path, width, height, fps, _X264)
 
     def put(self, frames: np.ndarray) -> None:
         for f in frames:
