@@ -69,3 +69,22 @@ def test_benchmark_runs_and_prints_its_figures(name, args, figure) -> None:
     assert found, f"no {figure!r} followed by a number in the output of {name}:\n{out}"
     value = float(found.group(1))
     assert math.isfinite(value) and value > 0
+
+
+@pytest.mark.parametrize(
+    ("run", "args", "figure"),
+    [
+        (
+            "ppo-reach",
+            ("--steps", "64"),
+            r"ppo-reach: \d+% success after 2048 steps, ",
+        ),  # a rollout
+        ("bc-pick", ("--demos", "2", "--epochs", "1"), r"bc-pick: \d+% success after 1 steps, "),
+    ],
+)
+def test_learning_runs_and_saves_its_curve(run, args, figure, tmp_path) -> None:
+    pytest.importorskip("stable_baselines3", reason="needs the rl extra")
+    out = run_benchmark("learning", run, *args, "--results", str(tmp_path))
+    assert re.search(figure + NUMBER + " s wall", out), out
+    curve = __import__("json").loads((tmp_path / f"{run}.json").read_text())["curve"]
+    assert curve and 0.0 <= curve[-1]["success"] <= 1.0
