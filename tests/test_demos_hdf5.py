@@ -178,6 +178,29 @@ def test_append_continues_the_numbering(tmp_path: Path) -> None:
         assert f.names == []
 
 
+def test_masks_grow_in_place_and_take_over_fixed_size_ones(tmp_path: Path) -> None:
+    env = make_env(REACH, {"max_episode_steps": 2})
+    ep = run_episode(env, lambda o: np.zeros(7, np.float32), 0, record=True).data
+    env.close()
+    path = tmp_path / "m.hdf5"
+    with EpisodeWriter(path, REACH) as w:
+        for _ in range(3):
+            w.write(ep)
+    with h5py.File(path, "a") as f:  # as robomimic's own scripts leave them: fixed-size "S"
+        train = f["mask/train"][()]
+        del f["mask/train"]
+        f["mask"].create_dataset("train", data=np.array(train, dtype="S"))
+    with EpisodeWriter(path, REACH, append=True) as w:
+        for _ in range(19):
+            w.write(ep)
+    with h5py.File(path, "r") as f:
+        train = [n.decode() for n in f["mask/train"][()]]
+        valid = [n.decode() for n in f["mask/valid"][()]]
+        assert f["mask/train"].maxshape == (None,)
+    assert valid == ["demo_9", "demo_19"]
+    assert train == [f"demo_{i}" for i in range(22) if i % 10 != 9]
+
+
 def test_sigkill_loses_at_most_the_episode_in_progress(tmp_path: Path) -> None:
     out = tmp_path / "killed.hdf5"
     env = {**__import__("os").environ, "PYTHONPATH": str(ROOT)}

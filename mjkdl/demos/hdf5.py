@@ -241,7 +241,7 @@ class EpisodeWriter(Closable):
             self._write_group(f["data"], name, episode)
             self._demos.append(name)
             f["data"].attrs["total"] = int(f["data"].attrs["total"]) + episode.num_samples
-            _write_masks(f, self._demos)
+            _add_to_mask(f, name)
             f.flush()
         except (OSError, RuntimeError) as err:
             self._demos = [d for d in self._demos if d != name]
@@ -301,15 +301,25 @@ def _finished(data: h5py.Group) -> list[str]:
     return [n for n in data if n.startswith("demo_") and "num_samples" in data[n].attrs]
 
 
-def _write_masks(f: h5py.File, demos: list[str]) -> None:
-    """Every tenth demo (demo index 9, 19, ...) is for validation: 90/10, stable on append."""
-    valid = [d for d in demos if _demo_index(d) % 10 == 9]
-    train = [d for d in demos if _demo_index(d) % 10 != 9]
+def _add_to_mask(f: h5py.File, name: str) -> None:
+    """Append `name` to `mask/valid` if its index ends in 9 (demo_9, demo_19, ...), else to
+    `mask/train`: 90/10, stable on append, and O(1) per demo however long the file grows."""
+    key = "valid" if _demo_index(name) % 10 == 9 else "train"
     mask = f["mask"]
-    for key, names in (("train", train), ("valid", valid)):
-        if key in mask:
+    names = mask.get(key)
+    if names is None or names.maxshape != (None,):  # new, or fixed-size (robomimic's tools)
+        old = [] if names is None else [bytes(n) for n in names[()]]
+        if names is not None:
             del mask[key]
-        mask.create_dataset(key, data=np.array(names, dtype="S"))
+        names = mask.create_dataset(
+            key, data=np.array(old, dtype=_MASK_NAME), maxshape=(None,), chunks=(256,)
+        )
+    n = len(names)
+    names.resize((n + 1,))
+    names[n] = name.encode()
+
+
+_MASK_NAME = h5py.string_dtype("ascii")  # variable length: robomimic decodes the bytes
 
 
 @dataclass
