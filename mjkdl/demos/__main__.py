@@ -88,6 +88,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--root", required=True, help="dataset folder to create")
     p.add_argument("--repo-id", default="", help="name recorded in meta/info.json")
     p.add_argument("--task", default="", help="task description (default: the env id)")
+    p.add_argument(
+        "--writer",
+        choices=("auto", "lerobot", "pyarrow"),
+        default="auto",
+        help="lerobot's own LeRobotDataset, or pyarrow + ffmpeg (auto: lerobot where it imports)",
+    )
     return top
 
 
@@ -199,8 +205,10 @@ def _evaluate(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     from .lerobot import export_lerobot
 
-    out = export_lerobot(args.file, args.root, repo_id=args.repo_id, task=args.task)
-    print(f"{out.root}: {out.episodes} episodes, {out.frames} frames")
+    out = export_lerobot(
+        args.file, args.root, repo_id=args.repo_id, task=args.task, writer=args.writer
+    )
+    print(f"{out.root}: {out.episodes} episodes, {out.frames} frames (written by {out.writer})")
     return 0
 
 

@@ -1,8 +1,8 @@
-"""LeRobot v3.0 export of an HDF5 demonstration file, written with pyarrow and ffmpeg.
+"""LeRobot v3.0 export of an HDF5 demonstration file.
 
-lerobot's own writer (`LeRobotDataset.create`) is not used: lerobot 0.4 pins torch below
-2.11, and installing it would replace the project's torch. The layout is the one lerobot
-0.4 reads::
+Written by lerobot's own `LeRobotDataset` (`create`, `add_frame`, `save_episode`,
+`finalize`) where lerobot imports, else by pyarrow and ffmpeg in the same layout: lerobot
+0.4 pins torch below 2.11, so it cannot sit beside a newer torch. The layout::
 
     meta/info.json                         codebase_version "v3.0", fps, features, paths
     meta/tasks.parquet                     task, task_index
@@ -18,9 +18,12 @@ intrinsics left out) in the file's key order; `action` is the demo's action.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import shutil
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,6 +43,7 @@ VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.m
 # a loader can seek to any frame cheaply.
 _X264 = ["-preset", "veryfast", "-crf", "16", "-g", "2", "-bf", "0"]
 _SKIPPED = ("time",)
+WRITERS = ("auto", "lerobot", "pyarrow")
 
 
 class ExportError(MjkdlError, ValueError):
@@ -55,6 +59,7 @@ class LeRobotExport:
     frames: int
     fps: float
     cameras: list[str]
+    writer: str
 
 
 def _need_pyarrow() -> Any:
@@ -62,8 +67,32 @@ def _need_pyarrow() -> Any:
         import pyarrow as pa
         import pyarrow.parquet
     except ImportError:
-        raise ImportError("export-lerobot needs pyarrow: pip install 'mjkdl[lerobot]'") from None
+        raise ImportError(
+            "export-lerobot needs pyarrow (pip install 'mjkdl[parquet]') or lerobot itself "
+            "(pip install 'mjkdl[lerobot]', in an environment of its own)"
+        ) from None
     return pa
+
+
+def _lerobot_dataset(writer: str) -> Any:
+    """lerobot's `LeRobotDataset` class for `writer` "lerobot" or "auto", else None; "auto"
+    goes on without it when lerobot is absent or fails to import (said in a warning)."""
+    if writer not in WRITERS:
+        raise ExportError(f"writer must be one of {', '.join(WRITERS)}; got {writer!r}")
+    if writer == "pyarrow" or (writer == "auto" and importlib.util.find_spec("lerobot") is None):
+        return None
+    try:
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    except Exception as err:  # an install beside the wrong torch fails in many ways
+        why = f"lerobot does not import ({type(err).__name__}: {err})"
+        if writer == "lerobot":
+            raise ImportError(
+                f"writer='lerobot' needs lerobot 0.4 and its torch: {why}; pip install "
+                "'lerobot>=0.4,<0.5' in an environment of its own, or use writer='pyarrow'"
+            ) from None
+        warnings.warn(f"{why}; exporting with pyarrow instead", stacklevel=3)
+        return None
+    return LeRobotDataset
 
 
 def _split(demo: Demo) -> tuple[list[str], list[str]]:
@@ -182,11 +211,15 @@ def export_lerobot(
     repo_id: str = "",
     task: str = "",
     overwrite: bool = False,
+    writer: str = "auto",
 ) -> LeRobotExport:
-    """Write the demos of `path` as a LeRobot v3.0 dataset in the new folder `root`."""
-    pa = _need_pyarrow()
-    import pyarrow.parquet as pq
+    """Write the demos of `path` as a LeRobot v3.0 dataset in the new folder `root`.
 
+    `writer`: "lerobot" (its own `LeRobotDataset`), "pyarrow", or "auto" (lerobot where it
+    imports)."""
+    dataset_cls = _lerobot_dataset(writer)
+    if dataset_cls is None:
+        _need_pyarrow()
     out = Path(root)
     if out.exists() and any(out.iterdir()):
         if not overwrite:
@@ -198,28 +231,112 @@ def export_lerobot(
         fps = _fps(demos.env_name, demos.env_kwargs)
         task = task or demos.env_name
         first = demos.demo(demos.names[0])
-        state_keys, cam_keys = _split(first)
         try:
-            return _write(demos, out, fps, task, repo_id, first, state_keys, cam_keys, pa, pq)
+            if dataset_cls is not None:
+                return _write_with_lerobot(dataset_cls, demos, out, fps, task, repo_id, first)
+            return _write(demos, out, fps, task, repo_id, first)
         except BaseException:
             shutil.rmtree(out, ignore_errors=True)  # no half-written dataset
             raise
 
 
-def _write(
+def _episodes(demos: DemoFile, first: Demo) -> Iterator[tuple[Demo, np.ndarray, np.ndarray]]:
+    """Each demo with its `observation.state` and `action` rows; every demo must have the
+    first one's observations."""
+    state_keys, cam_keys = _split(first)
+    for demo in demos:
+        keys, cams = _split(demo)
+        if (keys, cams) != (state_keys, cam_keys):
+            raise ExportError(
+                f"{demos.path}: {demo.name} has observations {keys + cams}, "
+                f"the first demo {state_keys + cam_keys}"
+            )
+        n = demo.num_samples
+        yield demo, _state_matrix(demo, state_keys), demo.actions.astype(np.float32).reshape(n, -1)
+
+
+def _video_keys(cam_keys: list[str]) -> dict[str, str]:
+    """`<camera>_rgb` observation -> `observation.images.<camera>` feature."""
+    return {k: f"observation.images.{k[: -len('_rgb')]}" for k in cam_keys}
+
+
+def _write_with_lerobot(
+    dataset_cls: Any,
     demos: DemoFile,
     out: Path,
     fps: float,
     task: str,
     repo_id: str,
     first: Demo,
-    state_keys: list[str],
-    cam_keys: list[str],
-    pa: Any,
-    pq: Any,
 ) -> LeRobotExport:
+    """The dataset written frame by frame by lerobot's own `LeRobotDataset`."""
+    if fps != int(fps):
+        raise ExportError(
+            f"lerobot's writer takes a whole number of frames per second; {demos.env_name}'s "
+            f"control period gives {fps:g}: pass writer='pyarrow'"
+        )
+    state_keys, cam_keys = _split(first)
+    video_key = _video_keys(cam_keys)
+    names = _names(first, state_keys)
+    features: dict[str, Any] = {
+        "observation.state": {"dtype": "float32", "shape": (len(names),), "names": names},
+        "action": {
+            "dtype": "float32",
+            "shape": (int(np.prod(first.actions.shape[1:], dtype=int)),),
+            "names": None,
+        },
+        "next.reward": {"dtype": "float32", "shape": (1,), "names": None},
+        "next.done": {"dtype": "bool", "shape": (1,), "names": None},
+    }
+    for k in cam_keys:
+        features[video_key[k]] = {
+            "dtype": "video",
+            "shape": first.obs[k].shape[1:],
+            "names": ["height", "width", "channels"],
+        }
+    if out.exists():
+        out.rmdir()  # empty (checked): lerobot makes the folder itself
+    dataset = dataset_cls.create(
+        repo_id or f"local/{demos.path.stem}",
+        fps=int(fps),
+        features=features,
+        root=out,
+        use_videos=bool(cam_keys),
+    )  # lerobot's own video settings: AV1 (SVT-AV1) at CRF 30
+    frames = 0
+    try:
+        for demo, state, action in _episodes(demos, first):
+            reward = demo.rewards.astype(np.float32).reshape(-1, 1)
+            done = demo.dones.astype(bool).reshape(-1, 1)
+            for t in range(demo.num_samples):
+                frame = {
+                    "observation.state": state[t],
+                    "action": action[t],
+                    "next.reward": reward[t],
+                    "next.done": done[t],
+                    "task": task,
+                }
+                for k in cam_keys:
+                    frame[video_key[k]] = demo.obs[k][t]
+                dataset.add_frame(frame)
+            dataset.save_episode()
+            frames += demo.num_samples
+    finally:
+        dataset.finalize()  # parquet footers: without them nothing reads the files
+    episodes = int(dataset.meta.total_episodes)
+    return LeRobotExport(out, episodes, frames, fps, list(video_key.values()), "lerobot")
+
+
+def _write(
+    demos: DemoFile, out: Path, fps: float, task: str, repo_id: str, first: Demo
+) -> LeRobotExport:
+    """The dataset written column by column with pyarrow, its videos with ffmpeg."""
+    pa = _need_pyarrow()
+    import pyarrow.parquet as pq
+
+    state_keys, cam_keys = _split(first)
     videos: dict[str, _Video] = {}
-    video_key = {k: f"observation.images.{k[: -len('_rgb')]}" for k in cam_keys}
+    video_key = _video_keys(cam_keys)
     for k in cam_keys:
         _, h, w, _ = first.obs[k].shape
         p = out / VIDEO_PATH.format(video_key=video_key[k], chunk_index=0, file_index=0)
@@ -243,16 +360,8 @@ def _write(
     image_samples: dict[str, list[np.ndarray]] = {k: [] for k in cam_keys}
     index = 0
     try:
-        for ep, demo in enumerate(demos):
+        for ep, (demo, state, action) in enumerate(_episodes(demos, first)):
             n = demo.num_samples
-            keys, cams = _split(demo)
-            if (keys, cams) != (state_keys, cam_keys):
-                raise ExportError(
-                    f"{demos.path}: {demo.name} has observations {keys + cams}, "
-                    f"the first demo {state_keys + cam_keys}"
-                )
-            state = _state_matrix(demo, state_keys)
-            action = demo.actions.astype(np.float32).reshape(n, -1)
             all_state.append(state)
             all_action.append(action)
             frame = np.arange(n)
@@ -381,4 +490,4 @@ def _write(
         "features": features,
     }
     (meta / "info.json").write_text(json.dumps(info, indent=2))
-    return LeRobotExport(out, len(episodes), index, fps, [video_key[k] for k in cam_keys])
+    return LeRobotExport(out, len(episodes), index, fps, list(video_key.values()), "pyarrow")
