@@ -134,12 +134,10 @@ class OperationalSpaceController:
         M[...] = _crba(model, data, self._q_all, _WORLD)[self._m_block]
         pose = _frame_placement(model, data, frame)
         J[...] = _frame_jacobian(model, data, frame, _LWA)[self._j_block]
-        rows, e = self._rows, self._error
+        rows = self._rows
         _subtract(target.translation, pose.translation, out=self._error_pos)
         _dot(target.rotation, pose.rotation.T, out=self._rot)
         self._error_rot[...] = _log3(self._rot)
-        if not math.isfinite(e.dot(e)):
-            raise self._not_finite(target)
         state = self._state  # q̇, q_0 - q
         state[0] = self._qd
         _subtract(self._posture, self._q, out=self._offset)
@@ -152,7 +150,7 @@ class OperationalSpaceController:
         jm = self._jm
         jm[...] = J
         if _posv(M.T, jm.T, overwrite_a=1, overwrite_b=1)[2]:
-            raise self._not_positive_definite("the arm's mass matrix")
+            raise self._not_positive_definite("the arm's mass matrix M", "links without mass?")
         lam_inv = _dot(jm, J.T, out=self._lam_inv)
         if self._decoupled:
             # Position and orientation blocks inverted apart for the task force; the
@@ -164,29 +162,35 @@ class OperationalSpaceController:
             diag[:3] += _vdot(jm[:3], J[:3]) * (_DAMPING / 3)  # traces of the blocks
             diag[3:] += _vdot(jm[3:], J[3:]) * (_DAMPING / 3)
             if _posv(blocks.T, rhs[0], overwrite_a=1, overwrite_b=1)[2]:
-                raise self._not_positive_definite("the task-space inertia J M⁻¹ Jᵀ")
+                raise self._not_positive_definite("J M⁻¹ Jᵀ", "a TCP no joint moves?")
         self._lam_inv_diag += _vdot(jm, J) * (_DAMPING / 6)  # tr(J M⁻¹ Jᵀ)
         if _posv(lam_inv.T, rhs[-1], overwrite_a=1, overwrite_b=1)[2]:
-            raise self._not_positive_definite("the task-space inertia J M⁻¹ Jᵀ")
+            raise self._not_positive_definite("J M⁻¹ Jᵀ", "a TCP no joint moves?")
         force = _sum(rhs, axis=0, out=self._force) if self._decoupled else rhs[0]
         # τ = Jᵀ F + Nᵀ M p + h = Jᵀ Λ (a - J p) + M p + h  (J M⁻¹ M p = J p).
         tau += _dot(force, J, out=self._jf)
-        return _add(tau, self._robot.nonlinear_effects())  # MuJoCo's qfrc_bias (gravcomp out)
+        tau = _add(tau, self._robot.nonlinear_effects())  # MuJoCo's qfrc_bias (gravcomp out)
+        if not math.isfinite(tau.dot(tau)):  # a target or a state that is not finite
+            raise self._not_finite(target)
+        return tau
 
     def _not_finite(self, target: pin.SE3) -> MjkdlError:
-        """The error for a pose error that is not finite: the target's or the state's."""
+        """The error for torques that are not finite: the target's, else the state's."""
         if not (np.isfinite(target.translation).all() and np.isfinite(target.rotation).all()):
             return SpecError(f"target must be finite, got {target}")
-        return self._not_positive_definite("the TCP pose")
-
-    def _not_positive_definite(self, what: str) -> SimulationError:
         robot = self._robot
         return SimulationError(
-            f"OperationalSpaceController: {what} at the measured state is not finite or not "
-            f"positive definite (q = {robot.jnt_pos_msr.tolist()}, q̇ = "
-            f"{robot.jnt_vel_msr.tolist()}); has the simulation diverged?",
+            f"OperationalSpaceController: the torques at the measured state are not finite "
+            f"(q = {robot.jnt_pos_msr.tolist()}, q̇ = {robot.jnt_vel_msr.tolist()}); has the "
+            "simulation diverged?",
             robot.last_update_time,
             {},
+        )
+
+    def _not_positive_definite(self, what: str, hint: str) -> SpecError:
+        return SpecError(
+            f"OperationalSpaceController: {what} is not positive definite at the measured "
+            f"q = {self._robot.jnt_pos_msr.tolist()} ({hint})"
         )
 
     def _bind(self) -> None:
