@@ -40,6 +40,7 @@ _log3 = pin.log3
 _posv = lapack.dposv  # Cholesky solve of a symmetric positive definite system, in place
 _subtract, _multiply, _dot, _vdot = np.subtract, np.multiply, np.dot, np.vdot
 _add, _sum = np.add, np.add.reduce
+_isfinite, _hypot = math.isfinite, math.hypot  # on Python floats: half a NumPy dot
 
 # J M⁻¹ Jᵀ is inverted with this fraction of its mean eigenvalue added to the diagonal, so Λ
 # stays bounded at a singularity (robosuite takes a pseudo-inverse: 8x the cost here).
@@ -170,7 +171,7 @@ class OperationalSpaceController:
         # τ = Jᵀ F + Nᵀ M p + h = Jᵀ Λ (a - J p) + M p + h  (J M⁻¹ M p = J p).
         tau += _dot(force, J, out=self._jf)
         tau = _add(tau, self._robot.nonlinear_effects())  # MuJoCo's qfrc_bias (gravcomp out)
-        if not math.isfinite(tau.dot(tau)):  # a target or a state that is not finite
+        if not _isfinite(_hypot(*tau.tolist())):  # a target or a state that is not finite
             raise self._not_finite(target)
         return tau
 
