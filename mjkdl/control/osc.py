@@ -88,12 +88,11 @@ class OperationalSpaceController:
         # weighted sums of these rows (`_gains`); decoupled keeps J p apart (second row).
         self._rows = np.zeros((3, 6))
         self._error = self._rows[0]
-        kp, kd, kp0, kd0 = self._kp, self._kd, self._kp_null, self._kd_null
-        zero = np.zeros(6)
+        zero, kd0, kp0 = np.zeros(6), np.full(6, self._kd_null), np.full(6, self._kp_null)
         if self._decoupled:  # kp e - kd J q̇ and -J p
-            gains = [[kp, -kd, zero], [zero, zero + kd0, zero - kp0]]
+            gains = [[self._kp, -self._kd, zero], [zero, kd0, -kp0]]
         else:
-            gains = [[kp, kd0 - kd, zero - kp0]]
+            gains = [[self._kp, kd0 - self._kd, -kp0]]
         self._gains = np.array(gains)
         self._weighted = np.zeros_like(self._gains)
         self._rhs = np.zeros((len(gains), 6))
