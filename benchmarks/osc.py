@@ -3,11 +3,13 @@
 
 Four scenes: Menagerie's Panda (with its hand) on a bare floor, the tutorial's Gen3 + 2F-85 on
 its table, and each of them in `planning.py`'s clutter (shelves, a wall, posts, a box, a beam:
-more geoms, so a dearer `mj_step`). In each, blocks of `--calls` calls alternate with blocks of
-as many raw `mujoco.mj_step`s of the same model (on a scratch `MjData` that restarts from the
-same commanded state every block); each figure is the median over blocks of its ratio to the
-step block next to it, then the ratio of the fastest blocks of each (what a quiet machine
-would show: on a loaded one the Python side suffers more than MuJoCo's C). Rows:
+more geoms, so a dearer `mj_step`). In each, the controller first holds the arm at home for
+3 s (the 2F-85's fingers settle), then blocks of `--calls` calls toward a pose 5 cm away
+alternate with blocks of as many raw `mujoco.mj_step`s of the same model (on a scratch `MjData`
+that restarts every block from the settled state, the holding torques in its controls: the
+cheapest steps the scene has, so the ratio flatters nothing). Each figure is the median over
+blocks of its ratio to the step block next to it, then the ratio of the fastest blocks of each
+(nearer what a quiet machine shows). Rows:
 
   * `torques()`: robosuite's OSC_POSE, whole task-space inertia (the default);
   * `torques()`, decoupled: position and orientation blocks inverted apart;
@@ -42,6 +44,7 @@ import mjkdl as mjk
 from mjkdl.control import OperationalSpaceController
 
 STEP = 0.05  # m
+SETTLE = 1500  # steps (3 s) before timing
 
 
 def bare_panda() -> tuple[mjk.Env, mjk.Robot, list[float]]:
@@ -102,9 +105,14 @@ def cost(name: str, scene, blocks: int, calls: int) -> None:
     m = env.model
     osc = OperationalSpaceController(robot)
     decoupled = OperationalSpaceController(robot, decoupled=True)
+    hold = robot.fk_frame()
+    for _ in range(SETTLE):  # the OSC holds home while the 2F-85's fingers settle
+        osc.command(hold)
+        robot.step()
+        robot.update()
+    osc.command(hold)
+    robot.update()  # the holding torques are in data.ctrl: the raw steps keep the arm there
     target = step_target(robot, np.array([STEP, 0.0, 0.0]))
-    osc.command(target)
-    robot.update()  # the command is in data.ctrl: the raw steps start moving toward it
     start, scratch = mujoco.MjData(m), mujoco.MjData(m)
     mujoco.mj_copyData(start, m, env.data)
 
