@@ -15,9 +15,7 @@ Then, in the same process:
     ratio to one raw `mj_step` of the same model;
   * every planned trajectory is executed in the simulation (`TrajectoryFollower`, POSITION
     mode) and the measured arm's clearance to everything is taken at every physics step: the
-    smallest, and how many trajectories came closer than the margin;
-  * the cost of one `OperationalSpaceController.torques` call on the Panda, as a ratio to
-    `mj_step`.
+    smallest, and how many trajectories came closer than the margin.
 
 pyroboplan (the peer the issue names) is not run: its wheel pins pin==4.0.0 and pulls drake,
 which would replace this environment's Pinocchio.
@@ -34,11 +32,9 @@ import time
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 from scenes import HOME, TOOL, tabletop_spec
 
 import mjkdl as mjk
-from mjkdl.control import OperationalSpaceController
 from mjkdl.plan import CollisionChecker, MotionPlanner, PlanningError, TrajectoryFollower
 
 PANDA_HOME = [0.0, 0.0, 0.0, -1.57079, 0.0, 1.57079, -0.7853]
@@ -199,16 +195,6 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
         f"  executed:              {len(closest)} trajectories, closest approach "
         f"{min(closest) * 1000:.2f} mm, {below} closer than the margin"
     )
-    if name.startswith("Panda"):
-        robot.ctrl_mode = mjk.CtrlMode.TORQUE
-        env.reset()
-        robot.update()
-        osc = OperationalSpaceController(robot)
-        target = pin.SE3(
-            robot.fk_frame().rotation, robot.fk_frame().translation + np.array([0.05, 0, 0])
-        )
-        cost = per_call(lambda: osc.torques(target), 2000)
-        print(f"  OSC torques():         {cost * 1e6:.1f} us = {cost / step:.2f} x mj_step")
     env.close()
 
 

@@ -57,6 +57,11 @@ def run_benchmark(name: str, *args: str) -> str:
             r"Gen3 \+ 2F-85: 3 random queries.*\n\s+solved:",
         ),
         (
+            "osc",
+            ("--blocks", "2", "--calls", "20"),
+            r"Gen3 \+ 2F-85, planning clutter .*\n\s+mj_step:.*\n\s+torques\(\):",
+        ),
+        (
             "task_env",
             ("--blocks", "1", "--camera-blocks", "1", "--vector-seconds", "0.5"),
             r"async vector env, 128x128 camera, 1 sub-env\(s\):",

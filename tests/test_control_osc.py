@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import menagerie, panda_arm, panda_spec
+from conftest import gripper_tool, menagerie, panda_arm, panda_spec
 
 import mjkdl as mjk
 from mjkdl.control import OperationalSpaceController
@@ -59,46 +60,85 @@ def test_decoupled_inertia_lets_the_orientation_swing_more(env) -> None:
     assert turn.max() > 1.0  # the coupling Λ leaves out shows as rotation
 
 
-def test_torques_are_robosuites_formula_on_mujocos_numbers(env) -> None:
-    """The same law written with MuJoCo's M, J and qfrc_bias and plain NumPy inverses."""
-    import mujoco
-
-    robot = panda_arm(env, mjk.CtrlMode.TORQUE)
-    env.data.qvel[:7] = [0.3, -0.2, 0.1, 0.4, -0.5, 0.2, 0.6]
-    mujoco.mj_forward(env.model, env.data)
-    robot.update()
-    posture = robot.jnt_pos_msr + 0.1
-    osc = OperationalSpaceController(
-        robot, kp=[100, 120, 140, 50, 60, 70], kp_null=8.0, posture=posture
-    )
-    start = robot.fk_frame()
-    target = pin.SE3(
-        start.rotation @ pin.exp3(np.array([0.05, -0.02, 0.1])),
-        start.translation + np.array([0.03, -0.02, 0.04]),
-    )
-    tau = osc.torques(target)
-    m, d = env.model, env.data
+def robosuite_formula(m, d, tcp, rotation, jac, target, kp, zeta, kp_null, posture, decoupled):
+    """The law written out with MuJoCo's M, J and qfrc_bias and plain NumPy inverses (the
+    arm is the model's first 7 dofs)."""
     full = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, full)
-    M = full[:7, :7]
-    jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-    hand = m.body("hand").id
-    tcp = d.xpos[hand] + d.xmat[hand].reshape(3, 3) @ [0, 0, 0.1034]
-    mujoco.mj_jac(m, d, jacp, jacr, tcp, hand)
-    J = np.vstack([jacp, jacr])[:, :7]
-    R = d.xmat[hand].reshape(3, 3)
-    kp = np.array([100, 120, 140, 50, 60, 70.0])
-    kd = 2 * np.sqrt(kp)
-    e = np.concatenate([target.translation - tcp, pin.log3(target.rotation @ R.T)])
-    a = kp * e - kd * (J @ d.qvel[:7])
-    Minv = np.linalg.inv(M)
-    Lam = np.linalg.inv(J @ Minv @ J.T)
-    N = np.eye(7) - Minv @ J.T @ Lam @ J
+    M, J = full[:7, :7], jac[:, :7]
     q, v = d.qpos[:7], d.qvel[:7]
-    expected = (
-        J.T @ Lam @ a + N.T @ (M @ (8.0 * (posture - q) - 2 * math.sqrt(8.0) * v)) + d.qfrc_bias[:7]
-    )
-    assert np.abs(tau - expected).max() < 1e-4 * np.abs(expected).max()
+    kd = 2 * np.sqrt(kp) * zeta
+    e = np.concatenate([target.translation - tcp, pin.log3(target.rotation @ rotation.T)])
+    a = kp * e - kd * (J @ v)
+    Minv = np.linalg.inv(M)
+    Lam_inv = J @ Minv @ J.T
+
+    def damped_inverse(A):  # the controller's 1e-6 share of the mean eigenvalue
+        return np.linalg.inv(A + 1e-6 * np.trace(A) / len(A) * np.eye(len(A)))
+
+    Lam = damped_inverse(Lam_inv)
+    if decoupled:
+        F = np.concatenate(
+            [damped_inverse(Lam_inv[:3, :3]) @ a[:3], damped_inverse(Lam_inv[3:, 3:]) @ a[3:]]
+        )
+    else:
+        F = Lam @ a
+    N = np.eye(7) - Minv @ J.T @ Lam @ J
+    p = kp_null * (posture - q) - 2 * math.sqrt(kp_null) * v
+    return J.T @ F + N.T @ (M @ p) + d.qfrc_bias[:7]
+
+
+@pytest.mark.parametrize("arm", ["panda", "gen3"])
+def test_torques_are_robosuites_formula_on_mujocos_numbers(arm, request) -> None:
+    """At random states, gains and targets, both inversions of the task-space inertia."""
+    if arm == "panda":
+        scene = request.getfixturevalue("env")
+        robot = panda_arm(scene, mjk.CtrlMode.TORQUE)
+        hand = scene.model.body("hand").id
+    else:
+        scene = request.getfixturevalue("tutorial_scene")()
+        robot = scene.create_robot("base_link", "bracelet_link", tool=gripper_tool())
+        pinch = scene.model.site("g_pinch").id
+    m, d = scene.model, scene.data
+    rng = np.random.default_rng(7)
+    limits = np.clip(robot.joint_limits, -3.0, 3.0)
+    jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    for _ in range(4):
+        robot.set_joint_pos(rng.uniform(limits[:, 0], limits[:, 1]), call_forward=False)
+        d.qvel[:] = rng.normal(0.0, 0.5, m.nv)  # the fingers' too: they count in the bias
+        mujoco.mj_forward(m, d)
+        robot.update()
+        if arm == "panda":
+            rotation = d.xmat[hand].reshape(3, 3)
+            tcp = d.xpos[hand] + rotation @ [0.0, 0.0, 0.1034]
+            mujoco.mj_jac(m, d, jacp, jacr, tcp, hand)
+        else:
+            rotation, tcp = d.site_xmat[pinch].reshape(3, 3), d.site_xpos[pinch]
+            mujoco.mj_jacSite(m, d, jacp, jacr, pinch)
+        target = pin.SE3(
+            rotation @ pin.exp3(rng.normal(0.0, 0.2, 3)), tcp + rng.normal(0.0, 0.05, 3)
+        )
+        kp, zeta = rng.uniform(50.0, 200.0, 6), rng.uniform(0.5, 1.5, 6)
+        posture = robot.jnt_pos_msr + rng.normal(0.0, 0.2, 7)
+        for decoupled in (False, True):
+            osc = OperationalSpaceController(
+                robot, kp, zeta, kp_null=8.0, posture=posture, decoupled=decoupled
+            )
+            tau = osc.torques(target)
+            expected = robosuite_formula(
+                m,
+                d,
+                tcp,
+                rotation,
+                np.vstack([jacp, jacr]),
+                target,
+                kp,
+                zeta,
+                8.0,
+                posture,
+                decoupled,
+            )
+            assert np.abs(tau - expected).max() < 1e-8 * np.abs(expected).max()
 
 
 def test_command_writes_the_torques_and_respects_gravity_compensation(env) -> None:
@@ -133,3 +173,73 @@ def test_bad_input_is_refused_by_name(env) -> None:
         OperationalSpaceController(robot, decoupled=1)
     with pytest.raises(mjk.SpecTypeError, match=r"robot must be a Robot"):
         OperationalSpaceController(env)
+
+
+def test_a_target_or_state_that_is_not_finite_is_refused(env) -> None:
+    robot = panda_arm(env, mjk.CtrlMode.TORQUE)
+    osc = OperationalSpaceController(robot)
+    pose = robot.fk_frame()
+    with pytest.raises(mjk.SpecError, match=r"target must be finite"):
+        osc.torques(pin.SE3(pose.rotation, np.array([np.nan, 0.0, 0.5])))
+    env.data.qvel[3] = np.nan  # a diverged simulation, read by update()
+    robot.update()
+    with pytest.raises(
+        mjk.SimulationError,
+        match=r"the torques at the measured state are not finite \(q = .*, "
+        r"q̇ = \[0\.0, 0\.0, 0\.0, nan, .*has the simulation diverged",
+    ):
+        osc.torques(pose)
+
+
+def test_a_singular_model_is_refused_by_name(env) -> None:
+    """A Pinocchio model doctored so M, then J M⁻¹ Jᵀ, cannot be factorised."""
+    robot = panda_arm(env, mjk.CtrlMode.TORQUE)
+    osc = OperationalSpaceController(robot)
+    target = robot.fk_frame()
+    model = robot.model
+    inertias, armature = list(model.inertias), model.armature.copy()
+    for i in range(1, model.njoints):
+        model.inertias[i] = pin.Inertia.Zero()
+    model.armature[:] = 0.0
+    with pytest.raises(
+        mjk.SpecError,
+        match=r"the arm's mass matrix M is not positive definite at the measured q = \[0\.0, "
+        r".*\(links without mass\?\)",
+    ):
+        osc.torques(target)
+    for i, inertia in enumerate(inertias):
+        model.inertias[i] = inertia
+    model.armature[:] = armature
+    model.frames[robot.tcp_frame_id].parentJoint = 0  # the TCP on the world: J = 0
+    with pytest.raises(mjk.SpecError, match=r"J M⁻¹ Jᵀ is not positive definite .*no joint moves"):
+        osc.torques(target)
+
+
+def test_a_call_allocates_no_matrices_and_the_loop_keeps_nothing(env) -> None:
+    """Only Pinocchio's returned copies (M, J) and a few vectors live during a call; 2000
+    control steps leave nothing behind."""
+    import tracemalloc
+
+    robot = panda_arm(env, mjk.CtrlMode.TORQUE)
+    osc = OperationalSpaceController(robot)
+    target = robot.fk_frame()
+
+    def run(steps: int) -> None:
+        for _ in range(steps):
+            robot.update()
+            osc.command(target)
+            robot.step()
+
+    run(10)
+    tracemalloc.start()
+    start = tracemalloc.get_traced_memory()[0]
+    osc.torques(target)
+    peak = tracemalloc.get_traced_memory()[1] - start
+    run(100)
+    before = tracemalloc.take_snapshot()
+    run(2000)
+    after = tracemalloc.take_snapshot()
+    tracemalloc.stop()
+    assert peak < 4096  # 1.4 kB here; computeAllTerms and np.linalg took 8.8 kB
+    mjkdl_files = [s for s in after.compare_to(before, "filename") if "mjkdl" in str(s)]
+    assert sum(s.size_diff for s in mjkdl_files) <= 0

@@ -10,6 +10,10 @@ inertia and h the bias (Coriolis, centrifugal, gravity: MuJoCo's `qfrc_bias`):
 
 so the TCP behaves like a critically damped spring of stiffness kp per unit of task-space
 inertia, and the posture q_0 is pulled toward in the null space of the task, unseen by it.
+
+With p the posture acceleration, Nᵀ M p = M p - Jᵀ Λ J p, so τ = Jᵀ Λ (a - J p) + M p + h: one
+Pinocchio pass (CRBA, which also places the joints and fills their Jacobians), one RNEA for h,
+two LAPACK Cholesky solves (M, then the damped J M⁻¹ Jᵀ), all in preallocated buffers.
 """
 
 from __future__ import annotations
@@ -19,26 +23,24 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
+from scipy.linalg import lapack
 
-from ..errors import SpecError, SpecTypeError
+from ..errors import MjkdlError, SimulationError, SpecError, SpecTypeError
 from ..robot import Robot
 from ..spec import CtrlMode
 from ..validate import flag
 from .cartesian import _number, _vector
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-_all_terms = pin.computeAllTerms
+_WORLD = pin.Convention.WORLD
+_crba = pin.crba
 _frame_placement = pin.updateFramePlacement
 _frame_jacobian = pin.getFrameJacobian
 _log3 = pin.log3
-_solve, _inv, _trace = np.linalg.solve, np.linalg.inv, np.trace
-
-
-def _damped_inverse(A: np.ndarray) -> np.ndarray:
-    """(A + δI)⁻¹ of a symmetric positive semi-definite A, δ a tiny share of its trace."""
-    damped = A + np.diag(np.full(len(A), _DAMPING * _trace(A) / len(A)))
-    return _inv(damped)
-
+_posv = lapack.dposv  # Cholesky solve of a symmetric positive definite system, in place
+_subtract, _multiply, _dot, _vdot = np.subtract, np.multiply, np.dot, np.vdot
+_add, _sum = np.add, np.add.reduce
+_isfinite, _hypot = math.isfinite, math.hypot  # on Python floats: half a NumPy dot
 
 # J M⁻¹ Jᵀ is inverted with this fraction of its mean eigenvalue added to the diagonal, so Λ
 # stays bounded at a singularity (robosuite takes a pseudo-inverse: 8x the cost here).
@@ -81,7 +83,22 @@ class OperationalSpaceController:
             self._posture = np.clip(robot.jnt_pos_msr, limits[:, 0], limits[:, 1])
         else:
             self._posture = _vector(posture, n, "posture")
-        self._error = np.zeros(6)
+        # Rows: the pose error e, J q̇ and J (q_0 - q). Both right-hand sides of the task
+        # force, b = kp e - kd J q̇ - J p with p = kp_null (q_0 - q) - kd_null q̇, are
+        # weighted sums of these rows (`_gains`); decoupled keeps J p apart (second row).
+        self._rows = np.zeros((3, 6))
+        self._error = self._rows[0]
+        zero, kd0, kp0 = np.zeros(6), np.full(6, self._kd_null), np.full(6, self._kp_null)
+        if self._decoupled:  # kp e - kd J q̇ and -J p
+            gains = [[self._kp, -self._kd, zero], [zero, kd0, -kp0]]
+        else:
+            gains = [[self._kp, kd0 - self._kd, -kp0]]
+        self._gains = np.array(gains)
+        self._weighted = np.zeros_like(self._gains)
+        self._rhs = np.zeros((len(gains), 6))
+        self._lam_inv = np.zeros((6, 6))  # J M⁻¹ Jᵀ, then damped
+        self._blocks = np.zeros((6, 6))  # its two diagonal 3×3 blocks, damped (decoupled)
+        self._rot = np.zeros((3, 3))
         self._bind()
 
     @property
@@ -105,67 +122,102 @@ class OperationalSpaceController:
 
     def torques(self, target: pin.SE3) -> np.ndarray:
         """Joint torques toward `target` at the state of the last `robot.update()`; gravity
-        and the other bias forces included."""
+        and the other bias forces included. A new array each call."""
         if target.__class__ is not pin.SE3:
             raise SpecTypeError(f"target must be a pinocchio.SE3, got {target!r}")
-        robot, model, data = self._robot, self._model, self._data
-        self._current()
-        q_all, v_all = robot.q, robot.v
-        arm = self._arm
-        # One pass for M (upper triangle), the Jacobians and the kinematics.
-        _all_terms(model, data, q_all, v_all)
-        pose = _frame_placement(model, data, self._frame)
-        J = _frame_jacobian(model, data, self._frame, _LWA)[:, arm]
-        q, qd = q_all[arm], v_all[arm]
-        e = self._error
-        np.subtract(target.translation, pose.translation, out=e[:3])
-        e[3:] = _log3(target.rotation @ pose.rotation.T)
-        if not math.isfinite(e.dot(e)):
-            raise SpecError(f"target must be finite, got {target}")
-        accel = self._kp * e - self._kd * (J @ qd)
-        M = self._symmetric(data.M[self._block])
-        jm = _solve(M, J.T).T  # J M⁻¹ (M is symmetric)
-        inertia_inv = jm @ J.T
-        inertia = _damped_inverse(inertia_inv)  # Λ = (J M⁻¹ Jᵀ)⁻¹
+        if self._robot.model is not self._model:
+            self._bind()  # the scene was rebuilt: the model may have changed
+        model, data, frame = self._model, self._data, self._frame
+        # One pass for M (the Python binding fills both triangles) and, in the WORLD
+        # convention, the joint placements and Jacobians the frame's pose and J read.
+        M, J = self._M, self._J
+        M[...] = _crba(model, data, self._q_all, _WORLD)[self._m_block]
+        pose = _frame_placement(model, data, frame)
+        J[...] = _frame_jacobian(model, data, frame, _LWA)[self._j_block]
+        rows = self._rows
+        _subtract(target.translation, pose.translation, out=self._error_pos)
+        _dot(target.rotation, pose.rotation.T, out=self._rot)
+        self._error_rot[...] = _log3(self._rot)
+        state = self._state  # q̇, q_0 - q
+        state[0] = self._qd
+        _subtract(self._posture, self._q, out=self._offset)
+        _dot(state, J.T, out=self._velocity_rows)
+        _multiply(self._gains, rows, out=self._weighted)
+        rhs = _sum(self._weighted, axis=1, out=self._rhs)
+        tau = _dot(M, _dot(self._null_gains, state, out=self._p), out=self._tau)  # M p
+        # Λ⁻¹ = J M⁻¹ Jᵀ: M's Cholesky factor overwrites M, M⁻¹ Jᵀ overwrites a copy of Jᵀ
+        # (M is symmetric, so its C-ordered buffer is also its Fortran-ordered transpose).
+        jm = self._jm
+        jm[...] = J
+        if _posv(M.T, jm.T, overwrite_a=1, overwrite_b=1)[2]:
+            raise self._not_positive_definite("the arm's mass matrix M", "links without mass?")
+        lam_inv = _dot(jm, J.T, out=self._lam_inv)
         if self._decoupled:
-            force = np.concatenate(
-                [
-                    _damped_inverse(inertia_inv[:3, :3]) @ accel[:3],
-                    _damped_inverse(inertia_inv[3:, 3:]) @ accel[3:],
-                ]
-            )
-        else:
-            force = inertia @ accel
-        posture = M @ (self._kp_null * (self._posture - q) - self._kd_null * qd)
-        # Jᵀ F + Nᵀ p with Nᵀ = I - Jᵀ Λ J M⁻¹, without forming the n×n projector.
-        force -= inertia @ (jm @ posture)
-        tau = J.T @ force
-        tau += posture
-        tau += robot.nonlinear_effects()  # MuJoCo's qfrc_bias (gravcomp accounted for)
+            # Position and orientation blocks inverted apart for the task force; the
+            # null-space term keeps the whole Λ.
+            blocks = self._blocks
+            blocks[:3, :3] = lam_inv[:3, :3]
+            blocks[3:, 3:] = lam_inv[3:, 3:]
+            diag = self._blocks_diag
+            diag[:3] += _vdot(jm[:3], J[:3]) * (_DAMPING / 3)  # traces of the blocks
+            diag[3:] += _vdot(jm[3:], J[3:]) * (_DAMPING / 3)
+            if _posv(blocks.T, rhs[0], overwrite_a=1, overwrite_b=1)[2]:
+                raise self._not_positive_definite("J M⁻¹ Jᵀ", "a TCP no joint moves?")
+        self._lam_inv_diag += _vdot(jm, J) * (_DAMPING / 6)  # tr(J M⁻¹ Jᵀ)
+        if _posv(lam_inv.T, rhs[-1], overwrite_a=1, overwrite_b=1)[2]:
+            raise self._not_positive_definite("J M⁻¹ Jᵀ", "a TCP no joint moves?")
+        force = _sum(rhs, axis=0, out=self._force) if self._decoupled else rhs[0]
+        # τ = Jᵀ F + Nᵀ M p + h = Jᵀ Λ (a - J p) + M p + h  (J M⁻¹ M p = J p).
+        tau += _dot(force, J, out=self._jf)
+        tau = _add(tau, self._robot.nonlinear_effects())  # MuJoCo's qfrc_bias (gravcomp out)
+        if not _isfinite(_hypot(*tau.tolist())):  # a target or a state that is not finite
+            raise self._not_finite(target)
         return tau
 
-    def _symmetric(self, upper: np.ndarray) -> np.ndarray:
-        """The symmetric matrix whose upper triangle `upper` holds (Pinocchio's CRBA)."""
-        out = upper.copy()
-        out[self._lower_idx] = out.T[self._lower_idx]
-        return out
+    def _not_finite(self, target: pin.SE3) -> MjkdlError:
+        """The error for torques that are not finite: the target's, else the state's."""
+        if not (np.isfinite(target.translation).all() and np.isfinite(target.rotation).all()):
+            return SpecError(f"target must be finite, got {target}")
+        robot = self._robot
+        return SimulationError(
+            f"OperationalSpaceController: the torques at the measured state are not finite "
+            f"(q = {robot.jnt_pos_msr.tolist()}, q̇ = {robot.jnt_vel_msr.tolist()}); has the "
+            "simulation diverged?",
+            robot.last_update_time,
+            {},
+        )
 
-    def _current(self) -> None:
-        """A fresh Pinocchio Data after the scene was rebuilt (the model may have changed)."""
-        if self._robot.model is not self._model:
-            self._bind()
+    def _not_positive_definite(self, what: str, hint: str) -> SpecError:
+        return SpecError(
+            f"OperationalSpaceController: {what} is not positive definite at the measured "
+            f"q = {self._robot.jnt_pos_msr.tolist()} ({hint})"
+        )
 
     def _bind(self) -> None:
+        """Index arrays and buffers for `robot`'s current Pinocchio model."""
         robot = self._robot
-        self._model = robot.model
-        self._data = self._model.createData()
+        model = robot.model
+        self._model = model
+        self._data = model.createData()
         self._frame = robot.tcp_frame_id
-        self._arm = robot.arm_v
-        # The arm's block of M: a slice pair, or an open mesh when the arm is not contiguous.
-        arm = self._arm
-        self._block = (arm, arm) if isinstance(arm, slice) else np.ix_(arm, arm)
-        self._n = robot.n_joints
-        self._lower_idx = np.tril_indices(self._n, -1)
+        n = robot.n_joints
+        arm = robot.arm_v
+        # The arm's block of M and columns of J: slices, or an open mesh (a copy each call)
+        # when the arm is not contiguous in v.
+        self._m_block = (arm, arm) if isinstance(arm, slice) else np.ix_(arm, arm)
+        self._j_block = (slice(None), arm)
+        # Live read-only views of the robot's state, valid until the scene is rebuilt.
+        self._q_all, self._q, self._qd = robot.q, robot.jnt_pos_msr, robot.jnt_vel_msr
+        self._M, self._J, self._jm = np.zeros((n, n)), np.zeros((6, n)), np.zeros((6, n))
+        self._state = np.zeros((2, n))
+        self._offset = self._state[1]
+        self._null_gains = np.array([-self._kd_null, self._kp_null])  # p from the state rows
+        self._p, self._tau, self._jf = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._error_pos, self._error_rot = self._error[:3], self._error[3:]
+        self._velocity_rows = self._rows[1:]
+        self._lam_inv_diag = self._lam_inv.reshape(-1)[::7]
+        self._blocks_diag = self._blocks.reshape(-1)[::7]
+        self._force = np.zeros(6)
 
     def command(self, target: pin.SE3) -> np.ndarray:
         """Write `torques(target)` to `jnt_trq_cmd` (TORQUE mode; with the robot's
