@@ -94,6 +94,14 @@ def test_planners_are_chosen_by_name(panda, name: str) -> None:
     assert np.abs(traj.positions[-1] - q_b).max() < 1e-12
 
 
+def test_every_listed_planner_is_one_of_ompls() -> None:
+    from ompl import geometric as og
+
+    from mjkdl.plan import PLANNERS
+
+    assert [name for name in PLANNERS if not hasattr(og, name)] == []
+
+
 def test_plan_cartesian_follows_a_straight_line(panda) -> None:
     _env, robot, _q_a, _ = panda
     target = pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + np.array([0.0, 0.0, -0.12]))
