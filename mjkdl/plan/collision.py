@@ -68,7 +68,6 @@ class CollisionChecker:
             model_id(model, mujoco.mjtObj.mjOBJ_JOINT, "joint", j, "the robot")
             for j in self._robot.joint_names
         ]
-        self._joints = np.array(joints)
         self._qadr = np.array([model.jnt_qposadr[j] for j in joints])
         if len(joints) > _MAX_GROUPS:
             raise SpecError(
@@ -118,7 +117,6 @@ class CollisionChecker:
         model.geom_contype[static] = 0
         model.geom_conaffinity[static] = every
         self._arm_body = moving
-        self._body_group = group
 
     def carry(self, body: str | None) -> None:
         """Move free body `body` with the tip from now on (None: stop carrying)."""
@@ -207,25 +205,6 @@ class CollisionChecker:
             return math.inf
         counted = self._counted()
         return float(data.contact.dist[counted].min()) if len(counted) else math.inf
-
-    def motion_radii(self, q: np.ndarray | Sequence[float]) -> np.ndarray:
-        """Per arm joint, a bound (m per rad; 1 for a slide joint) on how far a point of
-        anything the joint moves lies from its anchor, valid at every configuration: a motion
-        by dq moves no point of the arm (or a carried body) more than `radii @ |dq|`,
-        relative to the scene and to the arm's other links. Measured with the arm at `q`."""
-        self._place(q)
-        model, data = self._model, self._data
-        assert model is not None
-        anchors = data.xanchor[self._joints]
-        # Consecutive anchors sit on one rigid link: their distances hold at any q.
-        chain = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(anchors, axis=0), axis=1))])
-        geoms = np.flatnonzero(self._arm_body[model.geom_bodyid] & self._colliding)
-        group = self._body_group[model.geom_bodyid[geoms]]
-        own = np.linalg.norm(data.geom_xpos[geoms] - anchors[group], axis=1)
-        far = chain[group] + own + model.geom_rbound[geoms]
-        radii = np.array([(far - chain[j])[group >= j].max(initial=0.0) for j in range(len(chain))])
-        radii[model.jnt_type[self._joints] == mujoco.mjtJoint.mjJNT_SLIDE] = 1.0
-        return radii
 
     def contacts(self, q: np.ndarray | Sequence[float]) -> list[tuple[str, str, float]]:
         """The pairs of bodies closer than `reach` at `q`, nearest first: (body, body, m)."""

@@ -4,9 +4,8 @@
 joint vector or a TCP pose with one of OMPL's geometric planners, every state checked by a
 `CollisionChecker` (MuJoCo's collision detection with `margin` clearance) and every edge at
 `resolution` radians. The path is shortened with OMPL's simplifier, timed with toppra under
-velocity and acceleration limits, and the timed trajectory is checked once more, all along
-(the spline through the waypoints may cut a corner): each checked state's clearance bounds how
-far the arm can move before the next check must come. `plan_cartesian(pose)`
+velocity and acceleration limits, and the timed trajectory is checked once more, finely next
+to obstacles (the spline through the waypoints may cut a corner). `plan_cartesian(pose)`
 follows a straight TCP line instead, through IK at every `step`. docs/motion.md has the
 details and the figures.
 """
@@ -71,13 +70,10 @@ ESCAPE = 0.2
 # in POSITION mode, the arm strays from it by a fraction of a millimetre (the benchmark once
 # measured 4.90 mm executed on a trajectory planned at 5 mm).
 TRACKING = 0.001
-# The timed trajectory is checked with distances measured up to WATCH (m): each checked state
-# clears every state within `clearance - margin` of motion (bounded through the joints'
-# `motion_radii`), so the next check goes there; none is closer than the margin in between.
-WATCH = 0.05
-# Within ESCAPE of the start and goal (which may sit at the margin) the checks advance by at
-# least this much motion (m).
-MIN_ADVANCE = 0.0005
+# The timed trajectory is checked every CHECK_STEP (rad, any joint), and this many times more
+# finely next to obstacles: finer than the search's edges, which are only proposals.
+CHECK_STEP = 0.05
+FINE = 4
 # OMPL's cheap simplification passes (simplifyMax shortens paths ~25% at 5x the cost).
 SIMPLIFY = ("reduceVertices", "collapseCloseVertices")
 # Joints without position limits are planned within this range (rad).
@@ -95,7 +91,7 @@ class MotionPlanner:
     model's, else the datasheet's for the Franka Panda and Kinova Gen3 (`DATASHEET_LIMITS`).
     `allowed_contacts`: pairs of body names whose contacts do not count. `resolution`: the
     joint-space distance (rad) between two checks along a search edge (the timed
-    trajectory is checked continuously: see `_trajectory_ok`). `padding` (m): the search
+    trajectory is checked every `CHECK_STEP`, finer next to obstacles). `padding` (m): the search
     keeps `margin + padding` clear where it can (away from the start and goal), so the motion
     between checked states and the timed spline keep `margin`. `ik_attempts`: seeds tried
     for a pose goal, drawn from `seed` (OMPL's own sampling is seeded process-wide:
@@ -137,10 +133,6 @@ class MotionPlanner:
             self._margin,
             allowed_contacts,
             reach=self._margin + self._padding,
-        )
-        # The final check measures farther: a free state clears a long stretch at once.
-        self._watch = CollisionChecker(
-            robot, self._margin, allowed_contacts, reach=max(WATCH, self._margin + TRACKING)
         )
         self._rng = np.random.default_rng(seed)
         limits = robot.joint_limits
@@ -266,9 +258,8 @@ class MotionPlanner:
         """
         budget = _number(timeout, "timeout", positive=True)
         began = time.perf_counter()
-        for checker in (self._checker, self._watch):
-            checker.sync()
-            checker.carry(carry)
+        self._checker.sync()
+        self._checker.carry(carry)
         try:
             q0 = self._start(start)
             q1 = self._goal(goal, q0)
@@ -287,7 +278,6 @@ class MotionPlanner:
         finally:
             if carry is not None:
                 self._checker.carry(None)
-                self._watch.carry(None)
 
     def plan_cartesian(
         self,
@@ -310,9 +300,8 @@ class MotionPlanner:
             raise SpecError(f"plan_cartesian: pose must be finite, got {pose}")
         step = _number(step, "step", positive=True)
         jump = _number(max_joint_step, "max_joint_step", positive=True)
-        for checker in (self._checker, self._watch):
-            checker.sync()
-            checker.carry(carry)
+        self._checker.sync()
+        self._checker.carry(carry)
         try:
             q = self._start(start)
             begin = self._robot.fk_frame(q)
@@ -353,7 +342,6 @@ class MotionPlanner:
         finally:
             if carry is not None:
                 self._checker.carry(None)
-                self._watch.carry(None)
 
     # ------------------------------------------------------------------ steps
 
@@ -513,37 +501,42 @@ class MotionPlanner:
         return None
 
     def _trajectory_ok(self, trajectory: JointTrajectory) -> bool:
-        """Whether the whole timed trajectory keeps the margin (and `TRACKING` more beyond
-        `ESCAPE` of its ends, at the checked states). Conservative advancement: a state whose
-        clearance is d clears every state within d - margin of motion, bounded per knot
-        interval by the joints' `motion_radii` times their largest speed in it; the next
-        check goes where that bound is used up."""
-        margin, watch = self._margin, self._watch
-        reach = watch.reach
-        positions = trajectory.positions
-        radii = watch.motion_radii(positions[0])
-        c = trajectory._coeffs  # per interval: cubic coefficients in s in [0, 1]
-        speed = np.abs(c[:, 1]) + 2.0 * np.abs(c[:, 2]) + 3.0 * np.abs(c[:, 3])
-        # Motion bound (m) at each knot, from the start: a coordinate along the trajectory.
-        along = np.concatenate([[0.0], np.cumsum(speed @ radii)])
-        total = float(along[-1])
-        ends = positions[[0, -1]]
-        at = 0.0
-        while True:
-            i = min(int(np.searchsorted(along, at, side="right")) - 1, len(c) - 1)
-            span = along[i + 1] - along[i]
-            s = min(1.0, (at - along[i]) / span) if span > 0 else 1.0
-            ci = c[i]
-            q = ci[0] + s * (ci[1] + s * (ci[2] + s * ci[3]))
-            self.checks += 1
-            d = watch.clearance(q)
-            escape = float(np.abs(ends - q).max(axis=1).min()) < ESCAPE
-            if d < (margin if escape else margin + TRACKING):
+        """Whether the trajectory keeps the margin (+ `TRACKING` beyond `ESCAPE` of its
+        ends): checked every `CHECK_STEP` (rad, any joint) and, on both sides of a state closer
+        than `margin + padding` to something, every `FINE`th of it."""
+        fine = CHECK_STEP / FINE
+        times, positions = trajectory.times, trajectory.positions
+        # A time grid whose steps move no joint more than `fine`.
+        splits = np.maximum(1, np.ceil(np.abs(np.diff(positions, axis=0)).max(axis=1) / fine))
+        counts = splits.astype(int)
+        start = np.repeat(times[:-1], counts)
+        frac = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        grid = np.append(start + np.repeat(np.diff(times) / splits, counts) * frac, times[-1])
+        q = trajectory.positions_at(grid)
+        travelled = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(q, axis=0)).max(axis=1))])
+        marks = np.floor(travelled / CHECK_STEP)
+        coarse = np.flatnonzero(np.diff(marks, prepend=-1.0) > 0).tolist()
+        if coarse[-1] != len(grid) - 1:
+            coarse.append(len(grid) - 1)
+        clearance, reach = self._checker.clearance, self._checker.reach
+        # Away from the start and goal (where the arm is slow) the executed arm strays from
+        # the plan: it must keep TRACKING more than the margin there.
+        ends = np.minimum(np.abs(q - q[0]).max(axis=1), np.abs(q - q[-1]).max(axis=1))
+        need = np.where(ends < ESCAPE, self._margin, self._margin + TRACKING).tolist()
+        near = []
+        for k in coarse:
+            d = clearance(q[k])
+            if d < need[k]:
                 return False
-            if at >= total:
-                return True
-            step = min(d, reach) - margin
-            at = min(total, at + (max(step, MIN_ADVANCE) if escape else step))
+            near.append(d < reach)
+        self.checks += len(coarse)
+        for j in range(len(coarse) - 1):
+            if near[j] or near[j + 1]:
+                between = range(coarse[j] + 1, coarse[j + 1])
+                self.checks += len(between)
+                if any(clearance(q[k]) < need[k] for k in between):
+                    return False
+        return True
 
 
 def _subdivide(points: np.ndarray) -> np.ndarray:
