@@ -23,14 +23,14 @@ pyroboplan (the peer the issue names), where it imports, plans the same queries 
 run: its RRTConnect (`rrt_connect`, `bidirectional_rrt`), the same timeout, its own collision
 checking (Pinocchio + coal) with the same 5 mm as its `collision_distance_padding`, checking
 segments every 0.1 rad like our search. Its models are built from ours for both robots: our
-Pinocchio model with the fingers locked where they are, and every collision geom MuJoCo uses
+Pinocchio model with the fingers held where they are, and every collision geom MuJoCo uses
 (meshes as coal convex hulls of MuJoCo's mesh vertices — MuJoCo collides meshes as their
 convex hulls —, boxes, the floor as a half-space) with the pairs MuJoCo's filters leave
 (contype/conaffinity, parent/child, <exclude>s, nothing between two parts that stay fixed
 relative to each other). The same geometry and the same pairs: only the planner and the
 checker differ. Unlimited joints (the Gen3's) are sampled within [-π, π], where the queries
-are. pyroboplan is not a dependency: `pip install --no-deps pyroboplan==1.3.1 meshcat`
-(benchmarks/README.md says why).
+are. pyroboplan is not a dependency: `pip install --no-deps pyroboplan==1.3.1`, then
+`pip install meshcat` (benchmarks/README.md says why).
 
     python benchmarks/planning.py                      # a few minutes
     python benchmarks/planning.py --queries 10 --execute 3
