@@ -17,8 +17,18 @@ Then, in the same process:
     mode) and the measured arm's clearance to everything is taken at every physics step: the
     smallest, and how many trajectories came closer than the margin.
 
-pyroboplan (the peer the issue names) is not run: its wheel pins pin==4.0.0 and pulls drake,
-which would replace this environment's Pinocchio.
+pyroboplan (the peer the issue names), where it imports, plans the same queries in the same
+run: its RRTConnect (`rrt_connect`, `bidirectional_rrt`), the same timeout, its own collision
+checking (Pinocchio + coal) with the same 5 mm as its `collision_distance_padding`, checking
+segments every 0.1 rad like our search. Its models are built from ours for both robots: our
+Pinocchio model with the fingers held where they are, and every collision geom MuJoCo uses
+(meshes as coal convex hulls of MuJoCo's mesh vertices — MuJoCo collides meshes as their
+convex hulls —, boxes, the floor as a half-space) with the pairs MuJoCo's filters leave
+(contype/conaffinity, parent/child, <exclude>s, nothing between two parts that stay fixed
+relative to each other). The same geometry and the same pairs: only the planner and the
+checker differ. Unlimited joints (the Gen3's) are sampled within [-π, π], where the queries
+are. pyroboplan is not a dependency: `pip install --no-deps pyroboplan==1.3.1`, then
+`pip install meshcat` (benchmarks/README.md says why).
 
     python benchmarks/planning.py                      # a few minutes
     python benchmarks/planning.py --queries 10 --execute 3
@@ -27,6 +37,8 @@ which would replace this environment's Pinocchio.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import itertools
 import time
 
@@ -111,6 +123,168 @@ def per_call(fn, count: int) -> float:
     return float(np.median(blocks))
 
 
+def pyroboplan_models(env: mjk.Env, robot: mjk.Robot) -> tuple | str:
+    """pyroboplan's view of the scene: our Pinocchio model (fingers held), a coal geometry
+    model of the geoms MuJoCo collides with MuJoCo's pairs, and the whole model's q at the
+    scene's state (for the fingers); or why not."""
+    try:
+        import coal
+        from pyroboplan.planning.rrt import RRTPlanner  # noqa: F401
+    except ImportError as error:
+        return f"not importable ({error})"
+    m, d = env.model, env.data
+    arm = [m.joint(j).id for j in robot.joint_names]
+    moving = np.zeros(m.nbody, dtype=bool)
+    group = np.full(m.nbody, -1)
+    for k, j in enumerate(arm):
+        root = int(m.jnt_bodyid[j])
+        for b in range(root, m.nbody):
+            if b == root or group[m.body_parentid[b]] >= k:
+                group[b], moving[b] = k, True
+    full = robot.model
+    q_ref = pin.neutral(full)
+    for jid in range(1, full.njoints):
+        q_ref[full.idx_qs[jid]] = d.qpos[m.jnt_qposadr[m.joint(full.names[jid]).id]]
+    geoms = pin.GeometryModel()
+    index = {}
+    for g in range(m.ngeom):
+        if not (m.geom_contype[g] or m.geom_conaffinity[g]):
+            continue
+        shape = _coal_shape(coal, m, g)
+        body = int(m.geom_bodyid[g])
+        if moving[body]:
+            fid = full.getFrameId(m.body(body).name)
+            frame = full.frames[fid]
+            local = pin.SE3(_quat_matrix(m.geom_quat[g]), m.geom_pos[g].copy())
+            obj = pin.GeometryObject(
+                f"g{g}", frame.parentJoint, fid, frame.placement * local, shape
+            )
+        else:
+            world = pin.SE3(d.geom_xmat[g].reshape(3, 3).copy(), d.geom_xpos[g].copy())
+            obj = pin.GeometryObject(f"g{g}", 0, 0, world, shape)
+        index[g] = geoms.addGeometryObject(obj)
+    # The fingers are held where they are: their limits pinned to their position (pyroboplan
+    # samples within the limits). Pinocchio's buildReducedModel needs joint frames ours lacks.
+    model = full.copy()
+    fixed = np.ones(model.nq, dtype=bool)
+    fixed[robot.arm_q] = False
+    low, high = model.lowerPositionLimit, model.upperPositionLimit
+    low[fixed] = high[fixed] = q_ref[fixed]
+    unlimited = ~np.isfinite(high)
+    low[unlimited], high[unlimited] = -np.pi, np.pi
+    model.lowerPositionLimit, model.upperPositionLimit = low, high
+    excluded = set(m.exclude_signature.tolist())
+    weld = m.body_weldid
+    for a, b in itertools.combinations(index, 2):
+        ba, bb = int(m.geom_bodyid[a]), int(m.geom_bodyid[b])
+        if not (moving[ba] or moving[bb]) or (moving[ba] and moving[bb] and group[ba] == group[bb]):
+            continue
+        if not (
+            m.geom_contype[a] & m.geom_conaffinity[b] or m.geom_contype[b] & m.geom_conaffinity[a]
+        ):
+            continue
+        wa, wb = int(weld[ba]), int(weld[bb])
+        parent_a, parent_b = int(weld[m.body_parentid[wa]]), int(weld[m.body_parentid[wb]])
+        if wa == wb or (wa and wb and (wa == parent_b or wb == parent_a)):
+            continue
+        if (min(ba, bb) << 16) + max(ba, bb) in excluded:
+            continue
+        geoms.addCollisionPair(pin.CollisionPair(index[a], index[b]))
+    return model, geoms, q_ref
+
+
+def _coal_shape(coal, m: mujoco.MjModel, g: int) -> object:
+    """The coal shape of MuJoCo geom `g` (a mesh: the convex hull MuJoCo collides)."""
+    size, kind = m.geom_size[g], m.geom_type[g]
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = m.geom_dataid[g]
+        start, count = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+        points = coal.StdVec_Vec3s()
+        points.extend(list(m.mesh_vert[start : start + count].astype(float)))
+        return coal.Convex.convexHull(points, False, None)
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        return coal.Box(*(2.0 * size))
+    if kind == mujoco.mjtGeom.mjGEOM_PLANE:
+        return coal.Halfspace(np.array([0.0, 0.0, 1.0]), 0.0)
+    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return coal.Sphere(size[0])
+    if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        return coal.Capsule(size[0], 2.0 * size[1])
+    if kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
+        return coal.Cylinder(size[0], 2.0 * size[1])
+    raise ValueError(f"geom {g}: type {kind} has no coal shape here")
+
+
+def _whole(q_ref: np.ndarray, arm: np.ndarray) -> np.ndarray:
+    """The whole model's q: the arm's joints first (mjkdl's arm_q), the rest as in q_ref."""
+    q = q_ref.copy()
+    q[: len(arm)] = arm
+    return q
+
+
+def _quat_matrix(quat: np.ndarray) -> np.ndarray:
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, quat)
+    return mat.reshape(3, 3)
+
+
+def run_pyroboplan(
+    models: tuple,
+    configs: list[np.ndarray],
+    timeout: float,
+    margin: float,
+    step_time,
+) -> tuple[list[float], list[float], int]:
+    """pyroboplan's RRTConnect on the consecutive pairs of `configs`: the seconds of each
+    solved query, the same in mj_steps (`step_time()` just before each), failures."""
+    from pyroboplan.planning.rrt import RRTPlanner, RRTPlannerOptions
+
+    model, geoms, q_ref = models
+    options = RRTPlannerOptions(
+        max_step_size=0.1,
+        rrt_connect=True,
+        bidirectional_rrt=True,
+        max_planning_time=timeout,
+        rng_seed=0,
+        collision_distance_padding=margin,
+    )
+    planner = RRTPlanner(model, geoms, options=options)
+    seconds, steps, failures = [], [], 0
+    whole = [_whole(q_ref, q) for q in configs]
+    for start, goal in itertools.pairwise(whole):
+        step = step_time()
+        t0 = time.perf_counter()
+        # It prints its progress, and divides by zero when a sample repeats a node.
+        with contextlib.redirect_stdout(io.StringIO()), np.errstate(invalid="ignore"):
+            path = planner.plan(start, goal)
+        elapsed = time.perf_counter() - t0
+        if not path:
+            failures += 1
+            continue
+        seconds.append(elapsed)
+        steps.append(elapsed / step)
+    return seconds, steps, failures
+
+
+def checker_agreement(planner: MotionPlanner, models: tuple, rng: np.random.Generator) -> float:
+    """The fraction of 300 random configurations on which pyroboplan's checker (coal, same
+    clearance) and ours give the same verdict: that both see the same scene."""
+    from pyroboplan.core.utils import check_collisions_at_state
+
+    model, geoms, q_ref = models
+    data, geom_data = model.createData(), geoms.createData()
+    limits = planner.robot.joint_limits
+    low = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -np.pi)
+    high = np.where(np.isfinite(limits[:, 1]), limits[:, 1], np.pi)
+    same = 0
+    for q in rng.uniform(low, high, (300, len(low))):
+        theirs = not check_collisions_at_state(
+            model, geoms, _whole(q_ref, q), data, geom_data, distance_padding=planner.margin
+        )
+        same += theirs == planner.checker.valid(q)
+    return same / 300
+
+
 def benchmark(name: str, scene, args: argparse.Namespace) -> None:
     env, robot, home = scene()
     robot.ctrl_mode = mjk.CtrlMode.POSITION
@@ -126,12 +300,16 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
     # shared machine's speed drifts by 2x and more within minutes.
     scratch = mujoco.MjData(env.model)
     mujoco.mj_copyData(scratch, env.model, env.data)
-    total, search, steps, trajectories, failures = [], [], [], [], []
-    for start, goal in itertools.pairwise(configs):
+
+    def step_time() -> float:
         t0 = time.perf_counter()
         for _ in range(20):
             mujoco.mj_step(env.model, scratch)
-        step_now = (time.perf_counter() - t0) / 20
+        return (time.perf_counter() - t0) / 20
+
+    total, search, steps, trajectories, failures = [], [], [], [], []
+    for start, goal in itertools.pairwise(configs):
+        step_now = step_time()
         t0 = time.perf_counter()
         try:
             traj = planner.plan(goal, start=start, timeout=args.timeout)
@@ -142,6 +320,12 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
         steps.append(total[-1] / step_now)
         search.append(planner.last_stats["search"] + planner.last_stats["simplify"])
         trajectories.append(traj)
+
+    # pyroboplan on the same queries, and how often its checker agrees with ours.
+    models = pyroboplan_models(env, robot)
+    if not isinstance(models, str):
+        theirs = run_pyroboplan(models, configs, args.timeout, planner.margin, step_time)
+        agree = checker_agreement(planner, models, rng)
 
     # One validity check against one raw mj_step (on a scratch copy of the same state).
     samples = rng.uniform(-1.0, 1.0, (1000, robot.n_joints)) * 0.5 + np.array(home)
@@ -191,10 +375,27 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
         f"  validity check:        {check * 1e6:.1f} us = {check / step:.2f} x mj_step "
         f"({step * 1e6:.1f} us)"
     )
-    print(
-        f"  executed:              {len(closest)} trajectories, closest approach "
-        f"{min(closest) * 1000:.2f} mm, {below} closer than the margin"
-    )
+    if closest:
+        print(
+            f"  executed:              {len(closest)} trajectories, closest approach "
+            f"{min(closest) * 1000:.2f} mm, {below} closer than the margin"
+        )
+    if isinstance(models, str):
+        print(f"  pyroboplan:            {models}; skipped")
+    else:
+        seconds, their_steps, their_failures = theirs
+        ms = np.array(seconds) * 1e3
+        print(
+            f"  pyroboplan RRTConnect: solved {len(seconds) / n * 100:.1f} % "
+            f"({their_failures} failed), median {np.median(ms):.1f} ms, p90 "
+            f"{np.percentile(ms, 90):.1f} ms; median {np.median(their_steps):.0f} mj_steps "
+            f"(its checker agrees with ours on {agree * 100:.1f} % of random states)"
+        )
+        print(
+            f"  speed ratio:           pyroboplan's median / ours = "
+            f"{np.median(ms) / np.median(ms_total):.1f} (ms), "
+            f"{np.median(their_steps) / np.median(steps):.1f} (mj_steps)"
+        )
     env.close()
 
 

@@ -17,7 +17,13 @@ from conftest import (
 )
 
 import mjkdl as mjk
-from mjkdl.plan import CollisionChecker, MotionPlanner, PlanningError, TrajectoryFollower
+from mjkdl.plan import (
+    CollisionChecker,
+    JointTrajectory,
+    MotionPlanner,
+    PlanningError,
+    TrajectoryFollower,
+)
 
 ABOVE_A = pin.SE3(np.array(DOWN), np.array([0.45, 0.35, SHELF_TOP + 0.15]))
 ABOVE_B = pin.SE3(np.array(DOWN), np.array([0.45, -0.35, SHELF_TOP + 0.15]))
@@ -92,6 +98,48 @@ def test_planners_are_chosen_by_name(panda, name: str) -> None:
     _env, robot, _q_a, q_b = panda
     traj = MotionPlanner(robot, planner=name).plan(q_b, timeout=5.0)
     assert np.abs(traj.positions[-1] - q_b).max() < 1e-12
+
+
+def test_every_listed_planner_is_one_of_ompls() -> None:
+    from ompl import geometric as og
+
+    from mjkdl.plan import PLANNERS
+
+    assert [name for name in PLANNERS if not hasattr(og, name)] == []
+
+
+def test_the_timed_trajectory_keeps_more_than_the_margin_away_from_its_ends(
+    panda, monkeypatch
+) -> None:
+    # The followed arm strays from the plan: mid-way, the check asks for the margin plus
+    # TRACKING (at the ends, where the arm is slow, the margin alone).
+    import mjkdl.plan.planner as planner_module
+
+    _env, robot, q_a, q_b = panda
+    planner = MotionPlanner(robot)
+    clearance = planner.checker.clearance
+
+    def line(s: float) -> np.ndarray:
+        return q_a + s * (q_b - q_a)
+
+    # Bisect for the point of the straight line to the wall that is 5.5 mm from it.
+    hi = next(s for s in np.linspace(0.1, 1.0, 100) if clearance(line(s)) < planner.margin)
+    lo = 0.1
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if clearance(line(mid)) >= 0.0055 else (lo, mid)
+    near = line(lo)
+    assert clearance(near) == pytest.approx(0.0055, abs=1e-4)
+    # There and back along the line, at rest at the turn (the path never goes beyond `near`),
+    # 0.25 rad each way: the turn is one of the states checked every 0.05 rad.
+    back = near - 0.250001 * (q_b - q_a) / np.abs(q_b - q_a).max()
+    zeros = np.zeros((3, 7))
+    there_and_back = JointTrajectory(
+        np.array([0.0, 1.0, 2.0]), np.array([back, near, back]), zeros, zeros
+    )
+    assert not planner._trajectory_ok(there_and_back)
+    monkeypatch.setattr(planner_module, "TRACKING", 0.0)
+    assert planner._trajectory_ok(there_and_back)
 
 
 def test_plan_cartesian_follows_a_straight_line(panda) -> None:

@@ -72,6 +72,30 @@ def test_toppra_timing_passes_the_waypoints_within_the_limits() -> None:
     assert np.abs(numeric - np.array([traj.sample(x)[1] for x in t])).max() < 1e-4
 
 
+def test_knots_match_toppras_own_const_accel_parametrizer() -> None:
+    # The knots are evaluated for all times at once; toppra's ParametrizeConstAccel gives the
+    # same trajectory one time at a time.
+    import toppra
+    import toppra.algorithm
+
+    rng = np.random.default_rng(2)
+    waypoints = np.cumsum(rng.normal(0.0, 0.5, (6, 7)), axis=0)
+    timing = TimeParametrizer(V, A)
+    traj = timing(waypoints)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(waypoints, axis=0), axis=1))])
+    path = toppra.SplineInterpolator(s, waypoints, bc_type="clamped")
+    count = int(np.clip(s[-1] / 0.05, 30, 100))
+    grid = np.unique(np.concatenate([np.linspace(0.0, s[-1], count), s]))
+    own = toppra.algorithm.TOPPRA(
+        timing._constraints, path, gridpoints=grid, parametrizer="ParametrizeConstAccel"
+    ).compute_trajectory(0.0, 0.0)
+    assert traj.duration == pytest.approx(own.duration, rel=1e-12)
+    inner = traj.times[1:-1]
+    assert np.abs(traj.positions[1:-1] - own(inner)).max() < 1e-9
+    assert np.abs(traj.velocities[1:-1] - own(inner, 1)).max() < 1e-9
+    assert np.abs(traj.accelerations - own(traj.times, 2)).max() < 1e-9
+
+
 def test_a_path_of_one_point_is_a_standstill() -> None:
     traj = TimeParametrizer(V, A)(np.zeros((3, 7)))
     assert traj.duration > 0 and not traj.velocities.any() and not traj.positions.any()

@@ -96,6 +96,10 @@ class CollisionChecker:
         self._masks(self._moving)
         model.geom_margin[self._colliding] = self._reach
         model.geom_gap[:] = 0.0
+        # The midphase prunes a body pair's bounding-volume trees with the bodies' margins,
+        # which the compiler took from the geoms' margins then: they must follow.
+        model.body_margin[:] = 0.0
+        np.maximum.at(model.body_margin, model.geom_bodyid, model.geom_margin)
         self.sync()
 
     def _masks(self, moving: np.ndarray) -> None:
@@ -117,6 +121,18 @@ class CollisionChecker:
         model.geom_contype[static] = 0
         model.geom_conaffinity[static] = every
         self._arm_body = moving
+        # Which geom pairs count, looked up per contact: the original bits collide them, one
+        # moves with the arm, and their bodies are not an allowed pair.
+        bits = self._source
+        counts = (bits.geom_contype[:, None] & bits.geom_conaffinity[None, :]) != 0
+        counts |= counts.T
+        on = moving[model.geom_bodyid]
+        counts &= on[:, None] | on[None, :]
+        body = model.geom_bodyid
+        for a, b in self._allowed:
+            counts[np.ix_(body == a, body == b)] = False
+            counts[np.ix_(body == b, body == a)] = False
+        self._counts = counts
 
     def carry(self, body: str | None) -> None:
         """Move free body `body` with the tip from now on (None: stop carrying)."""
@@ -224,23 +240,11 @@ class CollisionChecker:
     def _counted(self) -> np.ndarray:
         """Indices of the contacts that count: between geoms the simulation collides, one of
         them moving with the arm, and not an allowed pair."""
-        model, data = self._model, self._data
-        assert model is not None
-        con = data.contact
-        g1, g2 = con.geom1[: data.ncon], con.geom2[: data.ncon]
-        bits = self._source
-        collide = ((bits.geom_contype[g1] & bits.geom_conaffinity[g2]) != 0) | (
-            (bits.geom_contype[g2] & bits.geom_conaffinity[g1]) != 0
-        )
-        b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
+        data = self._data
+        con, n = data.contact, data.ncon
         # Some pair functions (box-box, multi-point mesh contacts) report points beyond the
         # margin next to the one within it.
-        keep = collide & (self._arm_body[b1] | self._arm_body[b2]) & (con.dist < self._reach)
-        if self._allowed:
-            lo, hi = np.minimum(b1, b2), np.maximum(b1, b2)
-            keep &= np.array(
-                [(x, y) not in self._allowed for x, y in zip(lo, hi, strict=True)], dtype=bool
-            )
+        keep = self._counts[con.geom1[:n], con.geom2[:n]] & (con.dist[:n] < self._reach)
         return np.flatnonzero(keep)
 
 
