@@ -44,6 +44,7 @@ import time
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 from scenes import HOME, TOOL, tabletop_spec
 
 import mjkdl as mjk
