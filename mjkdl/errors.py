@@ -47,6 +47,22 @@ class PlanningError(MjkdlError, RuntimeError):
     """No motion was found: a start or goal in collision, an unreachable pose, a timeout."""
 
 
+class InfeasibleError(PlanningError):
+    """The query has no solution, found out before the search's timeout: a start or goal in
+    collision or outside the bounds, a pose no collision-free IK solution reaches, a goal in a
+    pocket of free space it cannot leave. `reason` names which; `fraction` is how much of a
+    Cartesian line was achieved (None for other queries)."""
+
+    def __init__(self, message: str, reason: str = "", fraction: float | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason
+        self.fraction = fraction
+
+
+class PlanningTimeout(PlanningError):
+    """The search used its whole time without finding a path; one may still exist."""
+
+
 def unknown_name(kind: str, name: str, known: Iterable[str], where: str = "") -> UnknownNameError:
     """A lookup error for `name` that lists the closest known names."""
     known = [k for k in known if k]

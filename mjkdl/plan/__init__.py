@@ -1,18 +1,25 @@
 """Motion generation: collision-free planning (OMPL), timed trajectories (toppra), execution."""
 
-from ..errors import PlanningError
+from ..errors import InfeasibleError, PlanningError, PlanningTimeout
+from .acm import AllowedCollisionMatrix, acm_cache_dir
 from .collision import CollisionChecker
 from .follower import TrajectoryFollower
-from .planner import DATASHEET_LIMITS, PLANNERS, MotionPlanner
+from .limits import DATASHEETS, Datasheet
+from .planner import PLANNERS, MotionPlanner
 from .trajectory import JointTrajectory, TimeParametrizer
 
 __all__ = [
-    "DATASHEET_LIMITS",
+    "DATASHEETS",
     "PLANNERS",
+    "AllowedCollisionMatrix",
     "CollisionChecker",
+    "Datasheet",
+    "InfeasibleError",
     "JointTrajectory",
     "MotionPlanner",
     "PlanningError",
+    "PlanningTimeout",
     "TimeParametrizer",
     "TrajectoryFollower",
+    "acm_cache_dir",
 ]

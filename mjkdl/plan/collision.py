@@ -85,12 +85,7 @@ class CollisionChecker:
         for k, j in enumerate(joints):
             self._groups[_subtree(model, int(model.jnt_bodyid[j]))] = k
         self._colliding = (source.geom_contype != 0) | (source.geom_conaffinity != 0)
-        self._allowed = set()
-        for i, (a, b) in enumerate(self._allowed_names):
-            where = f"allowed_contacts[{i}]"
-            ia = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", a, where)
-            ib = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", b, where)
-            self._allowed.add((min(ia, ib), max(ia, ib)))
+        self._allowed = self._resolve(self._allowed_names, "allowed_contacts")
         self._carried = -1
         self._carry_qadr = -1
         self._masks(self._moving)
@@ -134,6 +129,23 @@ class CollisionChecker:
             counts[np.ix_(body == b, body == a)] = False
         self._counts = counts
 
+    def _resolve(self, pairs: list[tuple[str, str]], field: str) -> set[tuple[int, int]]:
+        model = self._model
+        out = set()
+        for i, (a, b) in enumerate(pairs):
+            where = f"{field}[{i}]"
+            ia = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", a, where)
+            ib = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", b, where)
+            out.add((min(ia, ib), max(ia, ib)))
+        return out
+
+    def set_allowed(self, allowed_contacts: Sequence[tuple[str, str]]) -> None:
+        """Replace the pairs of body names whose contacts never count."""
+        names = _pair_names(allowed_contacts, "allowed_contacts")
+        self._allowed = self._resolve(names, "allowed_contacts")
+        self._allowed_names = names
+        self._masks(self._arm_body)
+
     def carry(self, body: str | None) -> None:
         """Move free body `body` with the tip from now on (None: stop carrying)."""
         model = self._model
@@ -163,6 +175,10 @@ class CollisionChecker:
             return
         scene_data = self._robot.scene.data
         data = self._data
+        # Fixed bodies and geoms moved in the scene's model since the copy was made.
+        model, source = self._model, self._source
+        for name in ("body_pos", "body_quat", "geom_pos", "geom_quat", "geom_size"):
+            np.copyto(getattr(model, name), getattr(source, name))
         data.qpos[:] = scene_data.qpos
         data.mocap_pos[:] = scene_data.mocap_pos
         data.mocap_quat[:] = scene_data.mocap_quat

@@ -21,30 +21,13 @@ import numpy as np
 import pinocchio as pin
 
 from ..control.cartesian import _number, _vector
-from ..errors import PlanningError, SpecError, SpecTypeError
+from ..errors import InfeasibleError, PlanningError, PlanningTimeout, SpecError, SpecTypeError
 from ..robot import Robot
+from .acm import SAMPLES, AllowedCollisionMatrix, compute_acm
 from .collision import CollisionChecker
+from .limits import DATASHEETS, chain_links, datasheet_limits, find_datasheet
 from .trajectory import JointTrajectory, TimeParametrizer
 
-# Datasheet joint limits of the arms mjkdl's examples use, recognised by their Menagerie body
-# names (the MJCF files carry none). Franka: the FCI documentation's "Limits for Panda";
-# Kinova Gen3 (7 DoF): the user guide's joint speeds and the 8.6 rad/s² ros2_kortex's MoveIt
-# configuration uses.
-DATASHEET_LIMITS: dict[tuple[str, ...], tuple[tuple[float, ...], tuple[float, ...]]] = {
-    ("link1", "link2", "link3", "link4", "link5", "link6", "link7"): (
-        (2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61),
-        (15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0),
-    ),
-    (
-        "shoulder_link",
-        "half_arm_1_link",
-        "half_arm_2_link",
-        "forearm_link",
-        "spherical_wrist_1_link",
-        "spherical_wrist_2_link",
-        "bracelet_link",
-    ): ((1.3963,) * 4 + (1.2218,) * 3, (8.6,) * 7),
-}
 # OMPL's geometric planners selectable by name.
 PLANNERS = (
     "RRTConnect",
@@ -80,6 +63,16 @@ SIMPLIFY = ("reduceVertices", "collapseCloseVertices")
 UNLIMITED_RANGE = 2.0 * math.pi
 # A model velocity limit at or above this stands for none (Pinocchio's inf or largest double).
 _NO_LIMIT = 1e6
+# The pocket test (`MotionPlanner._pocket`): a start or goal from which a small random tree of
+# collision-free motions never gets POCKET_RADIUS (rad, any joint) away in POCKET_TRIES
+# extensions sits in a pocket of free space: the query is infeasible.
+POCKET_RADIUS = 0.25
+POCKET_TRIES = 100
+# The steps of a plan whose seconds `last_stats` holds: the start and goal checks (IK and the
+# pocket test included), the search, OMPL's simplification, the timing, the final check.
+_STEPS = ("ends", "search", "simplify", "timing", "check")
+# Random goal states drawn within a goal tolerance when the exact goal is in collision.
+TOLERANCE_SAMPLES = 50
 
 
 class MotionPlanner:
@@ -88,15 +81,17 @@ class MotionPlanner:
     `margin`: the clearance (m) every geom the arm moves keeps from everything else and from
     the arm's other links. `planner`: the name of an OMPL geometric planner (`PLANNERS`).
     `velocity_limits`, `acceleration_limits`: one positive value per joint; by default the
-    model's, else the datasheet's for the Franka Panda and Kinova Gen3 (`DATASHEET_LIMITS`).
-    `allowed_contacts`: pairs of body names whose contacts do not count. `resolution`: the
+    model's, else the published figures of a known arm (`mjkdl.plan.DATASHEETS`; where the
+    tables say where each comes from, `limits_source`). `allowed_contacts`: pairs of body
+    names whose contacts do not count, on top of the allowed-collision matrix `acm`, sampled
+    on first use (`acm=False`: none; see `mjkdl.plan.acm`). `resolution`: the
     joint-space distance (rad) between two checks along a search edge (the timed
     trajectory is checked every `CHECK_STEP`, finer next to obstacles). `padding` (m): the search
     keeps `margin + padding` clear where it can (away from the start and goal), so the motion
     between checked states and the timed spline keep `margin`. `ik_attempts`: seeds tried
     for a pose goal, drawn from `seed` (OMPL's own sampling is seeded process-wide:
     `ompl.util.RNG.setSeed`). Everything the arm does not move is taken where it is when
-    `plan` starts.
+    `plan` starts: obstacles added, moved or removed between calls are seen.
     """
 
     def __init__(
@@ -112,6 +107,8 @@ class MotionPlanner:
         padding: float = 0.005,
         ik_attempts: int = 20,
         seed: int = 0,
+        acm: bool = True,
+        acm_samples: int = SAMPLES,
     ) -> None:
         if not isinstance(robot, Robot):
             raise SpecTypeError(f"MotionPlanner: robot must be a Robot, got {robot!r}")
@@ -126,36 +123,64 @@ class MotionPlanner:
         if isinstance(ik_attempts, bool) or not isinstance(ik_attempts, int) or ik_attempts < 1:
             raise SpecError(f"ik_attempts must be a positive integer, got {ik_attempts!r}")
         self._ik_attempts = ik_attempts
-        self._vmax, self._amax = self._limits(velocity_limits, acceleration_limits)
-        self._timing = TimeParametrizer(self._vmax, self._amax)
+        self._vmax, self._amax, self.limits_source = self._limits(
+            velocity_limits, acceleration_limits
+        )
+        self._timers: dict[tuple[float, float], TimeParametrizer] = {
+            (1.0, 1.0): TimeParametrizer(self._vmax, self._amax)
+        }
         self._checker = CollisionChecker(
             robot,
             self._margin,
             allowed_contacts,
             reach=self._margin + self._padding,
         )
+        self._allowed_user = list(self._checker._allowed_names)
         self._rng = np.random.default_rng(seed)
         limits = robot.joint_limits
         self._lower = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -UNLIMITED_RANGE)
         self._upper = np.where(np.isfinite(limits[:, 1]), limits[:, 1], UNLIMITED_RANGE)
         self._ends = np.zeros((2, self._n))  # start and goal of the search under way
         self.checks = 0  # validity checks since the planner was made
-        # Seconds the last plan spent searching and simplifying (0 for a straight line).
-        self.last_stats: dict[str, float] = {"search": 0.0, "simplify": 0.0}
+        # Seconds the last plan spent in each step (0 for a step it skipped).
+        self.last_stats: dict[str, float] = dict.fromkeys(_STEPS, 0.0)
         self._unlimited = ~np.isfinite(limits).all(axis=1)
         self._space_info = self._ompl_space(self._lower, self._upper)
+        if not isinstance(acm, bool):
+            raise SpecTypeError(f"acm must be True or False, got {acm!r}")
+        self._acm: AllowedCollisionMatrix | None = None
+        self._acm_version = -1
+        if acm:
+            began = time.perf_counter()
+            sample_low = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -math.pi)
+            sample_high = np.where(np.isfinite(limits[:, 1]), limits[:, 1], math.pi)
+            self._acm = compute_acm(
+                robot, self._margin, sample_low, sample_high, samples=acm_samples, seed=seed
+            )
+            self.acm_seconds = time.perf_counter() - began
+            self._apply_acm()
 
     # ------------------------------------------------------------------ setup
 
+    def _apply_acm(self) -> None:
+        """Hand the matrix's pairs (as edited) and `allowed_contacts` to the checker."""
+        acm = self._acm
+        if acm is None or acm.version == self._acm_version:
+            return
+        self._checker.set_allowed([*self._allowed_user, *acm.pairs])
+        self._acm_version = acm.version
+
     def _limits(
         self, velocity: Sequence[float] | None, acceleration: Sequence[float] | None
-    ) -> tuple[np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, str]:
         n = self._n
-        sheet = _datasheet(self._link_names())
+        names = self._robot.joint_names
+        sheet = find_datasheet(self._robot.scene.model, names)
+        published = datasheet_limits(sheet) if sheet is not None else None
         model = self._robot.model
-        joints = [model.getJointId(name) for name in self._robot.joint_names]
+        joints = [model.getJointId(name) for name in names]
         own = np.array([model.velocityLimit[model.joints[j].idx_v] for j in joints])
-        out = []
+        out, sources = [], []
         for given, field, index in (
             (velocity, "velocity_limits", 0),
             (acceleration, "acceleration_limits", 1),
@@ -166,27 +191,32 @@ class MotionPlanner:
                 if len(bad):
                     i = int(bad[0])
                     raise SpecError(
-                        f"{field}[{i}] (joint {self._robot.joint_names[i]!r}) must be "
-                        f"positive, got {arr[i]:g}"
+                        f"{field}[{i}] (joint {names[i]!r}) must be positive, got {arr[i]:g}"
                     )
                 out.append(arr)
+                sources.append(f"{field} given")
                 continue
             if index == 0 and np.all((own > 0) & (own < _NO_LIMIT)):
                 out.append(own.astype(float))
-            elif sheet is not None:
-                out.append(np.array(sheet[index], dtype=float))
-            else:
-                raise SpecError(
-                    f"{field}: the model has none for joints "
-                    f"{', '.join(self._robot.joint_names)} and they are not a Franka Panda's "
-                    f"or a Kinova Gen3's; pass {field}=[...] ({n} values)"
-                )
-        return out[0], out[1]
+                sources.append("velocity from the model")
+            elif published is not None:
+                if index == 1 and sheet is not None and sheet.acceleration is None:
+                    from .limits import RAMP
 
-    def _link_names(self) -> list[str]:
-        """The bodies the arm's joints turn."""
-        model = self._robot.scene.model
-        return [model.body(model.joint(j).bodyid[0]).name for j in self._robot.joint_names]
+                    out.append(out[0] / RAMP)  # the velocities in use, reached in RAMP s
+                else:
+                    out.append((published.velocity, published.acceleration)[index].copy())
+                sources.append(published.source)
+            else:
+                links, span = chain_links(self._robot.scene.model, names)
+                known = ", ".join(d.arm for d in DATASHEETS)
+                raise SpecError(
+                    f"{field}: the model has none for joints {', '.join(names)} and the arm "
+                    f"(bodies {', '.join(links)}; span {span:.3f} m) is none of the published "
+                    f"ones mjkdl knows ({known}); pass {field}=[...] ({n} values)"
+                )
+        source = "; ".join(dict.fromkeys(sources))
+        return out[0], out[1], source
 
     def _ompl_space(self, lower: np.ndarray, upper: np.ndarray) -> Any:
         """OMPL's space information: joint positions within [lower, upper], our checks."""
@@ -237,41 +267,73 @@ class MotionPlanner:
         """The collision checker the planner uses."""
         return self._checker
 
+    @property
+    def acm(self) -> AllowedCollisionMatrix | None:
+        """The allowed-collision matrix (inspect and edit it; None when built with acm=False)."""
+        return self._acm
+
     def contacts(self, q: Sequence[float]) -> list[tuple[str, str, float]]:
         """Pairs of bodies closer than the margin with the arm at `q` (nearest first)."""
+        self._apply_acm()
         self._checker.sync()
         return self._checker.contacts(_vector(q, self._n, "q"))
 
     def plan(
         self,
-        goal: Sequence[float] | np.ndarray | pin.SE3,
+        goal: Any,
         *,
         start: Sequence[float] | None = None,
         timeout: float = 1.0,
         carry: str | None = None,
+        bounds: tuple[Sequence[float], Sequence[float]] | None = None,
+        goal_tolerance: float = 0.0,
+        position_tolerance: float | None = None,
+        orientation_tolerance: float | None = None,
+        velocity_scaling: float = 1.0,
+        acceleration_scaling: float = 1.0,
     ) -> JointTrajectory:
         """A collision-free, timed trajectory from `start` (default: the measured joint
-        positions) to `goal`, a joint vector or a TCP pose (`pinocchio.SE3`).
+        positions) to `goal`: a joint vector, a TCP pose (`pinocchio.SE3`), or a goal set (a
+        list of either, or a k×n array): the path ends at whichever it reaches.
 
         `timeout` bounds the search (s). `carry`: a free body held by the tool, moved with
-        the tip (it keeps its present pose relative to the tip).
+        the tip. `bounds`: (lower, upper) joint bounds for this call, inside the joint limits.
+        `goal_tolerance` (rad, any joint): a joint goal in collision may be reached at a
+        collision-free state this close to it. `position_tolerance` (m),
+        `orientation_tolerance` (rad): how far from a pose goal the TCP may end.
+        `velocity_scaling`, `acceleration_scaling` in (0, 1]: fractions of the limits.
+
+        Raises `InfeasibleError` (with a `reason`) when the query cannot be solved, before
+        searching: a start or goal in collision or outside the bounds, no collision-free IK
+        solution, or a start or goal in a pocket of free space (`POCKET_RADIUS`); raises
+        `PlanningTimeout` when the search used its time.
         """
         budget = _number(timeout, "timeout", positive=True)
         began = time.perf_counter()
+        self.last_stats = dict.fromkeys(_STEPS, 0.0)
+        timer = self._timer(velocity_scaling, acceleration_scaling)
+        lower, upper = self._bounds(bounds)
+        tolerance = _number(goal_tolerance, "goal_tolerance")
+        pose_tolerance = (
+            _optional(position_tolerance, "position_tolerance"),
+            _optional(orientation_tolerance, "orientation_tolerance"),
+        )
+        self._apply_acm()
         self._checker.sync()
         self._checker.carry(carry)
         try:
-            q0 = self._start(start)
-            q1 = self._goal(goal, q0)
+            q0 = self._start(start, lower, upper)
+            goals = self._goals(goal, q0, lower, upper, tolerance, pose_tolerance)
+            self.last_stats["ends"] = time.perf_counter() - began
             straight = True
             while True:  # a path whose timing cuts into the margin is searched again
-                waypoints = self._search(q0, q1, budget, began, straight)
-                trajectory = self._timed(waypoints)
+                waypoints = self._search(q0, goals, budget, began, straight, lower, upper)
+                trajectory = self._timed(waypoints, timer)
                 if trajectory is not None:
                     return trajectory
                 straight = False
                 if time.perf_counter() - began > budget:
-                    raise PlanningError(
+                    raise PlanningTimeout(
                         f"{self._planner_name}: every path found within {budget:g} s came "
                         "closer than the margin once timed; raise the timeout or the padding"
                     )
@@ -287,12 +349,18 @@ class MotionPlanner:
         start: Sequence[float] | None = None,
         max_joint_step: float = 0.1,
         carry: str | None = None,
+        allow_partial: bool = False,
+        velocity_scaling: float = 1.0,
+        acceleration_scaling: float = 1.0,
     ) -> JointTrajectory:
         """A timed trajectory along the straight TCP line to `pose` (rotation by slerp).
 
         IK at every `step` metres (or 0.05 rad of rotation), each seeded with the previous
-        solution; a joint moving more than `max_joint_step` (rad) between two steps (a
-        branch change) or a pose in collision raises `PlanningError` naming where.
+        solution. A joint moving more than `max_joint_step` (rad) between two steps (a
+        branch change), no IK solution or a pose in collision stops the line there:
+        `InfeasibleError` naming where, its `fraction` the part achieved; with
+        `allow_partial`, the trajectory up to there instead. `last_stats["fraction"]` is the
+        fraction achieved (1.0: the whole line), as MoveIt's computeCartesianPath returns it.
         """
         if not isinstance(pose, pin.SE3):
             raise SpecTypeError(f"plan_cartesian: pose must be a pinocchio.SE3, got {pose!r}")
@@ -300,10 +368,13 @@ class MotionPlanner:
             raise SpecError(f"plan_cartesian: pose must be finite, got {pose}")
         step = _number(step, "step", positive=True)
         jump = _number(max_joint_step, "max_joint_step", positive=True)
+        timer = self._timer(velocity_scaling, acceleration_scaling)
+        self.last_stats = dict.fromkeys(_STEPS, 0.0)
+        self._apply_acm()
         self._checker.sync()
         self._checker.carry(carry)
         try:
-            q = self._start(start)
+            q = self._start(start, self._lower, self._upper)
             begin = self._robot.fk_frame(q)
             delta = pin.log6(begin.inverse() * pose)
             count = max(
@@ -312,27 +383,22 @@ class MotionPlanner:
                 math.ceil(np.linalg.norm(delta.angular) / 0.05),
             )
             waypoints = [q]
+            stop = None
             for k in range(1, count + 1):
                 target = _interpolate(begin, pose, k / count)
-                result = self._robot.ik(target, q)
-                where = f"at {k / count:.0%} of the line to {pose.translation.round(4).tolist()}"
-                if not result.success:
-                    raise PlanningError(
-                        f"plan_cartesian: no IK solution {where} (position error "
-                        f"{result.position_error:.2g} m)"
-                    )
-                moved = np.abs(result.q - q)
-                if moved.max() > jump:
-                    i = int(moved.argmax())
-                    raise PlanningError(
-                        f"plan_cartesian: joint {self._robot.joint_names[i]!r} jumps "
-                        f"{moved[i]:.3f} rad {where} (more than max_joint_step={jump:g}): the "
-                        "IK changed branch or the line passes a singularity"
-                    )
-                q = result.q
-                self._in_collision(q, f"plan_cartesian: the pose {where}")
+                stop = self._cartesian_step(target, q, jump, k, count, pose)
+                if isinstance(stop, str):
+                    break
+                q = stop
                 waypoints.append(q)
-            trajectory = self._timed(np.array(waypoints))
+                stop = None
+            fraction = (len(waypoints) - 1) / count
+            self.last_stats["fraction"] = fraction
+            if stop is not None and not (allow_partial and len(waypoints) > 1):
+                raise InfeasibleError(
+                    f"{stop}; {fraction:.0%} of the line achieved", "cartesian", fraction
+                )
+            trajectory = self._timed(np.array(waypoints), timer)
             if trajectory is None:
                 raise PlanningError(
                     "plan_cartesian: the timed line comes closer than the margin between its "
@@ -345,56 +411,212 @@ class MotionPlanner:
 
     # ------------------------------------------------------------------ steps
 
-    def _start(self, start: Sequence[float] | None) -> np.ndarray:
+    def _cartesian_step(
+        self, target: pin.SE3, q: np.ndarray, jump: float, k: int, count: int, pose: pin.SE3
+    ) -> np.ndarray | str:
+        """The IK solution for step k of the line, or why there is none (a message)."""
+        result = self._robot.ik(target, q)
+        where = f"at {k / count:.0%} of the line to {pose.translation.round(4).tolist()}"
+        if not result.success:
+            return (
+                f"plan_cartesian: no IK solution {where} (position error "
+                f"{result.position_error:.2g} m)"
+            )
+        moved = np.abs(result.q - q)
+        if moved.max() > jump:
+            i = int(moved.argmax())
+            return (
+                f"plan_cartesian: joint {self._robot.joint_names[i]!r} jumps "
+                f"{moved[i]:.3f} rad {where} (more than max_joint_step={jump:g}): the "
+                "IK changed branch or the line passes a singularity"
+            )
+        clash = self._clash(result.q, f"plan_cartesian: the pose {where}")
+        return result.q if clash is None else clash
+
+    def _timer(self, velocity_scaling: float, acceleration_scaling: float) -> TimeParametrizer:
+        """The time parametrizer for the limits scaled by these fractions (kept per pair)."""
+        scales = []
+        for value, field in (
+            (velocity_scaling, "velocity_scaling"),
+            (acceleration_scaling, "acceleration_scaling"),
+        ):
+            number = _number(value, field, positive=True)
+            if number > 1.0:
+                raise SpecError(f"{field} must be in (0, 1], got {number:g}")
+            scales.append(number)
+        key = (scales[0], scales[1])
+        if key not in self._timers:
+            self._timers[key] = TimeParametrizer(self._vmax * key[0], self._amax * key[1])
+        return self._timers[key]
+
+    def _bounds(
+        self, bounds: tuple[Sequence[float], Sequence[float]] | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """This call's joint bounds: `bounds` checked against the joint limits."""
+        if bounds is None:
+            return self._lower, self._upper
+        if not isinstance(bounds, (tuple, list)) or len(bounds) != 2:
+            raise SpecTypeError(f"bounds must be a pair (lower, upper), got {bounds!r}")
+        lower = _vector(bounds[0], self._n, "bounds[0]")
+        upper = _vector(bounds[1], self._n, "bounds[1]")
+        names = self._robot.joint_names
+        for i in range(self._n):
+            if not lower[i] < upper[i]:
+                raise SpecError(
+                    f"bounds: joint {names[i]!r} lower {lower[i]:g} must be below upper "
+                    f"{upper[i]:g}"
+                )
+            if lower[i] < self._lower[i] - 1e-9 or upper[i] > self._upper[i] + 1e-9:
+                raise SpecError(
+                    f"bounds: joint {names[i]!r} [{lower[i]:g}, {upper[i]:g}] leaves its "
+                    f"limits [{self._lower[i]:g}, {self._upper[i]:g}]"
+                )
+        return lower, upper
+
+    def _start(
+        self, start: Sequence[float] | None, lower: np.ndarray, upper: np.ndarray
+    ) -> np.ndarray:
         q = self._robot.jnt_pos_msr.copy() if start is None else _vector(start, self._n, "start")
-        self._inside(q, "start")
+        self._inside(q, "start", lower, upper)
         self._in_collision(q, "the start")
         return q
 
-    def _inside(self, q: np.ndarray, what: str) -> None:
-        outside = np.flatnonzero((q < self._lower - 1e-9) | (q > self._upper + 1e-9))
-        if len(outside):
-            i = int(outside[0])
-            raise PlanningError(
-                f"{what}: joint {self._robot.joint_names[i]!r} at {q[i]:g} is outside "
-                f"[{self._lower[i]:g}, {self._upper[i]:g}]"
-                + (
-                    " (unlimited joints are planned within ±2π)"
-                    if self._upper[i] == UNLIMITED_RANGE
-                    else ""
-                )
-            )
+    def _inside(self, q: np.ndarray, what: str, lower: np.ndarray, upper: np.ndarray) -> None:
+        message = self._outside(q, what, lower, upper)
+        if message is not None:
+            raise InfeasibleError(message, "bounds")
 
-    def _in_collision(self, q: np.ndarray, what: str) -> None:
+    def _outside(
+        self, q: np.ndarray, what: str, lower: np.ndarray, upper: np.ndarray
+    ) -> str | None:
+        outside = np.flatnonzero((q < lower - 1e-9) | (q > upper + 1e-9))
+        if not len(outside):
+            return None
+        i = int(outside[0])
+        return (
+            f"{what}: joint {self._robot.joint_names[i]!r} at {q[i]:g} is outside "
+            f"[{lower[i]:g}, {upper[i]:g}]"
+            + (" (unlimited joints are planned within ±2π)" if upper[i] == UNLIMITED_RANGE else "")
+        )
+
+    def _clash(self, q: np.ndarray, what: str) -> str | None:
+        """Why `q` is in collision (a message naming the nearest pair), or None."""
         if self._checker.valid(q):
-            return
+            return None
         a, b, d = self._checker.contacts(q)[0]
-        raise PlanningError(
+        return (
             f"{what} is in collision: bodies {a!r} and {b!r} are {d * 1000:.1f} mm apart "
             f"(margin {self._margin * 1000:g} mm; negative: penetrating)"
         )
 
-    def _goal(self, goal: object, q0: np.ndarray) -> np.ndarray:
-        if isinstance(goal, pin.SE3):
-            return self._ik(goal, q0)
-        q = _vector(goal, self._n, "goal")
-        self._inside(q, "goal")
-        self._in_collision(q, "the goal")
-        return q
+    def _in_collision(self, q: np.ndarray, what: str) -> None:
+        message = self._clash(q, what)
+        if message is not None:
+            raise InfeasibleError(message, "collision")
 
-    def _ik(self, pose: pin.SE3, q0: np.ndarray) -> np.ndarray:
-        """The collision-free IK solution nearest to `q0` among those found from
-        `ik_attempts` seeds (`q0` first, then random ones inside the limits)."""
+    def _goals(
+        self,
+        goal: object,
+        q0: np.ndarray,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        tolerance: float,
+        pose_tolerance: tuple[float | None, float | None],
+    ) -> np.ndarray:
+        """The collision-free joint goals (k×n, nearest to `q0` first) of a goal or goal set,
+        checked for pockets; InfeasibleError when none is left."""
+        items = _goal_items(goal, self._n)
+        found: list[np.ndarray] = []
+        reasons: list[tuple[str, str]] = []
+        for k, item in enumerate(items):
+            what = "the goal" if len(items) == 1 else f"goal {k}"
+            if isinstance(item, pin.SE3):
+                states, why = self._ik(item, q0, lower, upper, pose_tolerance)
+            else:
+                states, why = self._joint_goal(item, what, lower, upper, tolerance)
+            found.extend(states)
+            if why is not None:
+                reasons.append(why)
+        if not found:
+            reason, message = reasons[0]
+            if len(items) > 1:
+                message = f"no goal of the set can be reached; {message}"
+            raise InfeasibleError(message, reason)
+        goals = np.array(sorted(found, key=lambda q: float(np.abs(q - q0).sum())))
+        start_pocket = self._pocket(q0, lower, upper)
+        if start_pocket is not None:
+            # The start is boxed in: only goals inside its pocket can be reached.
+            goals = goals[np.abs(goals - q0).max(axis=1) < start_pocket]
+            if not len(goals):
+                raise InfeasibleError(
+                    f"the start is in a pocket of free space: no collision-free motion from it "
+                    f"gets more than {start_pocket:.3f} rad away ({POCKET_TRIES} tries), and "
+                    "no goal lies inside",
+                    "pocket",
+                )
+            return goals
+        open_goals = [q for q in goals if self._pocket(q, lower, upper) is None]
+        if not open_goals:
+            raise InfeasibleError(
+                f"the goal{'s are' if len(goals) > 1 else ' is'} in a pocket of free space: no "
+                f"collision-free motion from it gets more than {POCKET_RADIUS:g} rad away "
+                f"({POCKET_TRIES} tries); the start cannot get in",
+                "pocket",
+            )
+        return np.array(open_goals)
+
+    def _joint_goal(
+        self, q: np.ndarray, what: str, lower: np.ndarray, upper: np.ndarray, tolerance: float
+    ) -> tuple[list[np.ndarray], tuple[str, str] | None]:
+        outside = self._outside(q, what, lower, upper)
+        if outside is not None and tolerance == 0.0:
+            return [], ("bounds", outside)
+        clash = self._clash(q, what) if outside is None else outside
+        if clash is None:
+            return [q], None
+        if tolerance > 0.0:
+            low, high = np.maximum(q - tolerance, lower), np.minimum(q + tolerance, upper)
+            if np.all(low <= high):
+                near = self._rng.uniform(low, high, (TOLERANCE_SAMPLES, self._n))
+                valid = [s for s in near if self._checker.valid(s)]
+                if valid:
+                    return [min(valid, key=lambda s: float(np.abs(s - q).max()))], None
+            clash += f" (and no collision-free state within goal_tolerance={tolerance:g} rad)"
+        return [], ("collision" if outside is None else "bounds", clash)
+
+    def _ik(
+        self,
+        pose: pin.SE3,
+        q0: np.ndarray,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        tolerance: tuple[float | None, float | None],
+    ) -> tuple[list[np.ndarray], tuple[str, str] | None]:
+        """Up to 3 collision-free IK solutions inside the bounds from `ik_attempts` seeds
+        (`q0` first, then random ones inside the bounds); an IK result within the
+        tolerances counts as a solution."""
         if not (np.isfinite(pose.translation).all() and np.isfinite(pose.rotation).all()):
             raise SpecError(f"goal pose must be finite, got {pose}")
-        seeds = [q0, *self._rng.uniform(self._lower, self._upper, (self._ik_attempts - 1, self._n))]
+        seeds = [q0, *self._rng.uniform(lower, upper, (self._ik_attempts - 1, self._n))]
         found: list[np.ndarray] = []
         clash: tuple[str, str, float] | None = None
         best_error = math.inf
+        position_tol, orientation_tol = tolerance
         for seed in seeds:
             result = self._robot.ik(pose, seed)
-            if not result.success:
+            close = (
+                position_tol is not None
+                and result.position_error <= position_tol
+                and result.rotation_error <= (orientation_tol or 0.0) + 1e-3
+            ) or (
+                orientation_tol is not None
+                and result.rotation_error <= orientation_tol
+                and result.position_error <= (position_tol or 0.0) + 1e-4
+            )
+            if not (result.success or close):
                 best_error = min(best_error, result.position_error)
+                continue
+            if self._outside(result.q, "", lower, upper) is not None:
                 continue
             if not self._checker.valid(result.q):
                 clash = clash or self._checker.contacts(result.q)[0]
@@ -403,49 +625,97 @@ class MotionPlanner:
             if len(found) >= 3:
                 break
         if found:
-            return min(found, key=lambda q: float(np.abs(q - q0).sum()))
+            return found, None
         where = f"the goal pose at {pose.translation.round(4).tolist()}"
         if clash is not None:
             a, b, d = clash
-            raise PlanningError(
+            return [], (
+                "ik-collision",
                 f"{where}: every IK solution is in collision (e.g. bodies {a!r} and {b!r} "
-                f"{d * 1000:.1f} mm apart, margin {self._margin * 1000:g} mm)"
+                f"{d * 1000:.1f} mm apart, margin {self._margin * 1000:g} mm)",
             )
-        raise PlanningError(
-            f"{where} is unreachable: no IK solution from {len(seeds)} seeds (best position "
-            f"error {best_error:.3g} m)"
+        return [], (
+            "unreachable",
+            f"{where} is unreachable: no IK solution within the bounds from {len(seeds)} "
+            f"seeds (best position error {best_error:.3g} m)",
         )
 
+    def _pocket(self, q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> float | None:
+        """None when collision-free motion leads `POCKET_RADIUS` (rad, any joint) away from
+        `q`; else how far it got. A random tree grows from `q` (RRT extensions at the
+        search's resolution, each state checked for the margin) for `POCKET_TRIES`
+        extensions; in open space the first straight ray gets out after a few checks."""
+        nodes = [q]
+        reached = 0.0
+        radius = POCKET_RADIUS
+        low, high = np.maximum(q - 2 * radius, lower), np.minimum(q + 2 * radius, upper)
+        for _ in range(POCKET_TRIES):
+            target = self._rng.uniform(low, high)
+            near = min(nodes, key=lambda x: float(np.abs(x - target).max()))
+            direction = target - near
+            length = float(np.abs(direction).max())
+            if length < 1e-9:
+                continue
+            steps = math.ceil(length / self._resolution)
+            for k in range(1, steps + 1):
+                state = near + direction * (k / steps)
+                self.checks += 1
+                if not self._checker.valid(state):
+                    break
+                nodes.append(state)
+                reached = max(reached, float(np.abs(state - q).max()))
+                if reached >= radius:
+                    return None
+        return reached
+
     def _search(
-        self, q0: np.ndarray, q1: np.ndarray, budget: float, began: float, straight: bool = True
+        self,
+        q0: np.ndarray,
+        goals: np.ndarray,
+        budget: float,
+        began: float,
+        straight: bool,
+        lower: np.ndarray,
+        upper: np.ndarray,
     ) -> np.ndarray:
-        """OMPL's path from q0 to q1, simplified, as waypoints (k×n); `budget` seconds from
-        `began` (a `perf_counter` time). `straight`: try the straight segment first."""
+        """OMPL's path from q0 to one of `goals` (k×n), simplified, as waypoints; `budget`
+        seconds from `began` (a `perf_counter` time). `straight`: try the straight segments
+        first."""
+        from ompl import base as ob
         from ompl import geometric as og
         from ompl import util as ou
 
-        si = self._space_info
-        if self._unlimited.any():
-            # An unlimited joint is searched within half a turn beyond the start and goal,
-            # not over the whole ±2π: a quarter of the volume per joint, or less.
-            lower, upper = self._lower.copy(), self._upper.copy()
-            free = self._unlimited
-            lower[free] = np.minimum(q0, q1)[free] - math.pi
-            upper[free] = np.maximum(q0, q1)[free] + math.pi
-            si = self._ompl_space(lower, upper)
-        self._ends[0], self._ends[1] = q0, q1
         self.last_stats.update(search=0.0, simplify=0.0)
-        if straight and self._straight(q0, q1):
-            return np.array([q0, q1])
+        if straight:
+            t = time.perf_counter()
+            for q1 in goals:
+                self._ends[0], self._ends[1] = q0, q1
+                if self._straight(q0, q1):
+                    self.last_stats["search"] = time.perf_counter() - t
+                    return np.array([q0, q1])
+        si = self._space_info
+        if self._unlimited.any() or lower is not self._lower or upper is not self._upper:
+            lower, upper = lower.copy(), upper.copy()
+            free = self._unlimited & (lower <= -UNLIMITED_RANGE) & (upper >= UNLIMITED_RANGE)
+            if free.any():
+                # An unlimited joint is searched within half a turn beyond the start and
+                # goals, not over the whole ±2π: a quarter of the volume per joint, or less.
+                ends = np.vstack([q0[None], goals])
+                lower[free] = ends.min(axis=0)[free] - math.pi
+                upper[free] = ends.max(axis=0)[free] + math.pi
+            si = self._ompl_space(lower, upper)
+        self._ends = np.vstack([q0[None], goals])
         setup = og.SimpleSetup(si)
         planner = getattr(og, self._planner_name)(si)
         if hasattr(planner, "setRange"):
             planner.setRange(RANGE)
         setup.setPlanner(planner)
-        start, goal = si.allocState(), si.allocState()
-        for i in range(self._n):
-            start[i], goal[i] = float(q0[i]), float(q1[i])
-        setup.setStartAndGoalStates(start, goal)
+        states = _states(si, np.vstack([q0[None], goals]))
+        setup.setStartState(states[0])
+        target = ob.GoalStates(si)
+        for state in states[1:]:
+            target.addState(state)
+        setup.setGoal(target)
         checks = self.checks
         level = ou.getLogLevel()
         ou.setLogLevel(ou.LOG_NONE)
@@ -462,7 +732,7 @@ class MotionPlanner:
         finally:
             ou.setLogLevel(level)
         if not solved:
-            raise PlanningError(
+            raise PlanningTimeout(
                 f"{self._planner_name} found no collision-free path within {budget:.3g} s "
                 f"({self.checks - checks} states checked, status {status.asString()}, margin "
                 f"{self._margin * 1000:g} mm): raise the timeout, try another planner, or "
@@ -475,7 +745,7 @@ class MotionPlanner:
 
     def _search_valid(self, q: np.ndarray | list[float]) -> bool:
         """The search's test: `margin + padding` clear, or `margin` within `ESCAPE` of the
-        start or goal (which may themselves be closer than the padding to something)."""
+        start or a goal (which may themselves be closer than the padding to something)."""
         self.checks += 1
         d = self._checker.clearance(q)
         if d >= self._checker.reach:
@@ -489,13 +759,18 @@ class MotionPlanner:
         count = max(1, math.ceil(float(np.linalg.norm(q1 - q0)) / self._resolution))
         return all(self._search_valid(q0 + (q1 - q0) * (k / count)) for k in range(1, count))
 
-    def _timed(self, waypoints: np.ndarray) -> JointTrajectory | None:
-        """toppra's timing of the path, checked; when the spline cuts a corner into a
+    def _timed(self, waypoints: np.ndarray, timer: TimeParametrizer) -> JointTrajectory | None:
+        """`timer`'s timing of the path, checked; when the spline cuts a corner into a
         collision, the path is subdivided (the spline then hugs it) and timed again. None
         when that does not help: the path itself grazes the margin between its checks."""
         for _ in range(3):
-            trajectory = self._timing(waypoints)
-            if self._trajectory_ok(trajectory):
+            t = time.perf_counter()
+            trajectory = timer(waypoints)
+            t_check = time.perf_counter()
+            self.last_stats["timing"] += t_check - t
+            ok = self._trajectory_ok(trajectory)
+            self.last_stats["check"] += time.perf_counter() - t_check
+            if ok:
                 return trajectory
             waypoints = _subdivide(waypoints)
         return None
@@ -553,11 +828,34 @@ def _interpolate(a: pin.SE3, b: pin.SE3, s: float) -> pin.SE3:
     return pin.SE3(rotation, a.translation + s * (b.translation - a.translation))
 
 
-def _datasheet(links: list[str]) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-    """The datasheet limits of the arm whose links are named `links` (any prefix)."""
-    for names, limits in DATASHEET_LIMITS.items():
-        if len(names) == len(links) and all(
-            a.endswith(b) for a, b in zip(links, names, strict=True)
-        ):
-            return limits
-    return None
+def _states(si: Any, rows: np.ndarray) -> list[Any]:
+    """OMPL states of space information `si` at each row of `rows` (kept by the caller
+    while OMPL uses them)."""
+    out = []
+    for q in rows:
+        state = si.allocState()
+        for i, value in enumerate(q.tolist()):
+            state[i] = value
+        out.append(state)
+    return out
+
+
+def _goal_items(goal: object, n: int) -> list[np.ndarray | pin.SE3]:
+    """A goal or a goal set as a list of joint vectors and poses."""
+    if isinstance(goal, pin.SE3):
+        return [goal]
+    if isinstance(goal, (list, tuple)) and goal and any(isinstance(g, pin.SE3) for g in goal):
+        items: list[np.ndarray | pin.SE3] = []
+        for k, g in enumerate(goal):
+            items.append(g if isinstance(g, pin.SE3) else _vector(g, n, f"goal[{k}]"))
+        return items
+    if np.ndim(goal) == 2:  # type: ignore[arg-type]
+        rows = np.asarray(goal)
+        if len(rows) == 0:
+            raise SpecError("goal: an empty goal set")
+        return [_vector(row, n, f"goal[{k}]") for k, row in enumerate(rows)]
+    return [_vector(goal, n, "goal")]
+
+
+def _optional(value: float | None, field: str) -> float | None:
+    return None if value is None else _number(value, field)

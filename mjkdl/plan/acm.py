@@ -1,0 +1,273 @@
+"""Which pairs of an arm's own bodies never count as collisions: MoveIt's allowed-collision
+matrix, computed by sampling as its setup assistant does.
+
+Over `samples` random joint positions within the limits (unlimited joints within ±π), a pair
+of the robot's bodies (the arm, what it carries on its tip, and the body it is mounted on)
+is allowed when it is *adjacent* (parent and child: MuJoCo never collides them), in contact
+in the model's *default* pose (`qpos0`), in contact in at least `ALWAYS` of the samples
+(*always*: the UR5e's shoulder 3 mm above its mount), or in none of them (*never*). "In
+contact" means closer than the planner's margin. Pairs of bodies that keep their relative
+pose (a hand and its fingers) are not the planner's business and are not listed.
+
+The result is cached per model (a hash of the robot's bodies, geoms, joint ranges, the margin
+and the sample count): in memory, and as JSON under `acm_cache_dir()`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from ..errors import SpecError, unknown_name
+from ..robot import Robot
+from .collision import CollisionChecker
+
+# A pair in contact in at least this fraction of the samples is "always" in contact
+# (MoveIt's setup assistant uses 95 %).
+ALWAYS = 0.95
+SAMPLES = 2000
+REASONS = ("adjacent", "default", "always", "never", "user")
+_MEMORY: dict[str, tuple[dict[tuple[str, str], str], dict[tuple[str, str], float]]] = {}
+_FORMAT = "1"
+
+
+def acm_cache_dir() -> Path:
+    """Where computed matrices are kept: `$MJKDL_CACHE_DIR/acm`, else
+    `$XDG_CACHE_HOME/mjkdl/acm`, else `~/.cache/mjkdl/acm`. Safe to delete."""
+    base = os.environ.get("MJKDL_CACHE_DIR")
+    if base:
+        return Path(base).expanduser() / "acm"
+    cache = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(cache).expanduser() / "mjkdl" / "acm"
+
+
+def _key(a: str, b: str) -> tuple[str, str]:
+    return (a, b) if a <= b else (b, a)
+
+
+class AllowedCollisionMatrix:
+    """Pairs of body names whose contacts do not count, each with its reason (`REASONS`).
+
+    Inspect with `reason(a, b)`, `pairs` or `len()`; edit with `allow(a, b)` and
+    `disallow(a, b)` (the planner applies edits at its next `plan`). `candidates`: every
+    pair the sampling looked at, `contact_fraction[pair]` how often it was in contact.
+    """
+
+    def __init__(
+        self,
+        pairs: dict[tuple[str, str], str],
+        bodies: set[str],
+        contact_fraction: dict[tuple[str, str], float] | None = None,
+    ) -> None:
+        self._pairs = {_key(*p): r for p, r in pairs.items()}
+        self._bodies = set(bodies)
+        self.contact_fraction = dict(contact_fraction or {})
+        self.version = 0  # bumped by every edit
+
+    @property
+    def pairs(self) -> dict[tuple[str, str], str]:
+        """A copy of the allowed pairs (sorted names) and their reasons."""
+        return dict(self._pairs)
+
+    def reason(self, a: str, b: str) -> str | None:
+        """Why the pair (a, b) is allowed; None when its contacts count."""
+        return self._pairs.get(_key(a, b))
+
+    def __contains__(self, pair: object) -> bool:
+        if not (isinstance(pair, tuple) and len(pair) == 2):
+            return False
+        return _key(str(pair[0]), str(pair[1])) in self._pairs
+
+    def __len__(self) -> int:
+        return len(self._pairs)
+
+    def __iter__(self) -> Iterator[tuple[str, str]]:
+        return iter(sorted(self._pairs))
+
+    def _check(self, a: str, b: str, what: str) -> None:
+        for name in (a, b):
+            if name not in self._bodies:
+                where = f"{what} (the robot's bodies)"
+                raise unknown_name("body", name, sorted(self._bodies), where)
+        if a == b:
+            raise SpecError(f"{what}: a body cannot collide with itself ({a!r})")
+
+    def allow(self, a: str, b: str) -> None:
+        """Let bodies `a` and `b` touch (reason "user")."""
+        self._check(a, b, "AllowedCollisionMatrix.allow")
+        self._pairs[_key(a, b)] = "user"
+        self.version += 1
+
+    def disallow(self, a: str, b: str) -> None:
+        """Count contacts between `a` and `b` again."""
+        self._check(a, b, "AllowedCollisionMatrix.disallow")
+        self._pairs.pop(_key(a, b), None)
+        self.version += 1
+
+    def summary(self) -> dict[str, int]:
+        """How many pairs each reason allows."""
+        return {r: sum(1 for v in self._pairs.values() if v == r) for r in REASONS}
+
+
+def robot_bodies(model: mujoco.MjModel, robot: Robot) -> tuple[np.ndarray, int]:
+    """Mask of the robot's bodies (the arm's subtree and its mount) and the mount's id."""
+    first = int(model.joint(robot.joint_names[0]).bodyid[0])
+    mount = int(model.body_parentid[first])
+    inside = np.zeros(model.nbody, dtype=bool)
+    inside[first] = True
+    for b in range(first + 1, model.nbody):
+        inside[b] = inside[model.body_parentid[b]]
+    inside[mount] = mount != 0
+    return inside, mount
+
+
+def compute_acm(
+    robot: Robot,
+    margin: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    *,
+    samples: int = SAMPLES,
+    seed: int = 0,
+    use_cache: bool = True,
+) -> AllowedCollisionMatrix:
+    """The allowed-collision matrix of `robot`'s arm at `margin` (m), sampled within
+    [lower, upper] (cached; see the module's docstring)."""
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 10:
+        raise SpecError(f"acm_samples must be an integer >= 10, got {samples!r}")
+    model = robot.scene.model
+    mask, _mount = robot_bodies(model, robot)
+    names = {b: model.body(b).name for b in np.flatnonzero(mask).tolist()}
+    key = _fingerprint(model, robot, mask, margin, lower, upper, samples, seed)
+    pairs: dict[tuple[str, str], str] | None = None
+    fractions: dict[tuple[str, str], float] = {}
+    if use_cache and key in _MEMORY:
+        pairs, fractions = _MEMORY[key]
+    file = acm_cache_dir() / f"{key}.json"
+    if pairs is None and use_cache and file.is_file():
+        try:
+            stored = json.loads(file.read_text())
+            pairs = {_key(a, b): r for a, b, r in stored["pairs"]}
+            fractions = {_key(a, b): f for a, b, f in stored["fractions"]}
+        except (OSError, ValueError, KeyError, TypeError):
+            pairs = None
+    if pairs is None:
+        pairs, fractions = _sample(robot, margin, lower, upper, mask, samples, seed)
+        if use_cache:
+            try:
+                file.parent.mkdir(parents=True, exist_ok=True)
+                record = {
+                    "format": _FORMAT,
+                    "pairs": [[a, b, r] for (a, b), r in sorted(pairs.items())],
+                    "fractions": [[a, b, f] for (a, b), f in sorted(fractions.items())],
+                }
+                file.write_text(json.dumps(record))
+            except OSError:
+                pass  # a read-only home: the memory cache still holds it
+    if use_cache:
+        _MEMORY[key] = (dict(pairs), dict(fractions))
+    return AllowedCollisionMatrix(pairs, set(names.values()), fractions)
+
+
+def _sample(
+    robot: Robot,
+    margin: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    mask: np.ndarray,
+    samples: int,
+    seed: int,
+) -> tuple[dict[tuple[str, str], str], dict[tuple[str, str], float]]:
+    checker = CollisionChecker(robot, margin)
+    model, data = checker._model, checker._data
+    assert model is not None
+    groups = checker._groups
+    colliding = np.zeros(model.nbody, dtype=bool)
+    colliding[model.geom_bodyid[checker._colliding]] = True
+    bodies = np.flatnonzero(mask & colliding)
+    moving = checker._moving
+    # Candidate pairs: two of the robot's bodies that can move relative to each other.
+    index = np.full((model.nbody, model.nbody), -1)
+    candidates: list[tuple[int, int]] = []
+    for i, a in enumerate(bodies.tolist()):
+        for b in bodies[i + 1 :].tolist():
+            if not (moving[a] or moving[b]) or (groups[a] == groups[b] and groups[a] >= 0):
+                continue
+            index[a, b] = index[b, a] = len(candidates)
+            candidates.append((a, b))
+    counts = np.zeros(len(candidates), dtype=np.int64)
+    geom_body = model.geom_bodyid
+    counts_mask = checker._counts
+
+    def touching(q: np.ndarray) -> np.ndarray:
+        checker._place(q)
+        n = data.ncon
+        con = data.contact
+        g1, g2 = con.geom1[:n], con.geom2[:n]
+        keep = counts_mask[g1, g2] & (con.dist[:n] < margin)
+        found = index[geom_body[g1[keep]], geom_body[g2[keep]]]
+        return np.unique(found[found >= 0])
+
+    rng = np.random.default_rng(seed)
+    for q in rng.uniform(lower, upper, (samples, len(lower))):
+        counts[touching(q)] += 1
+    default = np.clip(model.qpos0[checker.arm_qpos_adr], lower, upper)
+    at_default = set(touching(default).tolist())
+    pairs: dict[tuple[str, str], str] = {}
+    fractions: dict[tuple[str, str], float] = {}
+    for k, (a, b) in enumerate(candidates):
+        pair = _key(model.body(a).name, model.body(b).name)
+        fractions[pair] = float(counts[k]) / samples
+        if model.body_parentid[a] == b or model.body_parentid[b] == a:
+            pairs[pair] = "adjacent"
+        elif k in at_default:
+            pairs[pair] = "default"
+        elif counts[k] >= math.ceil(ALWAYS * samples):
+            pairs[pair] = "always"
+        elif counts[k] == 0:
+            pairs[pair] = "never"
+    return pairs, fractions
+
+
+def _fingerprint(
+    model: mujoco.MjModel,
+    robot: Robot,
+    mask: np.ndarray,
+    margin: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    samples: int,
+    seed: int,
+) -> str:
+    """A hash of what the matrix depends on: the robot's bodies and geoms, the limits."""
+    digest = hashlib.sha256(_FORMAT.encode())
+    bodies = np.flatnonzero(mask)
+    geoms = np.flatnonzero(mask[model.geom_bodyid])
+    digest.update("|".join(model.body(b).name for b in bodies).encode())
+    parents = model.body_parentid[bodies]
+    for array in (
+        parents - bodies,
+        model.body_pos[bodies],
+        model.body_quat[bodies],
+        model.geom_type[geoms],
+        model.geom_size[geoms],
+        model.geom_pos[geoms],
+        model.geom_quat[geoms],
+        model.geom_contype[geoms],
+        model.geom_conaffinity[geoms],
+        model.geom_bodyid[geoms] - bodies[0],
+        model.geom_rbound[geoms],
+        model.qpos0[robot.scene.model.jnt_qposadr[[model.joint(j).id for j in robot.joint_names]]],
+        np.asarray(lower, dtype=float),
+        np.asarray(upper, dtype=float),
+        np.array([margin, samples, seed], dtype=float),
+    ):
+        digest.update(np.ascontiguousarray(np.round(array, 9)).tobytes())
+    return digest.hexdigest()[:24]
