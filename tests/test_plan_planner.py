@@ -19,9 +19,11 @@ from conftest import (
 import mjkdl as mjk
 from mjkdl.plan import (
     CollisionChecker,
+    InfeasibleError,
     JointTrajectory,
     MotionPlanner,
     PlanningError,
+    PlanningTimeout,
     TrajectoryFollower,
 )
 
@@ -219,7 +221,7 @@ def test_timeout_says_what_was_tried(tmp_path) -> None:
         arm.set_joint_pos([np.pi / 2, 0.0])
         planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
         with pytest.raises(
-            PlanningError,
+            PlanningTimeout,
             match=r"RRTConnect found no collision-free path within 0.2 s \(\d+ states checked, "
             r"status Approximate solution",
         ):
@@ -352,3 +354,199 @@ def test_collision_checker_settings_are_refused_by_name(panda) -> None:
         CollisionChecker(robot, 0.005, reach="far")
     with pytest.raises(mjk.SpecTypeError, match=r"CollisionChecker: robot must be a Robot"):
         CollisionChecker(env, 0.005)
+
+
+# ---------------------------------------------------------------------- fast failure
+
+
+def _caged_two_link(tmp_path, cage: bool = True) -> mjk.Scene:
+    """The two-link arm (l2 along x from 0.3 to 0.55 m at j1 = j2 = 0) with its forearm in a
+    cage open towards the base: boxes 4 cm either side of it and a cap beyond its end."""
+    path = tmp_path / "two_link.xml"
+    path.write_text(two_link_arm())
+
+    def box(name: str, size: list[float], pos: list[float]) -> mjk.SceneObject:
+        return mjk.SceneObject(name=name, shape=mjk.Shape.BOX, size=size, pos=pos, fixed=True)
+
+    walls = [
+        box("left", [0.1, 0.005, 0.06], [0.5, 0.045, 0.05]),
+        box("right", [0.1, 0.005, 0.06], [0.5, -0.045, 0.05]),
+        box("top", [0.1, 0.05, 0.005], [0.5, 0.0, 0.095]),
+        box("bottom", [0.1, 0.05, 0.005], [0.5, 0.0, 0.005]),
+        box("cap", [0.005, 0.05, 0.06], [0.605, 0.0, 0.05]),
+    ]
+    spec = base_spec(
+        add_floor=False, robots=[mjk.RobotSpec(path=str(path))], objects=walls if cage else []
+    )
+    return mjk.Scene.build(spec)
+
+
+def test_a_goal_in_a_pocket_of_free_space_is_infeasible_without_searching(tmp_path) -> None:
+    with _caged_two_link(tmp_path) as scene:
+        arm = scene.create_robot("base", "l2")
+        arm.set_joint_pos([np.pi / 2, 0.0])
+        planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
+        assert planner.checker.valid([0.0, 0.0])  # the goal itself is free: 15 mm each side
+        with pytest.raises(
+            InfeasibleError,
+            match=r"the goal is in a pocket of free space: no collision-free motion from it "
+            r"gets more than 0.25 rad away \(100 tries\)",
+        ) as error:
+            planner.plan([0.0, 0.0], timeout=30.0)
+        assert error.value.reason == "pocket"
+        # Found by the pocket test's few hundred checks, not by the search's timeout.
+        assert planner.checks < 2000
+        assert planner.last_stats["search"] == 0.0
+        # Out of the cage, the same arm plans (the pocket test lets open goals through).
+        traj = planner.plan([-np.pi / 2, 0.3])
+        assert np.abs(traj.positions[-1] - [-np.pi / 2, 0.3]).max() < 1e-12
+
+
+def test_infeasible_and_timeout_are_distinct_planning_errors(panda) -> None:
+    _env, robot, *_ = panda
+    planner = MotionPlanner(robot)
+    inside = robot.ik(pin.SE3(np.array(DOWN), np.array([0.45, 0.0, 0.5])), HOME).q
+    with pytest.raises(InfeasibleError) as error:
+        planner.plan(inside)
+    assert error.value.reason == "collision"
+    assert isinstance(error.value, PlanningError) and isinstance(error.value, mjk.MjkdlError)
+    assert not isinstance(error.value, PlanningTimeout)
+    with pytest.raises(InfeasibleError, match=r"every IK solution is in collision") as error:
+        MotionPlanner(robot, ik_attempts=4).plan(
+            pin.SE3(np.array(DOWN), np.array([0.45, 0.0, 0.5]))
+        )
+    assert error.value.reason == "ik-collision"
+    assert issubclass(PlanningTimeout, PlanningError)
+    assert not issubclass(PlanningTimeout, InfeasibleError)
+
+
+# ---------------------------------------------------------------------- per-call options
+
+
+def test_bounds_per_call_keep_the_path_inside_and_refuse_goals_outside(panda) -> None:
+    _env, robot, q_a, q_b = panda
+    planner = MotionPlanner(robot)
+    low = np.minimum(q_a, q_b) - 0.6
+    high = np.maximum(q_a, q_b) + 0.6
+    limits = robot.joint_limits
+    low, high = np.maximum(low, limits[:, 0]), np.minimum(high, limits[:, 1])
+    traj = planner.plan(q_b, bounds=(low, high))
+    assert np.all(traj.positions >= low - 1e-9) and np.all(traj.positions <= high + 1e-9)
+    i = int(np.argmax(q_b - q_a))  # a joint the goal has to turn up
+    narrow = (low, high.copy())
+    narrow[1][i] = q_b[i] - 0.01
+    with pytest.raises(InfeasibleError, match=rf"goal: joint 'joint{i + 1}' at .* is outside") as e:
+        planner.plan(q_b, bounds=narrow)
+    assert e.value.reason == "bounds"
+    with pytest.raises(mjk.SpecError, match=r"bounds: joint 'joint4' \[-3.5, 0\] leaves its"):
+        planner.plan(q_b, bounds=([-1.0] * 3 + [-3.5] + [-1.0] * 3, [1.0] * 3 + [0.0] + [1.0] * 3))
+    with pytest.raises(mjk.SpecTypeError, match=r"bounds must be a pair \(lower, upper\)"):
+        planner.plan(q_b, bounds=low)
+
+
+def test_goal_sets_and_goal_tolerance(panda) -> None:
+    _env, robot, q_a, q_b = panda
+    planner = MotionPlanner(robot)
+    inside = robot.ik(pin.SE3(np.array(DOWN), np.array([0.45, 0.0, 0.5])), HOME).q
+    # A set: the goal in the wall is left out, the other one is reached.
+    traj = planner.plan([inside, q_b])
+    assert np.abs(traj.positions[-1] - q_b).max() < 1e-12
+    with pytest.raises(InfeasibleError, match=r"no goal of the set can be reached; goal 0 is in"):
+        planner.plan(np.array([inside, inside]))
+    # A joint goal grazing the shelf, reached within a tolerance at a free state nearby.
+    low = robot.ik(pin.SE3(ABOVE_A.rotation, ABOVE_A.translation - [0, 0, 0.148]), q_a).q
+    assert not planner.checker.valid(low)
+    traj = planner.plan(low, goal_tolerance=0.1)
+    end = traj.positions[-1]
+    assert planner.checker.valid(end)
+    assert 0.0 < np.abs(end - low).max() <= 0.1
+    with pytest.raises(InfeasibleError, match=r"no collision-free state within goal_tolerance"):
+        planner.plan(low, goal_tolerance=1e-4)
+    # A pose 2.5 cm beyond the Panda's reach (behind it, the TCP pointing away): within
+    # 3 cm and 0.05 rad it is reached.
+    away = np.array([[0.0, 0.0, -1.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
+    far = pin.SE3(away, np.array([-0.95, 0.0, 0.42]))
+    with pytest.raises(InfeasibleError, match=r"unreachable") as e:
+        planner.plan(far)
+    assert e.value.reason == "unreachable"
+    traj = planner.plan(far, position_tolerance=0.03, orientation_tolerance=0.05)
+    reached = robot.fk_frame(traj.positions[-1])
+    assert 0.01 < np.linalg.norm(reached.translation - far.translation) <= 0.03
+    assert np.linalg.norm(pin.log3(reached.rotation.T @ far.rotation)) <= 0.05
+
+
+def test_velocity_and_acceleration_scaling(panda) -> None:
+    _env, robot, _q_a, q_b = panda
+    from ompl import util as ou
+
+    planner = MotionPlanner(robot)
+    ou.RNG.setSeed(7)  # the same path twice
+    full = planner.plan(q_b)
+    ou.RNG.setSeed(7)
+    slow = planner.plan(q_b, velocity_scaling=0.25, acceleration_scaling=0.25)
+    assert len(slow.positions) > len(full.positions)
+    speed = np.abs(slow.velocities).max(axis=0)
+    assert np.all(speed <= 0.25 * planner.velocity_limits * 1.02)
+    assert np.all(
+        np.abs(slow.accelerations).max(axis=0) <= 0.25 * planner.acceleration_limits * 1.02
+    )
+    assert slow.duration > 2.5 * full.duration
+    with pytest.raises(mjk.SpecError, match=r"velocity_scaling must be in \(0, 1\], got 1.5"):
+        planner.plan(q_b, velocity_scaling=1.5)
+    with pytest.raises(mjk.SpecError, match=r"acceleration_scaling must be a finite number > 0"):
+        planner.plan(q_b, acceleration_scaling=0.0)
+
+
+def test_plan_cartesian_reports_the_fraction_achieved(panda) -> None:
+    _env, robot, *_ = panda
+    planner = MotionPlanner(robot)
+    target = pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + np.array([0.0, 0.0, -0.2]))
+    with pytest.raises(InfeasibleError, match=r"% of the line achieved") as error:
+        planner.plan_cartesian(target)
+    fraction = error.value.fraction
+    assert 0.5 < fraction < 0.9  # the fingers meet the shelf 15 cm of 20 cm down
+    traj = planner.plan_cartesian(target, allow_partial=True)
+    assert planner.last_stats["fraction"] == fraction
+    depth = ABOVE_A.translation[2] - robot.fk_frame(traj.positions[-1]).translation[2]
+    assert depth == pytest.approx(0.2 * fraction, abs=1e-4)
+    planner.plan_cartesian(pin.SE3(ABOVE_A.rotation, ABOVE_A.translation + np.array([0, 0, -0.05])))
+    assert planner.last_stats["fraction"] == 1.0
+
+
+def test_the_time_split_covers_every_step(panda) -> None:
+    _env, robot, _q_a, q_b = panda
+    planner = MotionPlanner(robot)
+    planner.plan(q_b)
+    stats = planner.last_stats
+    assert set(stats) == {"ends", "search", "simplify", "timing", "check"}
+    assert all(stats[k] > 0.0 for k in ("ends", "search", "simplify", "timing", "check"))
+
+
+# ---------------------------------------------------------------------- a changing scene
+
+
+def test_obstacles_added_and_moved_between_calls_are_seen(tmp_path) -> None:
+    with _caged_two_link(tmp_path, cage=False) as scene:
+        arm = scene.create_robot("base", "l2")
+        arm.set_joint_pos([np.pi / 2, 0.0])
+        planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
+        goal = [-np.pi / 2, 0.0]
+        assert len(planner.plan(goal).positions) > 0
+        assert planner.last_stats["simplify"] == 0.0  # the straight line
+        # A post added on the straight line (the model is recompiled): the plan goes round.
+        scene.add_object(
+            mjk.SceneObject(
+                name="post",
+                shape=mjk.Shape.BOX,
+                size=[0.02, 0.02, 0.02],
+                pos=[0.45, 0.0, 0.05],
+                fixed=True,
+            )
+        )
+        traj = planner.plan(goal, timeout=5.0)
+        assert planner.last_stats["simplify"] > 0.0
+        assert min(planner.checker.clearance(q) for q in traj.positions) >= planner.margin
+        # The post moved out of the way in the model itself: the straight line again.
+        scene.model.body_pos[scene.model.body("post").id] = [0.0, 0.0, 2.0]
+        planner.plan(goal)
+        assert planner.last_stats["simplify"] == 0.0

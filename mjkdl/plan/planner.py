@@ -328,7 +328,7 @@ class MotionPlanner:
             straight = True
             while True:  # a path whose timing cuts into the margin is searched again
                 waypoints = self._search(q0, goals, budget, began, straight, lower, upper)
-                trajectory = self._timed(waypoints, timer)
+                trajectory = self._timed(waypoints, timer, lower, upper)
                 if trajectory is not None:
                     return trajectory
                 straight = False
@@ -759,23 +759,39 @@ class MotionPlanner:
         count = max(1, math.ceil(float(np.linalg.norm(q1 - q0)) / self._resolution))
         return all(self._search_valid(q0 + (q1 - q0) * (k / count)) for k in range(1, count))
 
-    def _timed(self, waypoints: np.ndarray, timer: TimeParametrizer) -> JointTrajectory | None:
+    def _timed(
+        self,
+        waypoints: np.ndarray,
+        timer: TimeParametrizer,
+        lower: np.ndarray | None = None,
+        upper: np.ndarray | None = None,
+    ) -> JointTrajectory | None:
         """`timer`'s timing of the path, checked; when the spline cuts a corner into a
-        collision, the path is subdivided (the spline then hugs it) and timed again. None
-        when that does not help: the path itself grazes the margin between its checks."""
+        collision or overshoots the bounds (default: the joint limits), the path is
+        subdivided (the spline then hugs it) and timed again. None when that does not
+        help: the path itself grazes the margin between its checks."""
+        bounds = (
+            self._lower if lower is None else lower,
+            self._upper if upper is None else upper,
+        )
         for _ in range(3):
             t = time.perf_counter()
             trajectory = timer(waypoints)
             t_check = time.perf_counter()
             self.last_stats["timing"] += t_check - t
-            ok = self._trajectory_ok(trajectory)
+            ok = self._trajectory_ok(trajectory, *bounds)
             self.last_stats["check"] += time.perf_counter() - t_check
             if ok:
                 return trajectory
             waypoints = _subdivide(waypoints)
         return None
 
-    def _trajectory_ok(self, trajectory: JointTrajectory) -> bool:
+    def _trajectory_ok(
+        self,
+        trajectory: JointTrajectory,
+        lower: np.ndarray | None = None,
+        upper: np.ndarray | None = None,
+    ) -> bool:
         """Whether the trajectory keeps the margin (+ `TRACKING` beyond `ESCAPE` of its
         ends): checked every `CHECK_STEP` (rad, any joint) and, on both sides of a state closer
         than `margin + padding` to something, every `FINE`th of it."""
@@ -788,6 +804,10 @@ class MotionPlanner:
         frac = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
         grid = np.append(start + np.repeat(np.diff(times) / splits, counts) * frac, times[-1])
         q = trajectory.positions_at(grid)
+        low = self._lower if lower is None else lower
+        high = self._upper if upper is None else upper
+        if np.any(q < low - 1e-9) or np.any(q > high + 1e-9):
+            return False
         travelled = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(q, axis=0)).max(axis=1))])
         marks = np.floor(travelled / CHECK_STEP)
         coarse = np.flatnonzero(np.diff(marks, prepend=-1.0) > 0).tolist()
