@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import menagerie, panda_arm, panda_spec
+from conftest import PANDA_HOME, menagerie, panda_arm, panda_spec
 
 import mjkdl as mjk
 from mjkdl.plan import JointTrajectory, TrajectoryFollower
@@ -120,3 +121,66 @@ def test_bad_use_is_refused_by_name(env) -> None:
         follower.start(q)
     with pytest.raises(mjk.SpecError, match=r"bandwidth must be a finite number > 0"):
         TrajectoryFollower(robot, bandwidth=0)
+
+
+# ---------------------------------------------------------------------- watching
+
+
+@pytest.mark.parametrize("watch", ["contact", "tracking"])
+def test_a_watching_follower_stops_on_an_unexpected_block_and_the_planner_goes_on(watch) -> None:
+    """A box appears on the planned path after planning: the follower stops the arm on the
+    contact (or the lag it causes), says where, and a new plan from there reaches the goal."""
+    from conftest import DOWN, PANDA_TCP, SHELF_TOP, shelf_objects
+
+    from mjkdl.plan import MotionPlanner
+
+    above_a = pin.SE3(np.array(DOWN), np.array([0.45, 0.35, SHELF_TOP + 0.15]))
+    above_b = pin.SE3(np.array(DOWN), np.array([0.45, -0.35, SHELF_TOP + 0.15]))
+    menagerie("franka_emika_panda")
+    with mjk.Env.build(panda_spec(objects=shelf_objects())) as env:
+        robot = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
+        robot.ctrl_mode = mjk.CtrlMode.POSITION
+        q_a = robot.ik(above_a, np.array(PANDA_HOME)).q
+        robot.set_joint_pos(q_a)
+        robot.update()
+        planner = MotionPlanner(robot)
+        q_b = robot.ik(above_b, q_a).q
+        traj = planner.plan(q_b)
+        # The TCP's place a third of the way: a box appears there.
+        block = robot.fk_frame(traj.sample(traj.duration / 3)[0]).translation
+        env.add_object(
+            mjk.SceneObject(
+                name="block", shape=mjk.Shape.BOX, size=[0.03] * 3, pos=block.tolist(), fixed=True
+            )
+        )
+        bounds = {"contact": {"max_contact_force": 20.0}, "tracking": {"max_tracking_error": 0.02}}
+        follower = TrajectoryFollower(robot, **bounds[watch])
+        follower.run(traj)
+        stop = follower.stop
+        assert stop is not None and stop.reason == watch
+        assert 0.0 < stop.time < traj.duration / 3 + 0.1
+        assert np.abs(stop.q - robot.jnt_pos_msr).max() < 0.01  # it stays where it stopped
+        if watch == "contact":
+            assert "'block'" in stop.message and "max_contact_force 20" in stop.message
+        else:
+            assert re.search(r"joint 'joint\d' lagged 0.0\d+ rad", stop.message)
+        # On from there: the planner sees the block (and leaves the contact first).
+        again = planner.plan(q_b, start_jiggle=0.15, timeout=5.0)
+        assert np.abs(again.positions[0] - robot.jnt_pos_msr).max() < 1e-9
+        follower = TrajectoryFollower(robot, max_tracking_error=0.05)  # it starts in contact
+        follower.run(again)
+        assert follower.stop is None
+        assert np.abs(robot.jnt_pos_msr - q_b).max() < 0.01
+
+
+def test_watching_bounds_are_checked(env) -> None:
+    robot = panda_arm(env, mjk.CtrlMode.POSITION)
+    with pytest.raises(mjk.SpecError, match=r"max_tracking_error must be a finite number > 0"):
+        TrajectoryFollower(robot, max_tracking_error=0.0)
+    with pytest.raises(mjk.SpecError, match=r"max_contact_force must be a finite number > 0"):
+        TrajectoryFollower(robot, max_contact_force=-1.0)
+    q = robot.jnt_pos_msr
+    traj = JointTrajectory([0.0, 1.0], [q, q], np.zeros((2, 7)), np.zeros((2, 7)))
+    follower = TrajectoryFollower(robot, max_contact_force=5.0, allowed_contacts=[("hand", "cub")])
+    with pytest.raises(mjk.UnknownNameError, match=r"no body named 'cub' in allowed_contacts\[0\]"):
+        follower.start(traj)

@@ -3,7 +3,7 @@
 from ..errors import InfeasibleError, PlanningError, PlanningTimeout
 from .acm import AllowedCollisionMatrix, acm_cache_dir
 from .collision import CollisionChecker
-from .follower import TrajectoryFollower
+from .follower import FollowerStop, TrajectoryFollower
 from .limits import DATASHEETS, Datasheet
 from .planner import PLANNERS, MotionPlanner
 from .trajectory import JointTrajectory, TimeParametrizer
@@ -14,6 +14,7 @@ __all__ = [
     "AllowedCollisionMatrix",
     "CollisionChecker",
     "Datasheet",
+    "FollowerStop",
     "InfeasibleError",
     "JointTrajectory",
     "MotionPlanner",

@@ -10,21 +10,39 @@ with τ_d the inverse dynamics of the desired motion (plus the joints' own dampi
 then applies τ_d + K e + D ė, and the robot's gravity feed-forward supplies g(q).
 TORQUE mode: computed torque, τ = M(q) (q̈_d + Kp e + Kd ė) + h(q, q̇) + damping q̇, the gains
 those of a critically damped `bandwidth` in every joint.
+
+Watching: with `max_tracking_error` (rad) or `max_contact_force` (N) set, the follower stops
+the arm (holds it where it is measured) when a joint lags the trajectory by more, or when a
+contact of the arm's bodies with anything (other than `allowed_contacts`) pushes harder;
+`stop` says when, where and why, and a `MotionPlanner` can plan on from there.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from ..control.cartesian import _number
+from ..control.cartesian import _number, _pair_names
 from ..errors import SpecError, SpecTypeError
+from ..names import model_id
 from ..robot import Robot
 from ..spec import CtrlMode
 from .trajectory import JointTrajectory
+
+
+@dataclass(frozen=True)
+class FollowerStop:
+    """Why and where a watching follower stopped the arm: `time` (s into the trajectory),
+    the measured joint positions `q`, `reason` ("tracking" or "contact") and a message."""
+
+    time: float
+    q: np.ndarray
+    reason: str
+    message: str
 
 
 class TrajectoryFollower:
@@ -32,16 +50,39 @@ class TrajectoryFollower:
 
     `bandwidth` (Hz): the computed-torque loop's stiffness in TORQUE mode. `start_tolerance`
     (rad): how far the robot may be from a trajectory's first point when it starts.
+    `max_tracking_error` (rad, any joint), `max_contact_force` (N, normal force of one
+    contact): stop the arm beyond them (None: not watched); `allowed_contacts`: pairs of
+    body names whose contacts are expected (fingers and a grasped cube).
     Per step: `robot.update()`, `follower.command()`, `robot.step()` — or `run(trajectory)`.
     """
 
     def __init__(
-        self, robot: Robot, *, bandwidth: float = 10.0, start_tolerance: float = 0.05
+        self,
+        robot: Robot,
+        *,
+        bandwidth: float = 10.0,
+        start_tolerance: float = 0.05,
+        max_tracking_error: float | None = None,
+        max_contact_force: float | None = None,
+        allowed_contacts: Sequence[tuple[str, str]] = (),
     ) -> None:
         if not isinstance(robot, Robot):
             raise SpecTypeError(f"TrajectoryFollower: robot must be a Robot, got {robot!r}")
         self._robot = robot
         self._n = robot.n_joints
+        self._max_error = (
+            None
+            if max_tracking_error is None
+            else _number(max_tracking_error, "max_tracking_error", positive=True)
+        )
+        self._max_force = (
+            None
+            if max_contact_force is None
+            else _number(max_contact_force, "max_contact_force", positive=True)
+        )
+        self._allowed_names = _pair_names(allowed_contacts, "allowed_contacts")
+        self._force = np.zeros(6)
+        self.stop: FollowerStop | None = None
         omega = 2.0 * math.pi * _number(bandwidth, "bandwidth", positive=True)
         self._kp, self._kd = omega * omega, 2.0 * omega
         self._tolerance = _number(start_tolerance, "start_tolerance")
@@ -59,7 +100,7 @@ class TrajectoryFollower:
     @property
     def finished(self) -> bool:
         """Whether the scene's clock has passed the end of the trajectory."""
-        if self._trajectory is None:
+        if self._trajectory is None or self.stop is not None:
             return True
         return self._robot.scene.time() - self._t0 >= self._trajectory.duration
 
@@ -93,9 +134,29 @@ class TrajectoryFollower:
         if mode is CtrlMode.POSITION:
             self._stiffness, self._damping = _servo_gains(robot)
         self._joint_damping = _joint_damping(robot)
+        if self._max_force is not None:
+            self._watch_bodies(robot)
         self._trajectory = trajectory
         self._t0 = robot.scene.time()
         self.max_error = 0.0
+        self.stop = None
+
+    def _watch_bodies(self, robot: Robot) -> None:
+        """Which bodies the arm moves and which body pairs may touch (per scene model)."""
+        model = robot.scene.model
+        root = int(model.joint(robot.joint_names[0]).bodyid[0])
+        arm = np.zeros(model.nbody, dtype=bool)
+        arm[root] = True
+        for b in range(root + 1, model.nbody):
+            arm[b] = arm[model.body_parentid[b]]
+        self._arm = arm
+        allowed = np.zeros((model.nbody, model.nbody), dtype=bool)
+        for i, (first, second) in enumerate(self._allowed_names):
+            where = f"allowed_contacts[{i}]"
+            ia = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", first, where)
+            ib = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", second, where)
+            allowed[ia, ib] = allowed[ib, ia] = True
+        self._allowed = allowed
 
     def command(self) -> None:
         """Write the commands for the scene's time now (after `robot.update()`)."""
@@ -104,9 +165,15 @@ class TrajectoryFollower:
             raise RuntimeError("TrajectoryFollower.command: call start(trajectory) first")
         robot = self._robot
         q, qd, qdd = self._q, self._qd, self._qdd
-        trajectory.sample_into(robot.scene.time() - self._t0, q, qd, qdd)
         q_msr = robot.jnt_pos_msr
-        self.max_error = max(self.max_error, float(np.abs(q - q_msr).max()))
+        if self.stop is None:
+            trajectory.sample_into(robot.scene.time() - self._t0, q, qd, qdd)
+            self.max_error = max(self.max_error, float(np.abs(q - q_msr).max()))
+            self._watch(q, q_msr)
+        if self.stop is not None:  # hold the arm where it stopped
+            np.copyto(q, self.stop.q)
+            qd[:] = 0.0
+            qdd[:] = 0.0
         if robot.ctrl_mode is CtrlMode.TORQUE:
             accel = qdd + self._kp * (q - q_msr) + self._kd * (qd - robot.jnt_vel_msr)
             tau = robot.mass_matrix() @ accel + robot.nonlinear_effects()
@@ -130,10 +197,47 @@ class TrajectoryFollower:
         u += q
         robot.jnt_pos_cmd = u
 
+    def _watch(self, q: np.ndarray, q_msr: np.ndarray) -> None:
+        """Stop when the tracking error or a contact force passes its bound."""
+        robot = self._robot
+        t = robot.scene.time() - self._t0
+        if self._max_error is not None:
+            error = np.abs(q - q_msr)
+            i = int(error.argmax())
+            if error[i] > self._max_error:
+                self.stop = FollowerStop(
+                    t,
+                    q_msr.copy(),
+                    "tracking",
+                    f"joint {robot.joint_names[i]!r} lagged {error[i]:.4f} rad behind the "
+                    f"trajectory at t={t:.3f} s (max_tracking_error {self._max_error:g})",
+                )
+                return
+        if self._max_force is None:
+            return
+        model, data = robot.scene.model, robot.scene.data
+        arm, allowed, force = self._arm, self._allowed, self._force
+        for k in range(data.ncon):
+            contact = data.contact[k]
+            b1, b2 = model.geom_bodyid[contact.geom1], model.geom_bodyid[contact.geom2]
+            if not (arm[b1] or arm[b2]) or allowed[b1, b2]:
+                continue
+            mujoco.mj_contactForce(model, data, k, force)
+            if force[0] > self._max_force:
+                self.stop = FollowerStop(
+                    t,
+                    q_msr.copy(),
+                    "contact",
+                    f"bodies {model.body(b1).name!r} and {model.body(b2).name!r} touched with "
+                    f"{force[0]:.1f} N at t={t:.3f} s (max_contact_force {self._max_force:g})",
+                )
+                return
+
     def run(
         self, trajectory: JointTrajectory, after_step: Callable[[], None] | None = None
     ) -> float:
-        """Play `trajectory` to its end (update, command, step); the largest joint error."""
+        """Play `trajectory` to its end, or until the follower stops the arm (update,
+        command, step); the largest joint error."""
         self.start(trajectory)
         robot = self._robot
         while not self.finished:

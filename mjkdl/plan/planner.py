@@ -141,6 +141,8 @@ class MotionPlanner:
         self._lower = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -UNLIMITED_RANGE)
         self._upper = np.where(np.isfinite(limits[:, 1]), limits[:, 1], UNLIMITED_RANGE)
         self._ends = np.zeros((2, self._n))  # start and goal of the search under way
+        # Leaving a jiggled start: the clearance it needs, how far (rad) that holds.
+        self._start_need: tuple[float, float] | None = None
         self.checks = 0  # validity checks since the planner was made
         # Seconds the last plan spent in each step (0 for a step it skipped).
         self.last_stats: dict[str, float] = dict.fromkeys(_STEPS, 0.0)
@@ -291,6 +293,7 @@ class MotionPlanner:
         orientation_tolerance: float | None = None,
         velocity_scaling: float = 1.0,
         acceleration_scaling: float = 1.0,
+        start_jiggle: float = 0.0,
     ) -> JointTrajectory:
         """A collision-free, timed trajectory from `start` (default: the measured joint
         positions) to `goal`: a joint vector, a TCP pose (`pinocchio.SE3`), or a goal set (a
@@ -302,6 +305,9 @@ class MotionPlanner:
         collision-free state this close to it. `position_tolerance` (m),
         `orientation_tolerance` (rad): how far from a pose goal the TCP may end.
         `velocity_scaling`, `acceleration_scaling` in (0, 1]: fractions of the limits.
+        `start_jiggle` (rad, any joint): a start in collision (an arm a watching follower
+        stopped on a contact) is left first, straight, for the nearest collision-free state
+        this close, going no deeper into what it touches (MoveIt's FixStartStateCollision).
 
         Raises `InfeasibleError` (with a `reason`) when the query cannot be solved, before
         searching: a start or goal in collision or outside the bounds, no collision-free IK
@@ -314,6 +320,7 @@ class MotionPlanner:
         timer = self._timer(velocity_scaling, acceleration_scaling)
         lower, upper = self._bounds(bounds)
         tolerance = _number(goal_tolerance, "goal_tolerance")
+        jiggle = _number(start_jiggle, "start_jiggle")
         pose_tolerance = (
             _optional(position_tolerance, "position_tolerance"),
             _optional(orientation_tolerance, "orientation_tolerance"),
@@ -322,12 +329,14 @@ class MotionPlanner:
         self._checker.sync()
         self._checker.carry(carry)
         try:
-            q0 = self._start(start, lower, upper)
+            q_from, q0 = self._jiggled_start(start, lower, upper, jiggle)
             goals = self._goals(goal, q0, lower, upper, tolerance, pose_tolerance)
             self.last_stats["ends"] = time.perf_counter() - began
             straight = True
             while True:  # a path whose timing cuts into the margin is searched again
                 waypoints = self._search(q0, goals, budget, began, straight, lower, upper)
+                if q_from is not q0:
+                    waypoints = np.vstack([q_from[None], waypoints])
                 trajectory = self._timed(waypoints, timer, lower, upper)
                 if trajectory is not None:
                     return trajectory
@@ -338,6 +347,7 @@ class MotionPlanner:
                         "closer than the margin once timed; raise the timeout or the padding"
                     )
         finally:
+            self._start_need = None
             if carry is not None:
                 self._checker.carry(None)
 
@@ -472,6 +482,30 @@ class MotionPlanner:
                     f"limits [{self._lower[i]:g}, {self._upper[i]:g}]"
                 )
         return lower, upper
+
+    def _jiggled_start(
+        self, start: Sequence[float] | None, lower: np.ndarray, upper: np.ndarray, jiggle: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The start, and the state the search starts from: the start itself, or with
+        `jiggle` > 0 and a start in collision, the nearest of `TOLERANCE_SAMPLES` random
+        collision-free states within `jiggle` of it."""
+        q = self._robot.jnt_pos_msr.copy() if start is None else _vector(start, self._n, "start")
+        self._inside(q, "start", lower, upper)
+        clash = self._clash(q, "the start")
+        if clash is None:
+            return q, q
+        if jiggle > 0.0:
+            low, high = np.maximum(q - jiggle, lower), np.minimum(q + jiggle, upper)
+            near = self._rng.uniform(low, high, (TOLERANCE_SAMPLES, self._n))
+            free = [s for s in near if self._checker.valid(s)]
+            if free:
+                # Leaving, the arm may not go deeper into what it touches (1 mm slack).
+                nearest = min(free, key=lambda s: float(np.abs(s - q).max()))
+                reach = float(np.abs(nearest - q).max())
+                self._start_need = (self._checker.clearance(q) - 0.001, reach)
+                return q, nearest
+            clash += f" (and no collision-free state within start_jiggle={jiggle:g} rad)"
+        raise InfeasibleError(clash, "collision")
 
     def _start(
         self, start: Sequence[float] | None, lower: np.ndarray, upper: np.ndarray
@@ -817,7 +851,14 @@ class MotionPlanner:
         # Away from the start and goal (where the arm is slow) the executed arm strays from
         # the plan: it must keep TRACKING more than the margin there.
         ends = np.minimum(np.abs(q - q[0]).max(axis=1), np.abs(q - q[-1]).max(axis=1))
-        need = np.where(ends < ESCAPE, self._margin, self._margin + TRACKING).tolist()
+        need = np.where(ends < ESCAPE, self._margin, self._margin + TRACKING)
+        if self._start_need is not None:
+            # The first stretch leaves a start in collision (`start_jiggle`): up to the
+            # collision-free state it heads for, it may not go deeper.
+            need_at, reach = self._start_need
+            leaving = np.abs(q - q[0]).max(axis=1) <= reach + CHECK_STEP
+            need[leaving] = np.minimum(need[leaving], need_at)
+        need = need.tolist()
         near = []
         for k in coarse:
             d = clearance(q[k])
