@@ -518,7 +518,8 @@ def test_the_time_split_covers_every_step(panda) -> None:
     planner = MotionPlanner(robot)
     planner.plan(q_b)
     stats = planner.last_stats
-    assert set(stats) == {"ends", "search", "simplify", "timing", "check"}
+    assert set(stats) == {"ends", "search", "simplify", "project", "timing", "check"}
+    assert stats["project"] == 0.0  # no path constraint
     assert all(stats[k] > 0.0 for k in ("ends", "search", "simplify", "timing", "check"))
 
 
@@ -550,3 +551,34 @@ def test_obstacles_added_and_moved_between_calls_are_seen(tmp_path) -> None:
         scene.model.body_pos[scene.model.body("post").id] = [0.0, 0.0, 2.0]
         planner.plan(goal)
         assert planner.last_stats["simplify"] == 0.0
+
+
+# ---------------------------------------------------------------------- path constraints
+
+
+def test_an_upright_tool_stays_within_5_degrees_along_the_whole_timed_path(panda) -> None:
+    from mjkdl.plan import OrientationConstraint
+
+    _env, robot, _q_a, q_b = panda
+    planner = MotionPlanner(robot)
+    upright = OrientationConstraint((0.0, 0.0, 1.0), (0.0, 0.0, -1.0), np.radians(5.0))
+    unconstrained = planner.plan(q_b)
+    tilt = [
+        upright.error(robot.fk_frame(unconstrained.sample(t)[0]).rotation)
+        for t in np.linspace(0, unconstrained.duration, 200)
+    ]
+    assert max(tilt) > np.radians(10.0)  # free, the tool swings over the wall
+    traj = planner.plan(q_b, constraint=upright, timeout=5.0)
+    times = np.arange(0.0, traj.duration, 0.002)
+    tilt = [upright.error(robot.fk_frame(traj.sample(t)[0]).rotation) for t in times]
+    assert max(tilt) <= np.radians(5.0)
+    assert min(planner.checker.clearance(traj.sample(t)[0]) for t in times) >= planner.margin
+    assert np.abs(traj.positions[-1] - q_b).max() < 1e-12
+    sideways = OrientationConstraint((0.0, 0.0, 1.0), (1.0, 0.0, 0.0))
+    with pytest.raises(InfeasibleError, match=r"the start breaks the constraint: .* 90.0°") as e:
+        planner.plan(q_b, constraint=sideways)
+    assert e.value.reason == "constraint"
+    with pytest.raises(mjk.SpecError, match=r"OrientationConstraint.world_axis must be non-zero"):
+        OrientationConstraint(world_axis=(0.0, 0.0, 0.0))
+    with pytest.raises(mjk.SpecTypeError, match=r"constraint must be an OrientationConstraint"):
+        planner.plan(q_b, constraint="upright")

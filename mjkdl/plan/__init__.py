@@ -3,6 +3,7 @@
 from ..errors import InfeasibleError, PlanningError, PlanningTimeout
 from .acm import AllowedCollisionMatrix, acm_cache_dir
 from .collision import CollisionChecker
+from .constraints import OrientationConstraint
 from .follower import FollowerStop, TrajectoryFollower
 from .limits import DATASHEETS, Datasheet
 from .planner import PLANNERS, MotionPlanner
@@ -18,6 +19,7 @@ __all__ = [
     "InfeasibleError",
     "JointTrajectory",
     "MotionPlanner",
+    "OrientationConstraint",
     "PlanningError",
     "PlanningTimeout",
     "TimeParametrizer",

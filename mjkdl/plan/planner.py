@@ -12,6 +12,7 @@ details and the figures.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Sequence
@@ -25,6 +26,7 @@ from ..errors import InfeasibleError, PlanningError, PlanningTimeout, SpecError,
 from ..robot import Robot
 from .acm import SAMPLES, AllowedCollisionMatrix, compute_acm
 from .collision import CollisionChecker
+from .constraints import OrientationConstraint
 from .limits import DATASHEETS, chain_links, datasheet_limits, find_datasheet
 from .trajectory import JointTrajectory, TimeParametrizer
 
@@ -69,8 +71,11 @@ _NO_LIMIT = 1e6
 POCKET_RADIUS = 0.25
 POCKET_TRIES = 100
 # The steps of a plan whose seconds `last_stats` holds: the start and goal checks (IK and the
-# pocket test included), the search, OMPL's simplification, the timing, the final check.
-_STEPS = ("ends", "search", "simplify", "timing", "check")
+# pocket test included), the search, OMPL's simplification, the projection onto a path
+# constraint, the timing, the final check.
+_STEPS = ("ends", "search", "simplify", "project", "timing", "check")
+# Spacing (rad, any joint) of the states a constrained path is projected at.
+PROJECTION_STEP = 0.02
 # Random goal states drawn within a goal tolerance when the exact goal is in collision.
 TOLERANCE_SAMPLES = 50
 
@@ -294,6 +299,7 @@ class MotionPlanner:
         velocity_scaling: float = 1.0,
         acceleration_scaling: float = 1.0,
         start_jiggle: float = 0.0,
+        constraint: OrientationConstraint | None = None,
     ) -> JointTrajectory:
         """A collision-free, timed trajectory from `start` (default: the measured joint
         positions) to `goal`: a joint vector, a TCP pose (`pinocchio.SE3`), or a goal set (a
@@ -308,6 +314,8 @@ class MotionPlanner:
         `start_jiggle` (rad, any joint): a start in collision (an arm a watching follower
         stopped on a contact) is left first, straight, for the nearest collision-free state
         this close, going no deeper into what it touches (MoveIt's FixStartStateCollision).
+        `constraint`: an `OrientationConstraint` the TCP keeps along the whole timed path
+        (the path is projected onto it; see `mjkdl.plan.constraints`).
 
         Raises `InfeasibleError` (with a `reason`) when the query cannot be solved, before
         searching: a start or goal in collision or outside the bounds, no collision-free IK
@@ -321,6 +329,8 @@ class MotionPlanner:
         lower, upper = self._bounds(bounds)
         tolerance = _number(goal_tolerance, "goal_tolerance")
         jiggle = _number(start_jiggle, "start_jiggle")
+        if constraint is not None and not isinstance(constraint, OrientationConstraint):
+            raise SpecTypeError(f"constraint must be an OrientationConstraint, got {constraint!r}")
         pose_tolerance = (
             _optional(position_tolerance, "position_tolerance"),
             _optional(orientation_tolerance, "orientation_tolerance"),
@@ -331,20 +341,34 @@ class MotionPlanner:
         try:
             q_from, q0 = self._jiggled_start(start, lower, upper, jiggle)
             goals = self._goals(goal, q0, lower, upper, tolerance, pose_tolerance)
+            if constraint is not None:
+                self._constraint_ends(q0, goals, constraint)
             self.last_stats["ends"] = time.perf_counter() - began
             straight = True
             while True:  # a path whose timing cuts into the margin is searched again
                 waypoints = self._search(q0, goals, budget, began, straight, lower, upper)
                 if q_from is not q0:
                     waypoints = np.vstack([q_from[None], waypoints])
-                trajectory = self._timed(waypoints, timer, lower, upper)
+                trajectory = None
+                failure = "came closer than the margin once timed"
+                try:
+                    if constraint is not None:
+                        t_project = time.perf_counter()
+                        try:
+                            waypoints = self._project(waypoints, constraint, lower, upper)
+                        finally:
+                            self.last_stats["project"] += time.perf_counter() - t_project
+                        failure = "failed its projection onto the constraint"
+                    trajectory = self._timed(waypoints, timer, lower, upper, constraint)
+                except PlanningError as error:  # the projection: another path may do
+                    failure = f"failed its projection onto the constraint (last: {error})"
                 if trajectory is not None:
                     return trajectory
                 straight = False
                 if time.perf_counter() - began > budget:
                     raise PlanningTimeout(
-                        f"{self._planner_name}: every path found within {budget:g} s came "
-                        "closer than the margin once timed; raise the timeout or the padding"
+                        f"{self._planner_name}: every path found within {budget:g} s "
+                        f"{failure}; raise the timeout or the padding"
                     )
         finally:
             self._start_need = None
@@ -799,9 +823,10 @@ class MotionPlanner:
         timer: TimeParametrizer,
         lower: np.ndarray | None = None,
         upper: np.ndarray | None = None,
+        constraint: OrientationConstraint | None = None,
     ) -> JointTrajectory | None:
-        """`timer`'s timing of the path, checked; when the spline cuts a corner into a
-        collision or overshoots the bounds (default: the joint limits), the path is
+        """`timer`'s timing of the path, checked (`constraint` too); when the spline cuts
+        a corner into a collision or overshoots the bounds (default: the joint limits), the path is
         subdivided (the spline then hugs it) and timed again. None when that does not
         help: the path itself grazes the margin between its checks."""
         bounds = (
@@ -813,12 +838,74 @@ class MotionPlanner:
             trajectory = timer(waypoints)
             t_check = time.perf_counter()
             self.last_stats["timing"] += t_check - t
-            ok = self._trajectory_ok(trajectory, *bounds)
+            ok = self._trajectory_ok(trajectory, *bounds) and (
+                constraint is None or self._keeps(trajectory, constraint)
+            )
             self.last_stats["check"] += time.perf_counter() - t_check
             if ok:
                 return trajectory
             waypoints = _subdivide(waypoints)
         return None
+
+    def _constraint_ends(
+        self, q0: np.ndarray, goals: np.ndarray, constraint: OrientationConstraint
+    ) -> None:
+        for q, what in ((q0, "the start"), *((g, "the goal") for g in goals)):
+            error = constraint.error(self._robot.fk_frame(q).rotation)
+            if error > constraint.tolerance:
+                raise InfeasibleError(
+                    f"{what} breaks the constraint: the tool axis is {math.degrees(error):.1f}° "
+                    f"from the world axis (tolerance {math.degrees(constraint.tolerance):.1f}°)",
+                    "constraint",
+                )
+
+    def _project(
+        self,
+        waypoints: np.ndarray,
+        constraint: OrientationConstraint,
+        lower: np.ndarray,
+        upper: np.ndarray,
+    ) -> np.ndarray:
+        """The path every `PROJECTION_STEP` projected onto the constraint (IK seeded with the
+        previous projected state), each state checked; PlanningError naming where not."""
+        robot = self._robot
+        dense = [waypoints[0]]
+        for a, b in itertools.pairwise(waypoints):
+            count = max(1, math.ceil(float(np.abs(b - a).max()) / PROJECTION_STEP))
+            dense.extend(a + (b - a) * (k / count) for k in range(1, count + 1))
+        out = [waypoints[0]]
+        q = waypoints[0]
+        for k, state in enumerate(dense[1:-1], start=1):
+            frame = robot.fk_frame(state)
+            target = pin.SE3(constraint.project(frame.rotation), frame.translation)
+            where = f"at {k / (len(dense) - 1):.0%} of the path"
+            for seed in (q, state):
+                result = robot.ik(target, seed)
+                if result.success and float(np.abs(result.q - q).max()) <= 10 * PROJECTION_STEP:
+                    break
+            else:
+                raise PlanningError(f"constraint: the projection has no IK solution {where}")
+            if self._outside(result.q, "", lower, upper) is not None:
+                raise PlanningError(f"constraint: the projection leaves the bounds {where}")
+            clash = self._clash(result.q, f"constraint: the projected state {where}")
+            if clash is not None:
+                raise PlanningError(clash)
+            q = result.q
+            out.append(q)
+        out.append(waypoints[-1])
+        return np.array(out)
+
+    def _keeps(self, trajectory: JointTrajectory, constraint: OrientationConstraint) -> bool:
+        """Whether the timed trajectory keeps the constraint every `CHECK_STEP` / `FINE`."""
+        q = trajectory.positions
+        steps = np.abs(np.diff(q, axis=0)).max(axis=1)
+        fk = self._robot.fk_frame
+        marks = np.floor(np.concatenate([[0.0], np.cumsum(steps)]) / (CHECK_STEP / FINE))
+        keep = np.diff(marks, prepend=-1.0) > 0
+        keep[-1] = True
+        return all(
+            constraint.error(fk(state).rotation) <= constraint.tolerance for state in q[keep]
+        )
 
     def _trajectory_ok(
         self,
