@@ -582,3 +582,19 @@ def test_an_upright_tool_stays_within_5_degrees_along_the_whole_timed_path(panda
         OrientationConstraint(world_axis=(0.0, 0.0, 0.0))
     with pytest.raises(mjk.SpecTypeError, match=r"constraint must be an OrientationConstraint"):
         planner.plan(q_b, constraint="upright")
+
+
+def test_jerk_limited_timing_beside_toppra(panda) -> None:
+    _env, robot, q_a, q_b = panda
+    planner = MotionPlanner(robot)
+    assert planner.jerk_limits == pytest.approx(planner.acceleration_limits * 10.0)
+    traj = planner.plan(q_b, timing="ruckig")
+    assert np.abs(traj.positions[[0, -1]] - [q_a, q_b]).max() < 1e-12
+    jerk = np.abs(np.diff(traj.accelerations, axis=0) / np.diff(traj.times)[:, None])
+    assert np.all(jerk.max(axis=0) <= planner.jerk_limits * 1.001)
+    times = np.arange(0.0, traj.duration, 0.002)
+    assert min(planner.checker.clearance(traj.sample(t)[0]) for t in times) >= planner.margin
+    with pytest.raises(mjk.SpecError, match=r'timing must be "toppra" or "ruckig", got \'rk\''):
+        planner.plan(q_b, timing="rk")
+    with pytest.raises(mjk.SpecError, match=r"jerk_limits must be positive"):
+        MotionPlanner(robot, jerk_limits=[0.0] * 7)

@@ -99,3 +99,28 @@ def test_knots_match_toppras_own_const_accel_parametrizer() -> None:
 def test_a_path_of_one_point_is_a_standstill() -> None:
     traj = TimeParametrizer(V, A)(np.zeros((3, 7)))
     assert traj.duration > 0 and not traj.velocities.any() and not traj.positions.any()
+
+
+def test_ruckig_timing_is_jerk_limited_and_stays_on_the_checked_polyline() -> None:
+    from mjkdl.plan.trajectory import JerkLimitedParametrizer
+
+    v, a, j = np.array([1.0, 2.0]), np.array([4.0, 5.0]), np.array([40.0, 60.0])
+    points = np.array([[0.0, 0.0], [0.6, 0.3], [0.6, -0.5]])
+    traj = JerkLimitedParametrizer(v, a, j)(points)
+    assert np.abs(traj.positions[[0, -1]] - points[[0, -1]]).max() < 1e-12
+    t = np.arange(0.0, traj.duration, 0.001)
+    q = np.array([traj.sample(x)[0] for x in t])
+    qd = np.array([traj.sample(x)[1] for x in t])
+    assert np.all(np.abs(qd).max(axis=0) <= v * 1.001)
+    # Jerk from the knots' accelerations (every 10 ms): within the limits.
+    jerk = np.abs(np.diff(traj.accelerations, axis=0) / np.diff(traj.times)[:, None])
+    assert np.all(jerk.max(axis=0) <= j * 1.001)
+    assert np.all(np.abs(traj.accelerations).max(axis=0) <= a * 1.001)
+    # On the polyline: every sample lies on one of its two segments.
+    first = np.abs(np.cross(q - points[0], points[1] - points[0]))
+    second = np.abs(q[:, 0] - 0.6)
+    assert np.minimum(first, second).max() < 1e-6
+    # toppra's spline through the corner leaves the polyline; it is faster too.
+    from mjkdl.plan import TimeParametrizer
+
+    assert TimeParametrizer(v, a)(points).duration < traj.duration

@@ -28,7 +28,7 @@ from .acm import SAMPLES, AllowedCollisionMatrix, compute_acm
 from .collision import CollisionChecker
 from .constraints import OrientationConstraint
 from .limits import DATASHEETS, chain_links, datasheet_limits, find_datasheet
-from .trajectory import JointTrajectory, TimeParametrizer
+from .trajectory import JerkLimitedParametrizer, JointTrajectory, TimeParametrizer
 
 # OMPL's geometric planners selectable by name.
 PLANNERS = (
@@ -74,6 +74,8 @@ POCKET_TRIES = 100
 # pocket test included), the search, OMPL's simplification, the projection onto a path
 # constraint, the timing, the final check.
 _STEPS = ("ends", "search", "simplify", "project", "timing", "check")
+# Seconds to full acceleration: the jerk limits by default (datasheets rarely give any).
+JERK_RAMP = 0.1
 # Spacing (rad, any joint) of the states a constrained path is projected at.
 PROJECTION_STEP = 0.02
 # Random goal states drawn within a goal tolerance when the exact goal is in collision.
@@ -114,6 +116,7 @@ class MotionPlanner:
         seed: int = 0,
         acm: bool = True,
         acm_samples: int = SAMPLES,
+        jerk_limits: Sequence[float] | None = None,
     ) -> None:
         if not isinstance(robot, Robot):
             raise SpecTypeError(f"MotionPlanner: robot must be a Robot, got {robot!r}")
@@ -131,8 +134,14 @@ class MotionPlanner:
         self._vmax, self._amax, self.limits_source = self._limits(
             velocity_limits, acceleration_limits
         )
-        self._timers: dict[tuple[float, float], TimeParametrizer] = {
-            (1.0, 1.0): TimeParametrizer(self._vmax, self._amax)
+        if jerk_limits is None:
+            self._jmax = self._amax / JERK_RAMP
+        else:
+            self._jmax = _vector(jerk_limits, self._n, "jerk_limits")
+            if np.any(self._jmax <= 0):
+                raise SpecError(f"jerk_limits must be positive, got {self._jmax.tolist()}")
+        self._timers: dict[tuple[float, float, str], Any] = {
+            (1.0, 1.0, "toppra"): TimeParametrizer(self._vmax, self._amax)
         }
         self._checker = CollisionChecker(
             robot,
@@ -270,6 +279,11 @@ class MotionPlanner:
         return self._amax.copy()
 
     @property
+    def jerk_limits(self) -> np.ndarray:
+        """Per-joint jerk limits of `timing="ruckig"` (default: acceleration / `JERK_RAMP`)."""
+        return self._jmax.copy()
+
+    @property
     def checker(self) -> CollisionChecker:
         """The collision checker the planner uses."""
         return self._checker
@@ -300,6 +314,7 @@ class MotionPlanner:
         acceleration_scaling: float = 1.0,
         start_jiggle: float = 0.0,
         constraint: OrientationConstraint | None = None,
+        timing: str = "toppra",
     ) -> JointTrajectory:
         """A collision-free, timed trajectory from `start` (default: the measured joint
         positions) to `goal`: a joint vector, a TCP pose (`pinocchio.SE3`), or a goal set (a
@@ -315,7 +330,9 @@ class MotionPlanner:
         stopped on a contact) is left first, straight, for the nearest collision-free state
         this close, going no deeper into what it touches (MoveIt's FixStartStateCollision).
         `constraint`: an `OrientationConstraint` the TCP keeps along the whole timed path
-        (the path is projected onto it; see `mjkdl.plan.constraints`).
+        (the path is projected onto it; see `mjkdl.plan.constraints`). `timing`: "toppra"
+        (time-optimal under velocity and acceleration limits, through a spline) or "ruckig"
+        (jerk-limited too, at rest at every waypoint, on the checked polyline).
 
         Raises `InfeasibleError` (with a `reason`) when the query cannot be solved, before
         searching: a start or goal in collision or outside the bounds, no collision-free IK
@@ -325,7 +342,7 @@ class MotionPlanner:
         budget = _number(timeout, "timeout", positive=True)
         began = time.perf_counter()
         self.last_stats = dict.fromkeys(_STEPS, 0.0)
-        timer = self._timer(velocity_scaling, acceleration_scaling)
+        timer = self._timer(velocity_scaling, acceleration_scaling, timing)
         lower, upper = self._bounds(bounds)
         tolerance = _number(goal_tolerance, "goal_tolerance")
         jiggle = _number(start_jiggle, "start_jiggle")
@@ -467,8 +484,12 @@ class MotionPlanner:
         clash = self._clash(result.q, f"plan_cartesian: the pose {where}")
         return result.q if clash is None else clash
 
-    def _timer(self, velocity_scaling: float, acceleration_scaling: float) -> TimeParametrizer:
+    def _timer(
+        self, velocity_scaling: float, acceleration_scaling: float, timing: str = "toppra"
+    ) -> Any:
         """The time parametrizer for the limits scaled by these fractions (kept per pair)."""
+        if timing not in ("toppra", "ruckig"):
+            raise SpecError(f'timing must be "toppra" or "ruckig", got {timing!r}')
         scales = []
         for value, field in (
             (velocity_scaling, "velocity_scaling"),
@@ -478,9 +499,14 @@ class MotionPlanner:
             if number > 1.0:
                 raise SpecError(f"{field} must be in (0, 1], got {number:g}")
             scales.append(number)
-        key = (scales[0], scales[1])
+        key = (scales[0], scales[1], timing)
         if key not in self._timers:
-            self._timers[key] = TimeParametrizer(self._vmax * key[0], self._amax * key[1])
+            v, a = self._vmax * key[0], self._amax * key[1]
+            self._timers[key] = (
+                TimeParametrizer(v, a)
+                if timing == "toppra"
+                else JerkLimitedParametrizer(v, a, self._jmax * key[1])
+            )
         return self._timers[key]
 
     def _bounds(
@@ -820,7 +846,7 @@ class MotionPlanner:
     def _timed(
         self,
         waypoints: np.ndarray,
-        timer: TimeParametrizer,
+        timer: TimeParametrizer | JerkLimitedParametrizer,
         lower: np.ndarray | None = None,
         upper: np.ndarray | None = None,
         constraint: OrientationConstraint | None = None,
