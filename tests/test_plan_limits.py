@@ -13,6 +13,7 @@ import pytest
 from conftest import base_spec, menagerie, tutorial_spec
 
 import mjkdl as mjk
+import mjkdl.plan
 from mjkdl.plan import DATASHEETS, MotionPlanner
 from mjkdl.plan.acm import compute_acm
 from mjkdl.plan.limits import RAMP
@@ -193,3 +194,44 @@ def test_the_matrix_is_cached_inspectable_and_editable(tmp_path, monkeypatch) ->
             MotionPlanner(robot, acm_samples=3)
     finally:
         scene.close()
+
+
+HOVERING_DISC = """
+<mujoco model="hover">
+  <worldbody>
+    <body name="base">
+      <geom type="box" size="0.3 0.3 0.01"/>
+      <body name="l1" pos="0 0 0.05">
+        <joint name="j1" axis="0 0 1"/>
+        <geom type="capsule" fromto="0 0 0 0.1 0 0" size="0.01" mass="1"/>
+        <body name="l2" pos="0.1 0 0">
+          <joint name="j2" axis="0 0 1"/>
+          <geom type="cylinder" size="0.05 0.005" pos="0.1 0 -0.032" mass="0.5"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_link_always_within_the_margin_of_its_mount_is_allowed(tmp_path) -> None:
+    """As the UR5e's shoulder over its mount (issue 31): a disc 3 mm above the base plate,
+    not the plate's child, is within a 5 mm margin in every pose."""
+    path = tmp_path / "hover.xml"
+    path.write_text(HOVERING_DISC)
+    spec = base_spec(add_floor=False, robots=[mjk.RobotSpec(path=str(path))])
+    with mjk.Scene.build(spec) as scene:
+        arm = scene.create_robot("base", "l2")
+        limits = {"velocity_limits": [1.0, 1.0], "acceleration_limits": [2.0, 2.0]}
+        with pytest.raises(
+            mjk.plan.InfeasibleError,
+            match=r"the start is in collision: bodies '(base|l2)' and '(base|l2)' are 3.0 mm",
+        ):
+            MotionPlanner(arm, acm=False, **limits).plan([1.0, 1.0])
+        planner = MotionPlanner(arm, **limits)
+        assert planner.acm.reason("base", "l2") == "always"
+        assert planner.acm.contact_fraction[("base", "l2")] == 1.0
+        assert planner.acm.reason("l1", "l2") == "adjacent"
+        traj = planner.plan([1.0, 1.0])
+        assert np.abs(traj.positions[-1] - [1.0, 1.0]).max() < 1e-12

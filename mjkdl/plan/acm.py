@@ -4,10 +4,11 @@ matrix, computed by sampling as its setup assistant does.
 Over `samples` random joint positions within the limits (unlimited joints within ±π), a pair
 of the robot's bodies (the arm, what it carries on its tip, and the body it is mounted on)
 is allowed when it is *adjacent* (parent and child: MuJoCo never collides them), in contact
-in the model's *default* pose (`qpos0`), in contact in at least `ALWAYS` of the samples
-(*always*: the UR5e's shoulder 3 mm above its mount), or in none of them (*never*). "In
+in at least `ALWAYS` of the samples (*always*: the UR5e's shoulder 3 mm above its mount), in
+contact in the model's *default* pose (`qpos0`), or in none of the samples (*never*). "In
 contact" means closer than the planner's margin. Pairs of bodies that keep their relative
-pose (a hand and its fingers) are not the planner's business and are not listed.
+pose (a hand and its fingers) are not the planner's business and are not listed. A pair gets
+the first reason that applies, in that order.
 
 The result is cached per model (a hash of the robot's bodies, geoms, joint ranges, the margin
 and the sample count): in memory, and as JSON under `acm_cache_dir()`.
@@ -35,7 +36,7 @@ ALWAYS = 0.95
 SAMPLES = 2000
 REASONS = ("adjacent", "default", "always", "never", "user")
 _MEMORY: dict[str, tuple[dict[tuple[str, str], str], dict[tuple[str, str], float]]] = {}
-_FORMAT = "1"
+_FORMAT = "2"
 
 
 def acm_cache_dir() -> Path:
@@ -227,10 +228,10 @@ def _sample(
         fractions[pair] = float(counts[k]) / samples
         if model.body_parentid[a] == b or model.body_parentid[b] == a:
             pairs[pair] = "adjacent"
-        elif k in at_default:
-            pairs[pair] = "default"
         elif counts[k] >= math.ceil(ALWAYS * samples):
             pairs[pair] = "always"
+        elif k in at_default:
+            pairs[pair] = "default"
         elif counts[k] == 0:
             pairs[pair] = "never"
     return pairs, fractions
