@@ -17,6 +17,20 @@ Then, in the same process:
     mode) and the measured arm's clearance to everything is taken at every physics step: the
     smallest, and how many trajectories came closer than the margin.
 
+The time split of our plans (IK and pocket tests at the ends, search, simplification,
+timing, final check) is printed as medians. Plain OMPL (the same RRTConnect, range,
+resolution and simplifier, `CollisionChecker.valid` as its validity function, no timing, no
+final check) plans the same queries in the same run: our search + simplification, and our
+whole plan, against it.
+
+roboplan 0.7 (C++ RRT-Connect over Pinocchio + coal), where it imports, plans the same Panda
+queries with its own collision model: Menagerie's panda.xml through its own MJCF loader (coal
+meshes), the clutter as its boxes, the pairs our allowed-collision matrix allows (and
+adjacent links) disabled; it has no clearance margin (contact only). It needs
+LD_LIBRARY_PATH to reach the cmeel Pinocchio libraries (benchmarks/README.md). VAMP
+(`vamp-planner` 0.6.4) is an sdist whose CMake fetches its dependencies from GitHub: it
+does not build without network access, and the benchmark says so.
+
 pyroboplan (the peer the issue names), where it imports, plans the same queries in the same
 run: its RRTConnect (`rrt_connect`, `bidirectional_rrt`), the same timeout, its own collision
 checking (Pinocchio + coal) with the same 5 mm as its `collision_distance_padding`, checking
@@ -267,6 +281,133 @@ def run_pyroboplan(
     return seconds, steps, failures
 
 
+def run_plain_ompl(
+    planner: MotionPlanner, configs: list[np.ndarray], timeout: float
+) -> tuple[list[float], int]:
+    """Plain OMPL RRTConnect with our checker as the validity function, the same range,
+    resolution and simplifier: seconds (search + simplification) per solved query."""
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
+
+    from mjkdl.plan.planner import RANGE, SIMPLIFY
+
+    n = planner.robot.n_joints
+    limits = planner.robot.joint_limits
+    low = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -np.pi)
+    high = np.where(np.isfinite(limits[:, 1]), limits[:, 1], np.pi)
+    space = ob.RealVectorStateSpace(n)
+    bounds = ob.RealVectorBounds(n)
+    for i in range(n):
+        bounds.setLow(i, float(low[i]))
+        bounds.setHigh(i, float(high[i]))
+    space.setBounds(bounds)
+    si = ob.SpaceInformation(space)
+    valid = planner.checker.valid
+    si.setStateValidityChecker(lambda state: valid(state[0:n]))
+    si.setStateValidityCheckingResolution(0.1 / space.getMaximumExtent())
+    si.setup()
+    ou.setLogLevel(ou.LOG_NONE)
+    seconds, failures = [], 0
+    for start, goal in itertools.pairwise(configs):
+        t0 = time.perf_counter()
+        setup = og.SimpleSetup(si)
+        rrt = og.RRTConnect(si)
+        rrt.setRange(RANGE)
+        setup.setPlanner(rrt)
+        a, b = si.allocState(), si.allocState()
+        for i in range(n):
+            a[i], b[i] = float(start[i]), float(goal[i])
+        setup.setStartAndGoalStates(a, b)
+        setup.solve(timeout)
+        if not setup.haveExactSolutionPath():
+            failures += 1
+            continue
+        path = setup.getSolutionPath()
+        simplifier = og.PathSimplifier(si)
+        for name in SIMPLIFY:
+            getattr(simplifier, name)(path)
+        seconds.append(time.perf_counter() - t0)
+    return seconds, failures
+
+
+def roboplan_scene(env: mjk.Env, planner: MotionPlanner) -> tuple | str:
+    """roboplan's own model of the Panda scene, or why not."""
+    try:
+        from roboplan.core import Box, Scene, loadMjcfModel
+    except ImportError as error:
+        return f"roboplan does not import ({error})"
+    scene = Scene("panda", loadMjcfModel(mjk.menagerie.model_path("franka_emika_panda")))
+    scene.allowAdjacentLinkCollisions()
+    pairs = [("hand", "left_finger"), ("hand", "right_finger"), ("left_finger", "right_finger")]
+    acm = planner.acm.pairs if planner.acm is not None else {}
+    pairs += list(acm)
+    names = set(scene.getJointNames())
+    scene.setCollisions(pairs, False)
+    m = env.model
+    for obj in clutter(np.zeros(3)):
+        g = m.body(obj.name).id
+        pose = np.eye(4)
+        pose[:3, 3] = m.body_pos[g]
+        size = 2.0 * np.asarray(obj.size)  # coal boxes take full side lengths
+        scene.addBoxGeometry(obj.name, "universe", Box(*size), pose, np.ones(4))
+    floor = np.eye(4)
+    floor[2, 3] = -0.052  # its top 2 mm below the posts and the base: not touching them
+    scene.addBoxGeometry("floor", "universe", Box(4.0, 4.0, 0.1), floor, np.ones(4))
+    scene.addGroupFromChain("arm", "link0", "link7")
+    return scene, sorted(names)
+
+
+def run_roboplan(
+    rp: tuple, robot: mjk.Robot, configs: list[np.ndarray], timeout: float, step_time
+) -> tuple[list[float], list[float], int]:
+    """roboplan's RRT-Connect on the consecutive pairs of `configs` (the fingers held)."""
+    from roboplan.core import JointConfiguration
+    from roboplan.rrt import RRT, RRTOptions
+
+    scene, _names = rp
+    options = RRTOptions(
+        group_name="arm",
+        max_nodes=100000,
+        max_connection_distance=2.0,
+        collision_check_step_size=0.1,
+        max_planning_time=timeout,
+        rrt_connect=True,
+    )
+    rrt = RRT(scene, options)
+    rrt.setRngSeed(0)
+    joints = robot.joint_names
+    seconds, steps, failures = [], [], 0
+    for start, goal in itertools.pairwise(configs):
+        step = step_time()
+        t0 = time.perf_counter()
+        try:
+            path = rrt.plan(JointConfiguration(joints, start), JointConfiguration(joints, goal))
+        except RuntimeError:
+            path = None
+        elapsed = time.perf_counter() - t0
+        if path is None or not len(path.positions):
+            failures += 1
+            continue
+        seconds.append(elapsed)
+        steps.append(elapsed / step)
+    return seconds, steps, failures
+
+
+def roboplan_agreement(rp: tuple, planner: MotionPlanner, configs: list[np.ndarray]) -> float:
+    """How often roboplan's checker (contact) agrees with ours at zero margin."""
+    scene, names = rp
+    zero = CollisionChecker(planner.robot, 0.0)
+    fingers = np.full(len(names) - planner.robot.n_joints, 0.0)
+    rng = np.random.default_rng(1)
+    limits = planner.robot.joint_limits
+    same = 0
+    samples = rng.uniform(limits[:, 0], limits[:, 1], (300, planner.robot.n_joints))
+    for q in samples:
+        same += (not scene.hasCollisions(np.concatenate([q, fingers]))) == zero.valid(q)
+    return same / len(samples)
+
+
 def checker_agreement(planner: MotionPlanner, models: tuple, rng: np.random.Generator) -> float:
     """The fraction of 300 random configurations on which pyroboplan's checker (coal, same
     clearance) and ours give the same verdict: that both see the same scene."""
@@ -308,7 +449,7 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
             mujoco.mj_step(env.model, scratch)
         return (time.perf_counter() - t0) / 20
 
-    total, search, steps, trajectories, failures = [], [], [], [], []
+    total, search, steps, trajectories, failures, split = [], [], [], [], [], []
     for start, goal in itertools.pairwise(configs):
         step_now = step_time()
         t0 = time.perf_counter()
@@ -320,7 +461,14 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
         total.append(time.perf_counter() - t0)
         steps.append(total[-1] / step_now)
         search.append(planner.last_stats["search"] + planner.last_stats["simplify"])
+        split.append(dict(planner.last_stats))
         trajectories.append(traj)
+
+    plain, plain_failures = run_plain_ompl(planner, configs, args.timeout)
+    rp = roboplan_scene(env, planner) if name.startswith("Panda") else "Panda only here"
+    if not isinstance(rp, str):
+        rp_result = run_roboplan(rp, robot, configs, args.timeout, step_time)
+        rp_agree = roboplan_agreement(rp, planner, configs)
 
     # pyroboplan on the same queries, and how often its checker agrees with ours.
     models = pyroboplan_models(env, robot)
@@ -371,6 +519,42 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
         f"p90 {np.percentile(ms_search, 90):.1f} ms"
     )
     print(f"  straight line enough:  {np.mean(np.array(search) == 0) * 100:.0f} % of solved")
+    medians = {k: np.median([s[k] for s in split]) * 1e3 for k in split[0]}
+    print(
+        "  time split (medians):  "
+        + ", ".join(f"{k} {v:.2f} ms" for k, v in medians.items() if k != "project")
+    )
+    ms_plain = np.array(plain) * 1e3
+    print(
+        f"  plain OMPL + checker:  solved {len(plain) / n * 100:.1f} % ({plain_failures} failed), "
+        f"median {np.median(ms_plain):.1f} ms, p90 {np.percentile(ms_plain, 90):.1f} ms "
+        f"(search + simplification)"
+    )
+    print(
+        f"  ours / plain OMPL:     search + simplification "
+        f"{np.median(ms_search) / np.median(ms_plain):.2f}x, whole plan "
+        f"{np.median(ms_total) / np.median(ms_plain):.2f}x (medians)"
+    )
+    if isinstance(rp, str):
+        print(f"  roboplan:              {rp}; skipped")
+    else:
+        rp_seconds, rp_steps, rp_failures = rp_result
+        ms_rp = np.array(rp_seconds) * 1e3
+        print(
+            f"  roboplan RRT-Connect:  solved {len(rp_seconds) / n * 100:.1f} % ({rp_failures} "
+            f"failed), median {np.median(ms_rp):.1f} ms, p90 {np.percentile(ms_rp, 90):.1f} ms "
+            f"(its checker agrees with ours at zero margin on {rp_agree * 100:.1f} % of random "
+            "states; no margin)"
+        )
+        print(
+            f"  ours / roboplan:       {np.median(ms_total) / np.median(ms_rp):.2f}x (ms), "
+            f"{np.median(steps) / np.median(rp_steps):.2f}x (mj_steps; medians, whole plan "
+            "against its search)"
+        )
+    print(
+        "  VAMP:                  vamp-planner 0.6.4 does not build offline (an sdist whose "
+        "CMake fetches from GitHub); skipped"
+    )
     print(f"  trajectory duration:   median {np.median([t.duration for t in trajectories]):.2f} s")
     print(
         f"  validity check:        {check * 1e6:.1f} us = {check / step:.2f} x mj_step "

@@ -79,7 +79,7 @@ def test_every_arm_plans_with_published_limits_and_a_sampled_matrix(name: str) -
         # Each moving link and its parent are adjacent (the first one's parent: the mount).
         summary = acm.summary()
         assert summary["adjacent"] >= robot.n_joints - 1
-        assert summary["never"] > 0
+        assert summary["never"] == 0 and len(acm.never) > 0  # listed, not allowed
         m = scene.model
         bodies = [m.body(m.joint(j).bodyid[0]).name for j in robot.joint_names]
         assert acm.reason(bodies[1], bodies[2]) == "adjacent"
@@ -114,8 +114,13 @@ def test_every_arm_plans_with_published_limits_and_a_sampled_matrix(name: str) -
             data.qpos[checker.arm_qpos_adr] = traj.sample(t)[0]
             mujoco.mj_kinematics(m, data)
             for g1, g2 in pairs:
-                worst = min(worst, mujoco.mj_geomDistance(m, data, g1, g2, 0.05, fromto))
-        assert worst >= planner.margin - 1e-4
+                d = mujoco.mj_geomDistance(m, data, g1, g2, 0.05, fromto)
+                if d < worst:
+                    worst, closest = (
+                        d,
+                        (m.body(m.geom_bodyid[g1]).name, m.body(m.geom_bodyid[g2]).name),
+                    )
+        assert worst >= planner.margin - 1e-4, closest
     finally:
         scene.close()
 
@@ -124,7 +129,8 @@ def _counted_pairs(
     m: mujoco.MjModel, robot: mjk.Robot, allowed: dict[tuple[str, str], str]
 ) -> list[tuple[int, int]]:
     """Geom pairs of the arm's moving bodies with each other (not allowed, not in one rigid
-    group) and with the world's geoms, that MuJoCo's bits would collide."""
+    group, not excluded by the model) and with the world's geoms, that MuJoCo's bits would
+    collide."""
     root = m.joint(robot.joint_names[0]).bodyid[0]
     moving = np.zeros(m.nbody, dtype=bool)
     moving[root] = True
@@ -138,6 +144,7 @@ def _counted_pairs(
         return b if moving[b] else -1
 
     geoms = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
+    excluded = set(m.exclude_signature.tolist())
     out = []
     for i, g1 in enumerate(geoms):
         for g2 in geoms[i + 1 :]:
@@ -153,6 +160,8 @@ def _counted_pairs(
             if (min(a, b), max(a, b)) in allowed:
                 continue
             if m.body_parentid[b1] == b2 or m.body_parentid[b2] == b1:
+                continue
+            if {(b1 << 16) + b2, (b2 << 16) + b1} & excluded:  # the model's <exclude>s (SRDF)
                 continue
             out.append((g1, g2))
     return out
@@ -176,9 +185,7 @@ def test_the_matrix_is_cached_inspectable_and_editable(tmp_path, monkeypatch) ->
         acm = planner.acm
         assert acm.reason("link1", "link2") == "adjacent"
         assert ("link2", "link1") in acm
-        # link1 and link7 can meet (the wrist folds back onto the shoulder): not allowed.
-        never = [pair for pair, reason in acm.pairs.items() if reason == "never"]
-        a, b = never[0]
+        a, b = next(pair for pair, reason in acm.pairs.items() if reason == "adjacent")
         acm.disallow(a, b)
         assert acm.reason(a, b) is None
         acm.allow("link1", "link7")
@@ -190,6 +197,9 @@ def test_the_matrix_is_cached_inspectable_and_editable(tmp_path, monkeypatch) ->
             acm.allow("link1", "link9")
         with pytest.raises(mjk.SpecError, match=r"cannot collide with itself \('link1'\)"):
             acm.allow("link1", "link1")
+        # MoveIt's choice: the pairs no sample brought into contact allowed too.
+        moveit = MotionPlanner(robot, acm_samples=300, seed=1, acm_allow_never=True).acm
+        assert {p for p, r in moveit.pairs.items() if r == "never"} == set(acm.never)
         with pytest.raises(mjk.SpecError, match=r"acm_samples must be an integer >= 10"):
             MotionPlanner(robot, acm_samples=3)
     finally:

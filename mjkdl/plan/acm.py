@@ -5,10 +5,17 @@ Over `samples` random joint positions within the limits (unlimited joints within
 of the robot's bodies (the arm, what it carries on its tip, and the body it is mounted on)
 is allowed when it is *adjacent* (parent and child: MuJoCo never collides them), in contact
 in at least `ALWAYS` of the samples (*always*: the UR5e's shoulder 3 mm above its mount), in
-contact in the model's *default* pose (`qpos0`), or in none of the samples (*never*). "In
+contact in the model's *default* pose (`qpos0`), or — only with `allow_never=True` — in none of
+the samples (*never*). "In
 contact" means closer than the planner's margin. Pairs of bodies that keep their relative
 pose (a hand and its fingers) are not the planner's business and are not listed. A pair gets
 the first reason that applies, in that order.
+
+MoveIt allows *never* pairs to save collision checks; here they save nothing (MuJoCo's
+collision pass runs whole and the pairs are filtered after it) and sampling misses rare
+contacts: with them allowed, 2 of 20 trajectories executed in `benchmarks/planning.py`'s
+clutter came to -4.7 mm (a wrist link into the upper arm). They are listed in `never`, for
+inspection, and count unless `allow_never=True`.
 
 The result is cached per model (a hash of the robot's bodies, geoms, joint ranges, the margin
 and the sample count): in memory, and as JSON under `acm_cache_dir()`.
@@ -58,7 +65,8 @@ class AllowedCollisionMatrix:
 
     Inspect with `reason(a, b)`, `pairs` or `len()`; edit with `allow(a, b)` and
     `disallow(a, b)` (the planner applies edits at its next `plan`). `candidates`: every
-    pair the sampling looked at, `contact_fraction[pair]` how often it was in contact.
+    pair the sampling looked at, `contact_fraction[pair]` how often it was in contact;
+    `never`: the pairs no sample brought into contact (allowed only with `allow_never`).
     """
 
     def __init__(
@@ -66,8 +74,11 @@ class AllowedCollisionMatrix:
         pairs: dict[tuple[str, str], str],
         bodies: set[str],
         contact_fraction: dict[tuple[str, str], float] | None = None,
+        allow_never: bool = False,
     ) -> None:
-        self._pairs = {_key(*p): r for p, r in pairs.items()}
+        sampled = {_key(*p): r for p, r in pairs.items()}
+        self.never = sorted(p for p, r in sampled.items() if r == "never")
+        self._pairs = {p: r for p, r in sampled.items() if r != "never" or allow_never}
         self._bodies = set(bodies)
         self.contact_fraction = dict(contact_fraction or {})
         self.version = 0  # bumped by every edit
@@ -138,6 +149,7 @@ def compute_acm(
     samples: int = SAMPLES,
     seed: int = 0,
     use_cache: bool = True,
+    allow_never: bool = False,
 ) -> AllowedCollisionMatrix:
     """The allowed-collision matrix of `robot`'s arm at `margin` (m), sampled within
     [lower, upper] (cached; see the module's docstring)."""
@@ -174,7 +186,7 @@ def compute_acm(
                 pass  # a read-only home: the memory cache still holds it
     if use_cache:
         _MEMORY[key] = (dict(pairs), dict(fractions))
-    return AllowedCollisionMatrix(pairs, set(names.values()), fractions)
+    return AllowedCollisionMatrix(pairs, set(names.values()), fractions, allow_never)
 
 
 def _sample(

@@ -91,8 +91,9 @@ class MotionPlanner:
     model's, else the published figures of a known arm (`mjkdl.plan.DATASHEETS`; where the
     tables say where each comes from, `limits_source`). `allowed_contacts`: pairs of body
     names whose contacts do not count, on top of the allowed-collision matrix `acm`, sampled
-    on first use (`acm=False`: none; see `mjkdl.plan.acm`). `resolution`: the
-    joint-space distance (rad) between two checks along a search edge (the timed
+    on first use from `acm_samples` poses (`acm=False`: none; `acm_allow_never`: allow the
+    pairs no sample brought into contact too, as MoveIt does; see `mjkdl.plan.acm`).
+    `resolution`: the joint-space distance (rad) between two checks along a search edge (the timed
     trajectory is checked every `CHECK_STEP`, finer next to obstacles). `padding` (m): the search
     keeps `margin + padding` clear where it can (away from the start and goal), so the motion
     between checked states and the timed spline keep `margin`. `ik_attempts`: seeds tried
@@ -116,6 +117,7 @@ class MotionPlanner:
         seed: int = 0,
         acm: bool = True,
         acm_samples: int = SAMPLES,
+        acm_allow_never: bool = False,
         jerk_limits: Sequence[float] | None = None,
     ) -> None:
         if not isinstance(robot, Robot):
@@ -171,7 +173,13 @@ class MotionPlanner:
             sample_low = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -math.pi)
             sample_high = np.where(np.isfinite(limits[:, 1]), limits[:, 1], math.pi)
             self._acm = compute_acm(
-                robot, self._margin, sample_low, sample_high, samples=acm_samples, seed=seed
+                robot,
+                self._margin,
+                sample_low,
+                sample_high,
+                samples=acm_samples,
+                seed=seed,
+                allow_never=acm_allow_never,
             )
             self.acm_seconds = time.perf_counter() - began
             self._apply_acm()
