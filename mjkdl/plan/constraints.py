@@ -1,12 +1,14 @@
 """Path constraints: an axis of the tool kept along a world direction (a cup kept upright).
 
-`MotionPlanner.plan(goal, constraint=OrientationConstraint(...))` plans without the constraint,
-then *projects* the path onto it: every `PROJECTION_STEP` (rad) along the path, the TCP's
-rotation is turned the least that puts `tool_axis` on `world_axis` (the position and the
-rotation about the axis stay), and IK, seeded with the previous projected state, finds the
-joints. The projected path is checked for collisions and timed; the timed trajectory is then
-checked against the tolerance at every `CHECK_STEP`. This is not OMPL's constrained planning
-(a path whose projection collides fails, with the place named, instead of searching anew).
+`MotionPlanner.plan(goal, constraint=OrientationConstraint(...))` searches with the axis kept
+within a loose cone (`SEARCH_CONE`, 45°) of its direction, then *projects* the path onto the
+constraint: every `PROJECTION_STEP` (rad) along the path, the TCP's rotation is turned the
+least that puts `tool_axis` on `world_axis` (the position and the rotation about the axis
+stay), and IK, seeded with the previous projected state, finds the joints. The projected path
+is checked for collisions and timed; the timed trajectory is then checked against the
+tolerance. This is not OMPL's constrained planning (its Python bindings here cannot hand
+states of a constrained space to Python): a path whose projection fails is searched anew
+until the timeout.
 """
 
 from __future__ import annotations

@@ -76,6 +76,9 @@ POCKET_TRIES = 100
 _STEPS = ("ends", "search", "simplify", "project", "timing", "check")
 # Seconds to full acceleration: the jerk limits by default (datasheets rarely give any).
 JERK_RAMP = 0.1
+# A constrained plan's search keeps the constrained axis within this cone (rad) of its
+# direction, so the projection has little to turn (45°: about 15 % of random states).
+SEARCH_CONE = math.radians(45.0)
 # Spacing (rad, any joint) of the states a constrained path is projected at.
 PROJECTION_STEP = 0.02
 # Random goal states drawn within a goal tolerance when the exact goal is in collision.
@@ -157,6 +160,7 @@ class MotionPlanner:
         self._lower = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -UNLIMITED_RANGE)
         self._upper = np.where(np.isfinite(limits[:, 1]), limits[:, 1], UNLIMITED_RANGE)
         self._ends = np.zeros((2, self._n))  # start and goal of the search under way
+        self._cone: OrientationConstraint | None = None  # the search's loose constraint
         # Leaving a jiggled start: the clearance it needs, how far (rad) that holds.
         self._start_need: tuple[float, float] | None = None
         self.checks = 0  # validity checks since the planner was made
@@ -368,6 +372,7 @@ class MotionPlanner:
             goals = self._goals(goal, q0, lower, upper, tolerance, pose_tolerance)
             if constraint is not None:
                 self._constraint_ends(q0, goals, constraint)
+                self._cone = constraint
             self.last_stats["ends"] = time.perf_counter() - began
             straight = True
             while True:  # a path whose timing cuts into the margin is searched again
@@ -397,6 +402,7 @@ class MotionPlanner:
                     )
         finally:
             self._start_need = None
+            self._cone = None
             if carry is not None:
                 self._checker.carry(None)
 
@@ -839,6 +845,12 @@ class MotionPlanner:
         """The search's test: `margin + padding` clear, or `margin` within `ESCAPE` of the
         start or a goal (which may themselves be closer than the padding to something)."""
         self.checks += 1
+        cone = self._cone
+        if (
+            cone is not None
+            and cone.error(self._robot.fk_frame(np.asarray(q)).rotation) > SEARCH_CONE
+        ):
+            return False
         d = self._checker.clearance(q)
         if d >= self._checker.reach:
             return True
@@ -915,7 +927,7 @@ class MotionPlanner:
             where = f"at {k / (len(dense) - 1):.0%} of the path"
             for seed in (q, state):
                 result = robot.ik(target, seed)
-                if result.success and float(np.abs(result.q - q).max()) <= 10 * PROJECTION_STEP:
+                if result.success and float(np.abs(result.q - q).max()) <= 3 * PROJECTION_STEP:
                     break
             else:
                 raise PlanningError(f"constraint: the projection has no IK solution {where}")
