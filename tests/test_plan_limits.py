@@ -79,7 +79,8 @@ def test_every_arm_plans_with_published_limits_and_a_sampled_matrix(name: str) -
         # Each moving link and its parent are adjacent (the first one's parent: the mount).
         summary = acm.summary()
         assert summary["adjacent"] >= robot.n_joints - 1
-        assert summary["never"] == 0 and len(acm.never) > 0  # listed, not allowed
+        assert summary["never"] == summary["default"] == 0  # listed, not allowed:
+        assert "never" in acm.sampled.values()
         m = scene.model
         bodies = [m.body(m.joint(j).bodyid[0]).name for j in robot.joint_names]
         assert acm.reason(bodies[1], bodies[2]) == "adjacent"
@@ -198,8 +199,12 @@ def test_the_matrix_is_cached_inspectable_and_editable(tmp_path, monkeypatch) ->
         with pytest.raises(mjk.SpecError, match=r"cannot collide with itself \('link1'\)"):
             acm.allow("link1", "link1")
         # MoveIt's choice: the pairs no sample brought into contact allowed too.
-        moveit = MotionPlanner(robot, acm_samples=300, seed=1, acm_allow_never=True).acm
-        assert {p for p, r in moveit.pairs.items() if r == "never"} == set(acm.never)
+        moveit = MotionPlanner(
+            robot, acm_samples=300, seed=1, acm_allow=("adjacent", "always", "default", "never")
+        ).acm
+        assert moveit.pairs == acm.sampled
+        with pytest.raises(mjk.SpecError, match=r"acm_allow must be a tuple of adjacent, "):
+            MotionPlanner(robot, acm_allow="never")
         with pytest.raises(mjk.SpecError, match=r"acm_samples must be an integer >= 10"):
             MotionPlanner(robot, acm_samples=3)
     finally:

@@ -3,19 +3,19 @@ matrix, computed by sampling as its setup assistant does.
 
 Over `samples` random joint positions within the limits (unlimited joints within ±π), a pair
 of the robot's bodies (the arm, what it carries on its tip, and the body it is mounted on)
-is allowed when it is *adjacent* (parent and child: MuJoCo never collides them), in contact
-in at least `ALWAYS` of the samples (*always*: the UR5e's shoulder 3 mm above its mount), in
-contact in the model's *default* pose (`qpos0`), or — only with `allow_never=True` — in none of
-the samples (*never*). "In
-contact" means closer than the planner's margin. Pairs of bodies that keep their relative
-pose (a hand and its fingers) are not the planner's business and are not listed. A pair gets
-the first reason that applies, in that order.
+is classified *adjacent* (parent and child: MuJoCo never collides them), *always* (in contact
+in at least `ALWAYS` of the samples: the UR5e's shoulder 3 mm above its mount), *default* (in
+contact in the model's default pose, `qpos0` clipped to the limits) or *never* (in none of the
+samples). "In contact" means closer than the planner's margin. Pairs of bodies that keep their
+relative pose (a hand and its fingers) are not the planner's business and are not listed. A
+pair gets the first reason that applies, in that order.
 
-MoveIt allows *never* pairs to save collision checks; here they save nothing (MuJoCo's
-collision pass runs whole and the pairs are filtered after it) and sampling misses rare
-contacts: with them allowed, 2 of 20 trajectories executed in `benchmarks/planning.py`'s
-clutter came to -4.7 mm (a wrist link into the upper arm). They are listed in `never`, for
-inspection, and count unless `allow_never=True`.
+Only the reasons in `allow` (default `ALLOW`: adjacent and always) make a pair allowed; the
+others are kept in `sampled` for inspection. MoveIt allows all four; here *never* saves
+nothing (MuJoCo's collision pass runs whole and pairs are filtered after it) and sampling misses
+rare contacts, and *default* caught the Panda's hand and link5 (3 mm apart at `qpos0`), which
+then met 27 mm deep in 4 of 50 trajectories executed in `benchmarks/planning.py`'s clutter.
+`allow=REASONS[:4]` is MoveIt's choice.
 
 The result is cached per model (a hash of the robot's bodies, geoms, joint ranges, the margin
 and the sample count): in memory, and as JSON under `acm_cache_dir()`.
@@ -41,9 +41,10 @@ from .collision import CollisionChecker
 # (MoveIt's setup assistant uses 95 %).
 ALWAYS = 0.95
 SAMPLES = 2000
-REASONS = ("adjacent", "default", "always", "never", "user")
+REASONS = ("adjacent", "always", "default", "never", "user")
+ALLOW = ("adjacent", "always")
 _MEMORY: dict[str, tuple[dict[tuple[str, str], str], dict[tuple[str, str], float]]] = {}
-_FORMAT = "2"
+_FORMAT = "3"
 
 
 def acm_cache_dir() -> Path:
@@ -66,7 +67,7 @@ class AllowedCollisionMatrix:
     Inspect with `reason(a, b)`, `pairs` or `len()`; edit with `allow(a, b)` and
     `disallow(a, b)` (the planner applies edits at its next `plan`). `candidates`: every
     pair the sampling looked at, `contact_fraction[pair]` how often it was in contact;
-    `never`: the pairs no sample brought into contact (allowed only with `allow_never`).
+    `sampled`: every classified pair and its reason, allowed or not (see `allow`).
     """
 
     def __init__(
@@ -74,11 +75,10 @@ class AllowedCollisionMatrix:
         pairs: dict[tuple[str, str], str],
         bodies: set[str],
         contact_fraction: dict[tuple[str, str], float] | None = None,
-        allow_never: bool = False,
+        allow: tuple[str, ...] = ALLOW,
     ) -> None:
-        sampled = {_key(*p): r for p, r in pairs.items()}
-        self.never = sorted(p for p, r in sampled.items() if r == "never")
-        self._pairs = {p: r for p, r in sampled.items() if r != "never" or allow_never}
+        self.sampled = {_key(*p): r for p, r in pairs.items()}
+        self._pairs = {p: r for p, r in self.sampled.items() if r in allow}
         self._bodies = set(bodies)
         self.contact_fraction = dict(contact_fraction or {})
         self.version = 0  # bumped by every edit
@@ -149,7 +149,7 @@ def compute_acm(
     samples: int = SAMPLES,
     seed: int = 0,
     use_cache: bool = True,
-    allow_never: bool = False,
+    allow: tuple[str, ...] = ALLOW,
 ) -> AllowedCollisionMatrix:
     """The allowed-collision matrix of `robot`'s arm at `margin` (m), sampled within
     [lower, upper] (cached; see the module's docstring)."""
@@ -186,7 +186,9 @@ def compute_acm(
                 pass  # a read-only home: the memory cache still holds it
     if use_cache:
         _MEMORY[key] = (dict(pairs), dict(fractions))
-    return AllowedCollisionMatrix(pairs, set(names.values()), fractions, allow_never)
+    if isinstance(allow, str) or any(r not in REASONS[:4] for r in allow):
+        raise SpecError(f"acm_allow must be a tuple of {', '.join(REASONS[:4])}; got {allow!r}")
+    return AllowedCollisionMatrix(pairs, set(names.values()), fractions, tuple(allow))
 
 
 def _sample(

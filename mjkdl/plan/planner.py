@@ -24,7 +24,7 @@ import pinocchio as pin
 from ..control.cartesian import _number, _vector
 from ..errors import InfeasibleError, PlanningError, PlanningTimeout, SpecError, SpecTypeError
 from ..robot import Robot
-from .acm import SAMPLES, AllowedCollisionMatrix, compute_acm
+from .acm import ALLOW, SAMPLES, AllowedCollisionMatrix, compute_acm
 from .collision import CollisionChecker
 from .constraints import OrientationConstraint
 from .limits import DATASHEETS, chain_links, datasheet_limits, find_datasheet
@@ -94,8 +94,8 @@ class MotionPlanner:
     model's, else the published figures of a known arm (`mjkdl.plan.DATASHEETS`; where the
     tables say where each comes from, `limits_source`). `allowed_contacts`: pairs of body
     names whose contacts do not count, on top of the allowed-collision matrix `acm`, sampled
-    on first use from `acm_samples` poses (`acm=False`: none; `acm_allow_never`: allow the
-    pairs no sample brought into contact too, as MoveIt does; see `mjkdl.plan.acm`).
+    on first use from `acm_samples` poses (`acm=False`: none; `acm_allow`: the reasons that
+    allow a pair, default adjacent and always; see `mjkdl.plan.acm`).
     `resolution`: the joint-space distance (rad) between two checks along a search edge (the timed
     trajectory is checked every `CHECK_STEP`, finer next to obstacles). `padding` (m): the search
     keeps `margin + padding` clear where it can (away from the start and goal), so the motion
@@ -120,7 +120,7 @@ class MotionPlanner:
         seed: int = 0,
         acm: bool = True,
         acm_samples: int = SAMPLES,
-        acm_allow_never: bool = False,
+        acm_allow: tuple[str, ...] = ALLOW,
         jerk_limits: Sequence[float] | None = None,
     ) -> None:
         if not isinstance(robot, Robot):
@@ -183,7 +183,7 @@ class MotionPlanner:
                 sample_high,
                 samples=acm_samples,
                 seed=seed,
-                allow_never=acm_allow_never,
+                allow=acm_allow,
             )
             self.acm_seconds = time.perf_counter() - began
             self._apply_acm()
