@@ -64,7 +64,7 @@ def test_every_arm_plans_with_published_limits_and_a_sampled_matrix(name: str) -
         sheet = next(d for d in DATASHEETS if d.arm.startswith(ARMS[name][4]))
         if name == "ur5":  # the URDF's own velocity limits come through the model
             assert planner.velocity_limits.tolist() == [3.15, 3.15, 3.15, 3.2, 3.2, 3.2]
-            assert "velocity from the model" in planner.limits_source
+            assert "velocity: the model's (a URDF's <limit velocity>)" in planner.limits_source
         else:
             assert planner.velocity_limits.tolist() == pytest.approx(list(sheet.velocity))
         if sheet.acceleration is None:

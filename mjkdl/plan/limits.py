@@ -42,11 +42,12 @@ class Datasheet:
 
 @dataclass(frozen=True)
 class ArmLimits:
-    """The limits a planner uses and where they come from."""
+    """The limits a planner uses and where each comes from."""
 
     velocity: np.ndarray
     acceleration: np.ndarray
-    source: str
+    velocity_source: str
+    acceleration_source: str
 
 
 _UR = ("shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link")
@@ -220,8 +221,8 @@ def datasheet_limits(sheet: Datasheet) -> ArmLimits:
     v = np.array(sheet.velocity, dtype=float)
     if sheet.acceleration is None:
         a = v / RAMP
-        how = f"acceleration {sheet.acceleration_source}: velocity reached in {RAMP:g} s"
+        how = f"{sheet.arm}: {sheet.acceleration_source}; the velocity limit reached in {RAMP:g} s"
     else:
         a = np.array(sheet.acceleration, dtype=float)
-        how = f"acceleration: {sheet.acceleration_source}"
-    return ArmLimits(v, a, f"{sheet.arm}: velocity: {sheet.velocity_source}; {how}")
+        how = f"{sheet.arm}: {sheet.acceleration_source}"
+    return ArmLimits(v, a, f"{sheet.arm}: {sheet.velocity_source}", how)

@@ -27,7 +27,7 @@ from ..robot import Robot
 from .acm import ALLOW, SAMPLES, AllowedCollisionMatrix, compute_acm
 from .collision import CollisionChecker
 from .constraints import OrientationConstraint
-from .limits import DATASHEETS, chain_links, datasheet_limits, find_datasheet
+from .limits import DATASHEETS, RAMP, chain_links, datasheet_limits, find_datasheet
 from .trajectory import JerkLimitedParametrizer, JointTrajectory, TimeParametrizer
 
 # OMPL's geometric planners selectable by name.
@@ -213,6 +213,7 @@ class MotionPlanner:
             (velocity, "velocity_limits", 0),
             (acceleration, "acceleration_limits", 1),
         ):
+            what = ("velocity", "acceleration")[index]
             if given is not None:
                 arr = _vector(given, n, field)
                 bad = np.flatnonzero(arr <= 0)
@@ -222,19 +223,18 @@ class MotionPlanner:
                         f"{field}[{i}] (joint {names[i]!r}) must be positive, got {arr[i]:g}"
                     )
                 out.append(arr)
-                sources.append(f"{field} given")
+                sources.append(f"{what}: given")
                 continue
             if index == 0 and np.all((own > 0) & (own < _NO_LIMIT)):
                 out.append(own.astype(float))
-                sources.append("velocity from the model")
+                sources.append("velocity: the model's (a URDF's <limit velocity>)")
             elif published is not None:
                 if index == 1 and sheet is not None and sheet.acceleration is None:
-                    from .limits import RAMP
-
                     out.append(out[0] / RAMP)  # the velocities in use, reached in RAMP s
                 else:
                     out.append((published.velocity, published.acceleration)[index].copy())
-                sources.append(published.source)
+                source = (published.velocity_source, published.acceleration_source)[index]
+                sources.append(f"{what}: {source}")
             else:
                 links, span = chain_links(self._robot.scene.model, names)
                 known = ", ".join(d.arm for d in DATASHEETS)
@@ -243,8 +243,7 @@ class MotionPlanner:
                     f"(bodies {', '.join(links)}; span {span:.3f} m) is none of the published "
                     f"ones mjkdl knows ({known}); pass {field}=[...] ({n} values)"
                 )
-        source = "; ".join(dict.fromkeys(sources))
-        return out[0], out[1], source
+        return out[0], out[1], "\n".join(sources)
 
     def _ompl_space(self, lower: np.ndarray, upper: np.ndarray) -> Any:
         """OMPL's space information: joint positions within [lower, upper], our checks."""
