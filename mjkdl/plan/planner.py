@@ -81,6 +81,8 @@ JERK_RAMP = 0.1
 SEARCH_CONE = math.radians(45.0)
 # Spacing (rad, any joint) of the states a constrained path is projected at.
 PROJECTION_STEP = 0.02
+# How far (rad) a measured start may be past a bound and be clipped back into it.
+START_SLACK = 0.005
 # Random goal states drawn within a goal tolerance when the exact goal is in collision.
 TOLERANCE_SAMPLES = 50
 
@@ -552,8 +554,7 @@ class MotionPlanner:
         """The start, and the state the search starts from: the start itself, or with
         `jiggle` > 0 and a start in collision, the nearest of `TOLERANCE_SAMPLES` random
         collision-free states within `jiggle` of it."""
-        q = self._robot.jnt_pos_msr.copy() if start is None else _vector(start, self._n, "start")
-        self._inside(q, "start", lower, upper)
+        q = self._measured_start(start, lower, upper)
         clash = self._clash(q, "the start")
         if clash is None:
             return q, q
@@ -573,9 +574,20 @@ class MotionPlanner:
     def _start(
         self, start: Sequence[float] | None, lower: np.ndarray, upper: np.ndarray
     ) -> np.ndarray:
-        q = self._robot.jnt_pos_msr.copy() if start is None else _vector(start, self._n, "start")
-        self._inside(q, "start", lower, upper)
+        q = self._measured_start(start, lower, upper)
         self._in_collision(q, "the start")
+        return q
+
+    def _measured_start(
+        self, start: Sequence[float] | None, lower: np.ndarray, upper: np.ndarray
+    ) -> np.ndarray:
+        """The start inside the bounds: a measured arm slightly past a limit (MuJoCo's joint
+        limits are soft: 0.1 mrad after a move that ends on one) is clipped back."""
+        q = self._robot.jnt_pos_msr.copy() if start is None else _vector(start, self._n, "start")
+        if start is None:
+            near = (q >= lower - START_SLACK) & (q <= upper + START_SLACK)
+            q[near] = np.clip(q[near], lower[near], upper[near])
+        self._inside(q, "start", lower, upper)
         return q
 
     def _inside(self, q: np.ndarray, what: str, lower: np.ndarray, upper: np.ndarray) -> None:
@@ -689,9 +701,9 @@ class MotionPlanner:
         upper: np.ndarray,
         tolerance: tuple[float | None, float | None],
     ) -> tuple[list[np.ndarray], tuple[str, str] | None]:
-        """Up to 3 collision-free IK solutions inside the bounds from `ik_attempts` seeds
-        (`q0` first, then random ones inside the bounds); an IK result within the
-        tolerances counts as a solution."""
+        """The collision-free IK solution inside the bounds nearest to `q0` among the first
+        3 found from `ik_attempts` seeds (`q0` first, then random ones inside the bounds);
+        an IK result within the tolerances counts as a solution."""
         if not (np.isfinite(pose.translation).all() and np.isfinite(pose.rotation).all()):
             raise SpecError(f"goal pose must be finite, got {pose}")
         seeds = [q0, *self._rng.uniform(lower, upper, (self._ik_attempts - 1, self._n))]
@@ -721,8 +733,8 @@ class MotionPlanner:
             found.append(result.q)
             if len(found) >= 3:
                 break
-        if found:
-            return found, None
+        if found:  # the nearest: another IK branch makes a needlessly long, contorted move
+            return [min(found, key=lambda q: float(np.abs(q - q0).sum()))], None
         where = f"the goal pose at {pose.translation.round(4).tolist()}"
         if clash is not None:
             a, b, d = clash
