@@ -82,6 +82,7 @@ class TrajectoryFollower:
         )
         self._allowed_names = _pair_names(allowed_contacts, "allowed_contacts")
         self._force = np.zeros(6)
+        self._error = np.zeros(self._n)
         self.stop: FollowerStop | None = None
         omega = 2.0 * math.pi * _number(bandwidth, "bandwidth", positive=True)
         self._kp, self._kd = omega * omega, 2.0 * omega
@@ -202,7 +203,9 @@ class TrajectoryFollower:
         robot = self._robot
         t = robot.scene.time() - self._t0
         if self._max_error is not None:
-            error = np.abs(q - q_msr)
+            error = self._error
+            np.subtract(q, q_msr, out=error)
+            np.abs(error, out=error)
             i = int(error.argmax())
             if error[i] > self._max_error:
                 self.stop = FollowerStop(
