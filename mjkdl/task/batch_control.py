@@ -22,8 +22,9 @@ import torch
 
 from ..errors import SpecError
 from ..spec import CtrlMode
+from .batch_state import Tcp
 from .env import _descends
-from .spec import Actuation
+from .spec import Actuation, ArmSpec
 
 if TYPE_CHECKING:
     from .batch_state import DeviceState
@@ -84,6 +85,7 @@ class BatchArm:
         self._gravity = torch.tensor(model.opt.gravity, device=dev, dtype=torch.float32)
         # The TCP: reference frame (tool site or tip body) and offset, as ArmReader has it.
         self._tcp = state.tcp_of(arm.name)
+        self._chain = ChainKinematics(model, arm, jids, self._tcp, state)
         self._gripper = None
         if eff.gripper is not None:
             g = arm.gripper
@@ -133,12 +135,16 @@ class BatchArm:
         slide = (axis * force).sum(-1) * total.squeeze(-1)
         return torch.where(self._hinge.squeeze(-1), hinge, slide)
 
-    def jacobian(self) -> torch.Tensor:
-        """(nworld, 6, n) world-aligned Jacobian of the TCP point (linear rows first)."""
+    def jacobian(self, q: torch.Tensor | None = None) -> torch.Tensor:
+        """(nworld, 6, n) world-aligned Jacobian of the TCP point (linear rows first): at
+        the current state, or at joint positions `q` (float64) by the chain's kinematics."""
         s = self._state
-        tcp = s.tcp_pos(self._tcp)  # (N, 3)
-        anchor = s.xanchor[:, self._jid]
-        axis = s.xaxis[:, self._jid]
+        if q is None:
+            tcp = s.tcp_pos(self._tcp)  # (N, 3)
+            anchor = s.xanchor[:, self._jid]
+            axis = s.xaxis[:, self._jid]
+        else:
+            anchor, axis, tcp = self._chain(q)
         lin_h = torch.linalg.cross(axis, tcp.unsqueeze(1) - anchor, dim=-1)
         lin = torch.where(self._hinge, lin_h, axis)
         ang = torch.where(self._hinge, axis, torch.zeros_like(axis))
@@ -148,9 +154,10 @@ class BatchArm:
         """Write this arm's slice of the physical (clipped) action into `ctrl`."""
         s = self._state
         a = action[:, self.slice]
-        q = s.qpos[:, self._qadr]
         if self.cartesian:
-            qd = self._solve(a.double(), q.double(), period)
+            # In POSITION mode the CPU QP works at the command (what the integration
+            # advances and keeps inside the limits), the Jacobian too.
+            qd = self._solve(a.double(), self.q_cmd, period)
             self.q_cmd = torch.clamp(self.q_cmd + qd * period, self._lower, self._upper)
             cmd = self.q_cmd.float()
         elif self.arm.actuation is Actuation.JOINT_TORQUE:
@@ -177,7 +184,7 @@ class BatchArm:
     def _solve(self, twist: torch.Tensor, q: torch.Tensor, dt: float) -> torch.Tensor:
         """The CPU QP: its cost in closed form, its bounds by `_box_qp`."""
         v = self._twist(twist)
-        J = self.jacobian().double()
+        J = self.jacobian(q)
         eig, vec = torch.linalg.eigh(J.transpose(1, 2) @ J)  # ascending, as LAPACK's dsyev
         n_null = max(0, self.n - 6)
         sigma = torch.sqrt(torch.clamp(eig[:, n_null], min=0.0))
@@ -212,26 +219,140 @@ class BatchArm:
         return qd
 
 
-ACTIVE_SET_PASSES = 4
+ACTIVE_SET_PASSES = 10
 
 
 def _box_qp(
     H: torch.Tensor, f: torch.Tensor, lb: torch.Tensor, ub: torch.Tensor, eye: torch.Tensor
 ) -> torch.Tensor:
-    """min ½ qdᵀH qd - fᵀqd within [lb, ub], batched: a few primal active-set passes (joints
-    past a bound are pinned there and the rest re-solved), then a final clip. Exact when the
-    active set settles within the passes (it grows only, so a joint pinned early stays)."""
-    pinned = torch.zeros_like(f, dtype=torch.bool)
-    value = torch.zeros_like(f)
+    """min ½ qdᵀH qd - fᵀqd within [lb, ub], batched: a primal-dual active-set method (joints
+    past a bound are pinned there, pinned joints whose multiplier has the wrong sign are
+    freed, the rest re-solved) for up to `ACTIVE_SET_PASSES` passes, then a final clip. Exact
+    once the active set settles (the KKT conditions then hold in every world)."""
+    side = torch.zeros_like(f)  # +1 pinned at ub, -1 at lb, 0 free
+    qd = f
     for _ in range(ACTIVE_SET_PASSES):
+        pinned = side != 0
+        value = torch.where(side > 0, ub, torch.where(side < 0, lb, torch.zeros_like(f)))
         free = (~pinned).to(H.dtype)
         # Pinned rows become identity rows holding the bound; free rows see them as known.
         A = H * free.unsqueeze(2) * free.unsqueeze(1) + eye * (1.0 - free).unsqueeze(2)
         rhs = torch.where(pinned, value, f - (H @ (value * (1.0 - free)).unsqueeze(-1))[..., 0])
         qd = torch.linalg.solve(A, rhs)
-        over, under = qd > ub, qd < lb
-        if not bool((over | under).any()):
+        grad = (H @ qd.unsqueeze(-1))[..., 0] - f
+        release = ((side > 0) & (grad > 0)) | ((side < 0) & (grad < 0))
+        over, under = (qd > ub) & ~pinned, (qd < lb) & ~pinned
+        if not bool((release | over | under).any()):
             return qd
-        value = torch.where(over, ub, torch.where(under, lb, value))
-        pinned = pinned | over | under
+        side = torch.where(release, torch.zeros_like(side), side)
+        side = torch.where(
+            over, torch.ones_like(side), torch.where(under, -torch.ones_like(side), side)
+        )
     return torch.maximum(torch.minimum(qd, ub), lb)
+
+
+def _rotation(quat: np.ndarray) -> np.ndarray:
+    out = np.empty(9)
+    mujoco.mju_quat2Mat(out, quat)
+    return out.reshape(3, 3)
+
+
+class ChainKinematics:
+    """The chain's joint anchors, axes and TCP at given joint positions, in float64, from the
+    model's body offsets (MuJoCo's `mj_kinematics` along the chain), starting from the base's
+    parent as it is now: the Jacobian at the command, where the CPU QP takes it."""
+
+    def __init__(
+        self, model: mujoco.MjModel, arm: ArmSpec, jids: list[int], tcp: Tcp, state: DeviceState
+    ) -> None:
+        dev, f64 = state.device, torch.float64
+        self._state = state
+        base = model.body(arm.prefix + arm.base_body).id
+        path, b = [], model.body(arm.prefix + arm.tip_body).id
+        while True:
+            path.append(b)
+            if b == base or b == 0:
+                break
+            b = int(model.body_parentid[b])
+        path.reverse()
+        self._parent = int(model.body_parentid[base])
+        index = {j: i for i, j in enumerate(jids)}
+        self._steps = []
+        for b in path:
+            joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
+            if any(j not in index for j in joints) or len(joints) > 1:
+                raise SpecError(
+                    f"batched Cartesian control of arm {arm.name!r} needs one chain joint (or "
+                    f"none) per body; body {model.body(b).name!r} has other joints"
+                )
+            j = joints[0] if len(joints) else -1
+            hinge = j >= 0 and int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE)
+            self._steps.append(
+                (
+                    b,
+                    torch.tensor(model.body_pos[b], device=dev, dtype=f64),
+                    torch.tensor(_rotation(model.body_quat[b]), device=dev, dtype=f64),
+                    index.get(j, -1),
+                    torch.tensor(
+                        model.jnt_pos[j] if j >= 0 else np.zeros(3), device=dev, dtype=f64
+                    ),
+                    torch.tensor(
+                        model.jnt_axis[j] if j >= 0 else np.zeros(3), device=dev, dtype=f64
+                    ),
+                    float(model.qpos0[model.jnt_qposadr[j]]) if j >= 0 else 0.0,
+                    hinge,
+                    _cross_matrix(model.jnt_axis[j] if j >= 0 else np.zeros(3), dev),
+                )
+            )
+        if tcp.site >= 0:
+            self._ref_body = int(model.site_bodyid[tcp.site])
+            site_pos, site_rot = model.site_pos[tcp.site], _rotation(model.site_quat[tcp.site])
+        else:
+            self._ref_body, site_pos, site_rot = tcp.body, np.zeros(3), np.eye(3)
+        if self._ref_body not in path:
+            raise SpecError(f"arm {arm.name!r}: the TCP's site is not on the chain's bodies")
+        self._site_pos = torch.tensor(site_pos, device=dev, dtype=f64)
+        self._site_rot = torch.tensor(site_rot, device=dev, dtype=f64)
+        self._offset = tcp.offset.double()
+        self._n = len(jids)
+
+    def __call__(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(anchors (N, n, 3), axes (N, n, 3), TCP (N, 3)) at joint positions `q` (N, n)."""
+        s = self._state
+        pos = s.xpos[:, self._parent].double()
+        rot = s.xmat[:, self._parent].double()
+        anchors = [torch.zeros_like(pos)] * self._n
+        axes = [torch.zeros_like(pos)] * self._n
+        ref_pos, ref_rot = pos, rot
+        for body, bpos, brot, i, jpos, jaxis, q0, hinge, cross in self._steps:
+            pos = pos + (rot @ bpos)
+            rot = rot @ brot
+            if i >= 0:
+                anchor = pos + rot @ jpos
+                axis = rot @ jaxis
+                anchors[i], axes[i] = anchor, axis
+                angle = q[:, i] - q0
+                if hinge:
+                    rot = rot @ _axis_rotation(cross, angle)
+                    pos = anchor - rot @ jpos
+                else:
+                    pos = pos + axis * angle.unsqueeze(1)
+            if body == self._ref_body:
+                ref_pos = pos + rot @ self._site_pos
+                ref_rot = rot @ self._site_rot
+        tcp = ref_pos + ref_rot @ self._offset
+        return torch.stack(anchors, 1), torch.stack(axes, 1), tcp
+
+
+def _cross_matrix(axis: np.ndarray, device: str) -> torch.Tensor:
+    x, y, z = (float(v) for v in axis)
+    k = [[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]]
+    return torch.tensor(k, dtype=torch.float64, device=device)
+
+
+def _axis_rotation(cross: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
+    """(N, 3, 3) rotations by `angle` (N,) about the unit axis whose cross-product matrix is
+    `cross`: Rodrigues' formula."""
+    c, s = torch.cos(angle)[:, None, None], torch.sin(angle)[:, None, None]
+    eye = torch.eye(3, dtype=angle.dtype, device=angle.device)
+    return eye + s * cross + (1.0 - c) * (cross @ cross)
