@@ -116,10 +116,9 @@ def main() -> None:
     parser.add_argument("--cpu-steps", type=int, default=20, help="timed CPU env steps")
     parser.add_argument("--no-compile", action="store_true", help="skip the first-call runs")
     args = parser.parse_args()
-    import mujoco_warp  # noqa: F401  (before quieting Warp: its import sets the config)
-    import warp as wp
+    from mjkdl.task.batch_state import warp_modules
 
-    wp.config.quiet = True
+    wp, _ = warp_modules()  # Warp logs warnings only
     gpu = wp.get_cuda_device_count() > 0
     device = args.device or ("cuda:0" if gpu else "cpu")
     if not gpu:

@@ -24,7 +24,13 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from ..errors import MjkdlError, SpecError, SpecTypeError
 from .batch_control import BatchArm
 from .batch_sensors import BatchObserver
-from .batch_state import DeviceState, UnsupportedFeatureError, as_numpy
+from .batch_state import (
+    DeviceState,
+    UnsupportedFeatureError,
+    as_numpy,
+    warp_model,
+    warp_modules,
+)
 from .env import TaskEnv
 from .goal import GoalTaskEnv
 from .initializers import PhysicsRandomizer
@@ -97,8 +103,7 @@ def _device(device: object, allow_cpu: bool) -> str:
         return device
     if device != "cuda" and not (device.startswith("cuda:") and device[5:].isdigit()):
         raise SpecError(f"device must be 'cuda', 'cuda:N' or 'cpu', got {device!r}")
-    import warp as wp
-
+    wp, _ = warp_modules()
     count = wp.get_cuda_device_count()
     index = 0 if device == "cuda" else int(device[5:])
     if index < count and torch.cuda.is_available():
@@ -374,11 +379,7 @@ def world_bytes(
 ) -> tuple[int, int]:
     """(bytes per world, bytes shared) of MuJoCo Warp's data, measured from a one- and a
     two-world allocation (small: made and freed before the real one)."""
-    import mujoco_warp as mjw
-    import warp as wp
-
-    from .batch_state import warp_model
-
+    wp, mjw = warp_modules()
     sizes = []
     with wp.ScopedDevice(wp.get_device(device)):
         warp_model(model)  # fails first, with the feature named, on an unsupported scene
@@ -390,8 +391,7 @@ def world_bytes(
 
 
 def _nbytes(obj: Any, seen: set[int] | None = None) -> int:
-    import warp as wp
-
+    wp, _ = warp_modules()
     seen = set() if seen is None else seen
     total = 0
     for value in vars(obj).values():

@@ -36,6 +36,19 @@ class Tcp:
     """(3, 3) TCP orientation in the reference frame."""
 
 
+def warp_modules() -> tuple[Any, Any]:
+    """(`warp`, `mujoco_warp`), imported on first use (the `warp` extra). Warp logs warnings only
+    unless `MJKDL_WARP_VERBOSE` is set: it otherwise prints a line per kernel module loaded."""
+    import os
+
+    import mujoco_warp
+    import warp
+
+    if not os.environ.get("MJKDL_WARP_VERBOSE"):
+        warp.config.log_level = warp.LOG_WARNING
+    return warp, mujoco_warp
+
+
 def warp_model(model: mujoco.MjModel) -> Any:
     """`model` put on Warp's current device; what MuJoCo Warp cannot run is named.
 
@@ -43,8 +56,7 @@ def warp_model(model: mujoco.MjModel) -> Any:
     does not exist in MuJoCo Warp: the flag is cleared on a copy and divergence is checked per
     world instead.
     """
-    import mujoco_warp as mjw
-
+    _, mjw = warp_modules()
     m = copy.copy(model)
     m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
     try:
@@ -68,9 +80,7 @@ class DeviceState:
         nconmax: int | None = None,
         njmax: int | None = None,
     ) -> None:
-        import mujoco_warp as mjw
-        import warp as wp
-
+        wp, mjw = warp_modules()
         self.device, self.nworld = device, nworld
         self._wp_device = wp.get_device(device)
         self._mjw = mjw
@@ -121,8 +131,7 @@ class DeviceState:
     def forward(self, keep: torch.Tensor | None = None) -> None:
         """`mj_forward` on every world; worlds where `keep` is true get their solver warm start
         back, so a world mid-episode steps on as if this had not run."""
-        import warp as wp
-
+        wp, _ = warp_modules()
         saved = None if keep is None else self.qacc_warmstart.clone()
         with wp.ScopedDevice(self._wp_device):
             self._mjw.forward(self.model, self.data)
@@ -132,9 +141,7 @@ class DeviceState:
     def step(self, substeps: int) -> None:
         """`substeps` physics steps of every world, then poses and velocities of the new state
         (the CPU env's refresh after `mj_step`; forces stay those of the last step)."""
-        import warp as wp
-
-        mjw = self._mjw
+        wp, mjw = warp_modules()
         with wp.ScopedDevice(self._wp_device):
             for _ in range(substeps):
                 mjw.step(self.model, self.data)
