@@ -1,14 +1,15 @@
 """Batched arm control on the device: one task arm's slice of the action, for every world.
 
-The Cartesian-velocity action is solved with the cost of the CPU env's QP
-(`CartesianVelocityController`): minimise |J qd - v|² + λ(σ)|qd|² + |N (qd - k (q_ref - q))|²,
-whose minimiser comes in closed form from the eigendecomposition of JᵀJ (batched
-`torch.linalg.eigh`). Its bounds (position limits, velocity limits, acceleration window) are
-then enforced by a few primal active-set passes (joints past a bound pinned there, the rest
-re-solved) instead of DAQP's full active-set method: where no bound is active the two agree
-to rounding, where bounds are active they agree whenever the passes find DAQP's active set
-(docs/task.md, "Many worlds", gives the measured gap). Joint modes write the command as
-the CPU env's `Robot` does: setpoint plus the gravity feed-forward the servo needs.
+The Cartesian-velocity action is the CPU env's QP (`CartesianVelocityController`, its
+parameters read from the CPU env's controller): minimise
+|J qd - v|² + λ(σ)|qd|² + |N (qd - k (q_ref - q))|² at the position command (the Jacobian by the
+chain's kinematics there, as the CPU QP takes it in POSITION mode), in float64, the cost from
+the eigendecomposition of JᵀJ (batched `torch.linalg.eigh`), the bounds (position limits,
+velocity limits, acceleration window) by a batched primal-dual active-set method instead of
+DAQP; it returns DAQP's solution within rounding once the active set settles (docs/task.md,
+"Many worlds", gives the measured gap). The `avoid` collision rows are left out (task arms
+have none). Joint modes write the command as the CPU env's `Robot` does: setpoint plus the
+gravity feed-forward the servo needs.
 """
 
 from __future__ import annotations
