@@ -114,6 +114,7 @@ def main() -> None:
     parser.add_argument("--worlds", type=int, nargs="+", default=[1, 4, 16, 64, 256])
     parser.add_argument("--steps", type=int, default=3, help="timed control steps per size")
     parser.add_argument("--cpu-steps", type=int, default=20, help="timed CPU env steps")
+    parser.add_argument("--vector-envs", type=int, default=4, help="CPU vector env size")
     parser.add_argument("--no-compile", action="store_true", help="skip the first-call runs")
     args = parser.parse_args()
     from mjkdl.task.batch_state import warp_modules
@@ -126,8 +127,9 @@ def main() -> None:
     print(f"device {device}, {os.cpu_count()} cores")
     base = cpu_env(args.cpu_steps)
     print(f"CPU env (TaskEnv.step):       {base:8.1f} control steps/s  (baseline, 1.00x)")
-    vec = cpu_vector(4, max(1, args.cpu_steps // 2))
-    print(f"CPU sync vector env of 4:     {vec:8.1f} control steps/s  ({vec / base:.2f}x)")
+    k = args.vector_envs
+    vec = cpu_vector(k, max(1, args.cpu_steps // 2))
+    print(f"CPU sync vector env of {k}:     {vec:8.1f} control steps/s  ({vec / base:.2f}x)")
     print("worlds  control steps/s  world-steps/s   vs CPU env  reset s/world  KiB/world")
     for n in args.worlds:
         rate, reset, per_world = batch(n, args.steps, device)

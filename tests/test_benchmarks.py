@@ -68,7 +68,17 @@ def run_benchmark(name: str, *args: str) -> str:
         ),
         (
             "batch",
-            ("--worlds", "1", "--steps", "1", "--cpu-steps", "2", "--no-compile"),
+            (
+                "--worlds",
+                "1",
+                "--steps",
+                "1",
+                "--cpu-steps",
+                "2",
+                "--vector-envs",
+                "1",
+                "--no-compile",
+            ),
             r"\n\s+1\s+",
         ),
     ],

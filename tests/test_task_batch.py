@@ -42,8 +42,9 @@ def _positions(obs: dict) -> list[str]:
     return [k for k in obs if k.endswith(("_tcp_pos", "_pose", "_rel", "goal"))]
 
 
-def _compare(batch, cpu_env: TaskEnv, actions: np.ndarray) -> dict[str, float]:
-    """Worst gaps of one whole episode per world: positions, rewards, success mismatches."""
+def _compare(batch, cpu_env: TaskEnv, actions: np.ndarray) -> tuple[dict[str, float], dict]:
+    """Worst gaps of one whole episode per world: positions, rewards, success mismatches;
+    and the observation the last step returned (the next episode's, after auto-reset)."""
     episodes = [_cpu_episode(cpu_env, SEED + i, actions[:, i]) for i in range(WORLDS)]
     obs, info = batch.reset(seed=SEED)
     gaps = {"pos": 0.0, "joint": 0.0, "reward": 0.0, "success": 0.0, "done": 0.0}
@@ -61,8 +62,10 @@ def _compare(batch, cpu_env: TaskEnv, actions: np.ndarray) -> dict[str, float]:
             gaps["success"] += float(bool(success[i]) != ref_success)
 
     check(0, obs, np.zeros(WORLDS), info["is_success"].numpy())
+    returned: dict = {}
     for k in range(STEPS):
-        obs, reward, terminated, truncated, info = batch.step(torch.as_tensor(actions[k]))
+        returned, reward, terminated, truncated, info = batch.step(torch.as_tensor(actions[k]))
+        obs = returned
         done = (terminated | truncated).numpy()
         if done.any():
             obs = info["final_obs"]
@@ -71,7 +74,7 @@ def _compare(batch, cpu_env: TaskEnv, actions: np.ndarray) -> dict[str, float]:
             success = info["is_success"]
         gaps["done"] += float(done.any() != (k == STEPS - 1))
         check(k + 1, obs, reward.numpy(), success.numpy())
-    return gaps
+    return gaps, returned
 
 
 @pytest.mark.parametrize("task_id", sorted(registry.TASKS))
@@ -83,7 +86,7 @@ def test_registered_tasks_match_the_cpu_env(task_id: str) -> None:
         n = len(batch.action_labels)
         actions = rng.uniform(-1.0, 1.0, (STEPS, WORLDS, n)).astype(np.float32)
         actions[..., -1] = 1.0  # the gripper closes (binary) in the last entry
-        gaps = _compare(batch, cpu_env, actions)
+        gaps, _ = _compare(batch, cpu_env, actions)
         assert gaps["pos"] < POS_TOL, gaps
         assert gaps["joint"] < JOINT_TOL, gaps
         assert gaps["reward"] < REWARD_TOL, gaps
@@ -108,14 +111,19 @@ def test_joint_position_mode_matches_and_auto_resets() -> None:
         actions = np.empty((STEPS, WORLDS, 8), dtype=np.float32)
         actions[..., :7] = home + rng.uniform(-0.05, 0.05, (STEPS, WORLDS, 7))
         actions[..., 7] = 1.0
-        gaps = _compare(batch, cpu_env, actions)
+        gaps, returned = _compare(batch, cpu_env, actions)
         assert gaps["pos"] < POS_TOL and gaps["joint"] < JOINT_TOL, gaps
         assert gaps["reward"] < REWARD_TOL, gaps
-        # The episode ended in the last step; every world started the next one at once.
+        # The episode ended in the last step and every world started its next one at once,
+        # the one the CPU env starts with its next reset() after the seeded episode.
         assert batch._steps.tolist() == [0] * WORLDS
-        obs, *_ = batch.step(torch.as_tensor(actions[0]))
-        second = cpu_env.reset(seed=None)  # not used: the world's own generator continues
-        assert set(obs) == set(second[0])
+        for i in range(WORLDS):
+            cpu_env.reset(seed=SEED + i)
+            for a in actions[:, i]:
+                cpu_env.step(a)
+            second, _ = cpu_env.reset()
+            gap = np.abs(returned["cube_pose"][i].numpy() - second["cube_pose"]).max()
+            assert gap < POS_TOL, (i, gap)
     finally:
         batch.close()
         cpu_env.close()
