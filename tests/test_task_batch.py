@@ -129,6 +129,27 @@ def test_joint_position_mode_matches_and_auto_resets() -> None:
         cpu_env.close()
 
 
+@pytest.mark.parametrize(
+    "mode", [Actuation.JOINT_VELOCITY, Actuation.JOINT_TORQUE], ids=lambda m: m.value
+)
+def test_joint_velocity_and_torque_modes_match(mode: Actuation) -> None:
+    spec = registry.panda_pick_cube_spec()
+    spec.arms[0].actuation = mode
+    spec.time_limit = 0.4
+    batch = make_batch(spec, WORLDS, device="cpu")
+    cpu_env = TaskEnv(spec)
+    try:
+        rng = np.random.default_rng(2)
+        # Normalised: 0 is zero velocity, or gravity compensation alone.
+        actions = rng.uniform(-0.05, 0.05, (STEPS, WORLDS, 8)).astype(np.float32)
+        gaps, _ = _compare(batch, cpu_env, actions)
+        assert gaps["pos"] < POS_TOL and gaps["joint"] < JOINT_TOL, gaps
+        assert gaps["reward"] < REWARD_TOL and gaps["success"] == 0, gaps
+    finally:
+        batch.close()
+        cpu_env.close()
+
+
 def test_observations_are_device_tensors_and_the_vector_face() -> None:
     batch = make_batch("mjkdl/PandaReach-v0", 3, device="cpu")
     try:
