@@ -6,7 +6,13 @@ On demand, not in CI (minutes to an hour on 2 cores). Needs the `rl` extra:
     python benchmarks/learning.py ppo-reach            # PPO defaults, MultiInputPolicy, 150k steps
     python benchmarks/learning.py her-reach            # SAC + HER on PandaReachGoal-v0, 30k steps
     python benchmarks/learning.py bc-pick              # behaviour cloning of the expert, PickCube
+    python benchmarks/learning.py rslrl-pick --device cuda   # rsl-rl PPO on many worlds
+    python benchmarks/learning.py rslrl-reach --device cpu --envs 8 --iterations 2  # tiny
     python benchmarks/learning.py plot                 # docs/learning.png from the saved curves
+
+The `rslrl-*` runs need the `warp-rl` extra: PPO (rsl-rl) on `mjkdl.task.make_batch`'s
+worlds with the task's recipe (`mjkdl.task.batch_ppo`), evaluated on the CPU env. Their goal on
+one H100: PickCube >= 90 % success within 10 minutes of wall time (not measured here: no GPU).
 
 Each run evaluates the deterministic policy on 20 held-out seeds (10000..10019) at checkpoints
 and writes its curve, with wall time and steps/s of training and of the env alone, to
@@ -265,6 +271,59 @@ def bc_pick(demos: int, epochs: int, noise: float) -> None:
     )
 
 
+def rslrl_run(run: str, env_id: str, device: str, envs: int, iterations: int, chunks: int):
+    """rsl-rl PPO on `envs` worlds of `env_id` (the task's recipe), evaluated on the CPU env
+    after each of `chunks` equal parts of `iterations`."""
+    import torch
+    from rsl_rl.runners import OnPolicyRunner
+    from tensordict import TensorDict
+
+    from mjkdl.task.batch import make_batch
+    from mjkdl.task.batch_ppo import RslRlEnv, recipe
+
+    r = recipe(env_id)
+    envs = envs or r.num_envs
+    iterations = iterations or r.iterations
+    batch = make_batch(env_id, envs, device=device, allow_cpu=True)
+    env = RslRlEnv(batch)
+    runner = OnPolicyRunner(
+        env, {**r.config, "num_steps_per_env": r.num_steps_per_env}, None, str(batch.device)
+    )
+    curve: list[dict[str, float]] = []
+    train_seconds, done = 0.0, 0
+    start = time.perf_counter()
+    for k in range(chunks):
+        part = iterations * (k + 1) // chunks - done
+        t = time.perf_counter()
+        runner.learn(num_learning_iterations=part)
+        train_seconds += time.perf_counter() - t
+        done += part
+        policy_net = runner.get_inference_policy("cpu")
+
+        def policy(obs: dict[str, np.ndarray], policy_net: Any = policy_net) -> np.ndarray:
+            flat = np.concatenate([np.ravel(v) for v in obs.values()]).astype(np.float32)
+            td = TensorDict({"policy": torch.as_tensor(flat)[None]}, batch_size=[1])
+            with torch.no_grad():
+                return policy_net(td)[0].numpy()
+
+        steps = envs * r.num_steps_per_env * done
+        rate = evaluate(env_id, policy)
+        curve.append({"steps": steps, "success": rate, "seconds": train_seconds})
+        print(f"  {steps:>9} steps: {rate:.0%} ({train_seconds:.0f} s)")
+    batch.close()
+    return {
+        "run": run,
+        "env_id": env_id,
+        "device": str(batch.device),
+        "num_envs": envs,
+        "curve": curve,
+        "wall_seconds": time.perf_counter() - start,
+        "train_seconds": train_seconds,
+        "train_steps_per_s": curve[-1]["steps"] / train_seconds,
+        "env_steps_per_s": env_steps_per_second(env_id),
+    }
+
+
 def plot() -> None:
     """docs/learning.png: the saved curves side by side."""
     import matplotlib
@@ -291,7 +350,15 @@ def plot() -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run", choices=["ppo-reach", "her-reach", "bc-pick", "plot"])
+    parser.add_argument(
+        "run", choices=["ppo-reach", "her-reach", "bc-pick", "rslrl-reach", "rslrl-pick", "plot"]
+    )
+    parser.add_argument("--device", default="cuda", help="rslrl-*: MuJoCo Warp's device")
+    parser.add_argument("--envs", type=int, default=0, help="rslrl-*: worlds (0: recipe's)")
+    parser.add_argument(
+        "--iterations", type=int, default=0, help="rslrl-*: PPO iterations (0: recipe's)"
+    )
+    parser.add_argument("--chunks", type=int, default=1, help="rslrl-*: evaluations")
     parser.add_argument("--steps", type=int, default=0, help="training steps (0: the run's own)")
     parser.add_argument("--demos", type=int, default=300, help="bc-pick: expert episodes")
     parser.add_argument("--epochs", type=int, default=50, help="bc-pick: training epochs")
@@ -313,6 +380,12 @@ def main() -> None:
         ppo_reach(args.steps or 150_000)
     elif args.run == "her-reach":
         her_reach(args.steps or 30_000)
+    elif args.run.startswith("rslrl-"):
+        task = {"rslrl-reach": "mjkdl/PandaReach-v0", "rslrl-pick": "mjkdl/PandaPickCube-v0"}
+        record = rslrl_run(
+            args.run, task[args.run], args.device, args.envs, args.iterations, args.chunks
+        )
+        save(args.run, record)
     elif args.run == "bc-pick":
         bc_pick(args.demos, args.epochs, args.noise)
     else:

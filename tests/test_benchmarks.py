@@ -66,6 +66,21 @@ def run_benchmark(name: str, *args: str) -> str:
             ("--blocks", "1", "--camera-blocks", "1", "--vector-seconds", "0.5"),
             r"async vector env, 128x128 camera, 1 sub-env\(s\):",
         ),
+        (
+            "batch",
+            (
+                "--worlds",
+                "1",
+                "--steps",
+                "1",
+                "--cpu-steps",
+                "2",
+                "--vector-envs",
+                "1",
+                "--no-compile",
+            ),
+            r"\n\s+1\s+",
+        ),
     ],
 )
 def test_benchmark_runs_and_prints_its_figures(name, args, figure) -> None:

@@ -66,3 +66,12 @@ __all__ = [
     "run_episode",
     "view",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """`make_batch` and `BatchEnv` (MuJoCo Warp, torch: the `warp` extra) load on first use."""
+    if name in ("make_batch", "BatchEnv"):
+        from . import batch
+
+        return getattr(batch, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

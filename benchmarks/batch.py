@@ -1,0 +1,151 @@
+"""Many worlds: `mjkdl.task.make_batch` on MuJoCo Warp against the CPU env, in one process.
+
+`mjkdl/PandaPickCube-v0` (0.1 s control steps of 50 physics steps of 2 ms), random actions.
+Baseline: one CPU env (`TaskEnv.step`), then a synchronous CPU vector env of 4, then the
+batch on MuJoCo Warp's device with 1 ... 256 worlds (the CPU device where no GPU is lent):
+control steps/s summed over worlds, world-steps/s (physics steps of one world per second),
+the reset cost per world (the CPU env's reset on the host, uploaded), and MuJoCo Warp's data
+per world. First-call time (kernel compile) is measured in fresh subprocesses: with an empty
+kernel cache and with the one the first filled.
+
+    python benchmarks/batch.py                       # CPU device, 1..256 worlds
+    python benchmarks/batch.py --device cuda --worlds 1 64 1024 8192
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import gymnasium as gym
+import numpy as np
+import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
+
+import mjkdl.task  # noqa: F401  (registers the tasks)
+
+TASK = "mjkdl/PandaPickCube-v0"
+SUBSTEPS = 50
+
+
+def cpu_env(steps: int) -> float:
+    """Control steps/s of one CPU env."""
+    env = gym.make(TASK).unwrapped
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    start = time.perf_counter()
+    for _ in range(steps):
+        env.step(rng.uniform(-1, 1, 7).astype(np.float32))
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate
+
+
+def cpu_vector(n: int, steps: int) -> float:
+    """Control steps/s (all sub-envs) of a synchronous vector env of `n` CPU envs."""
+    envs = gym.make_vec(TASK, num_envs=n, vectorization_mode="sync")
+    envs.reset(seed=0)
+    rng = np.random.default_rng(0)
+    start = time.perf_counter()
+    for _ in range(steps):
+        envs.step(rng.uniform(-1, 1, (n, 7)).astype(np.float32))
+    rate = n * steps / (time.perf_counter() - start)
+    envs.close()
+    return rate
+
+
+def batch(n: int, steps: int, device: str) -> tuple[float, float, float]:
+    """(control steps/s over all worlds, reset s per world, data bytes per world)."""
+    import torch
+
+    from mjkdl.task.batch import make_batch, world_bytes
+
+    envs = make_batch(TASK, n, device=device)
+    start = time.perf_counter()
+    envs.reset(seed=0)
+    reset = (time.perf_counter() - start) / n
+    per_world, _ = world_bytes(envs.host.scene.model, envs.host.scene.data, device, None, None)
+    gen = torch.Generator(device=device).manual_seed(0)
+    envs.step(torch.rand(n, 7, generator=gen, device=device) * 2 - 1)  # warm
+    start = time.perf_counter()
+    for _ in range(steps):
+        envs.step(torch.rand(n, 7, generator=gen, device=device) * 2 - 1)
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+    rate = n * steps / (time.perf_counter() - start)
+    envs.close()
+    return rate, reset, per_world
+
+
+_FIRST_CALL = """
+import time, scenes, mjkdl.task
+from mjkdl.task.batch import make_batch
+import torch
+start = time.perf_counter()
+envs = make_batch({task!r}, 4, device={device!r})
+envs.reset(seed=0)
+envs.step(torch.zeros(4, 7))
+print(time.perf_counter() - start)
+"""
+
+
+def first_call(device: str, cache: str) -> float:
+    """Seconds from `make_batch` to the end of the first step, in a fresh process with the
+    Warp kernel cache at `cache`."""
+    env = {**os.environ, "WARP_CACHE_PATH": cache}
+    code = _FIRST_CALL.format(task=TASK, device=device)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=os.path.dirname(os.path.abspath(__file__)),
+    )
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--device", default="", help="cuda or cpu (default: cuda if present)")
+    parser.add_argument("--worlds", type=int, nargs="+", default=[1, 4, 16, 64, 256])
+    parser.add_argument("--steps", type=int, default=3, help="timed control steps per size")
+    parser.add_argument("--cpu-steps", type=int, default=20, help="timed CPU env steps")
+    parser.add_argument("--vector-envs", type=int, default=4, help="CPU vector env size")
+    parser.add_argument("--no-compile", action="store_true", help="skip the first-call runs")
+    args = parser.parse_args()
+    from mjkdl.task.batch_state import warp_modules
+
+    wp, _ = warp_modules()  # Warp logs warnings only
+    gpu = wp.get_cuda_device_count() > 0
+    device = args.device or ("cuda:0" if gpu else "cpu")
+    if not gpu:
+        print("No GPU is lent here: MuJoCo Warp runs on its CPU device; GPU figures not measured.")
+    print(f"device {device}, {os.cpu_count()} cores")
+    base = cpu_env(args.cpu_steps)
+    print(f"CPU env (TaskEnv.step):       {base:8.1f} control steps/s  (baseline, 1.00x)")
+    k = args.vector_envs
+    vec = cpu_vector(k, max(1, args.cpu_steps // 2))
+    print(f"CPU sync vector env of {k}:     {vec:8.1f} control steps/s  ({vec / base:.2f}x)")
+    print("worlds  control steps/s  world-steps/s   vs CPU env  reset s/world  KiB/world")
+    for n in args.worlds:
+        rate, reset, per_world = batch(n, args.steps, device)
+        print(
+            f"{n:6d}  {rate:15.1f}  {rate * SUBSTEPS:13.0f}  {rate / base:9.2f}x"
+            f"  {reset:13.3f}  {per_world / 1024:9.0f}"
+        )
+    if not args.no_compile:
+        with tempfile.TemporaryDirectory() as cache:
+            cold = first_call(device, cache)
+            warm = first_call(device, cache)
+        print(
+            f"first call (4 worlds, build+reset+step): {cold:.1f} s empty kernel cache, "
+            f"{warm:.1f} s cached ({cold / warm:.1f}x)"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,431 @@
+"""`make_batch`: a task run as many worlds at once on MuJoCo Warp, with batched torch tensors.
+
+The CPU env (`TaskEnv`) stays the one definition of a task: the batch builds one from the
+same `TaskSpec` (or registered id and parameters) and takes from it the compiled model, the
+action layout, the observation readers, the arms' controllers and the task's own reward,
+success and termination callables. Resets run the CPU env's reset on the host, world by
+world with the world's own generator, and upload the state, so world `i` after
+`reset(seed=s)` starts the episode `TaskEnv.reset(seed=s + i)` starts.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+from gymnasium.utils.seeding import np_random
+from gymnasium.vector import AutoresetMode, VectorEnv
+
+from ..errors import MjkdlError, SpecError, SpecTypeError
+from .batch_control import BatchArm
+from .batch_sensors import BatchObserver
+from .batch_state import (
+    DeviceState,
+    UnsupportedFeatureError,
+    as_numpy,
+    warp_model,
+    warp_modules,
+)
+from .env import TaskEnv
+from .goal import GoalTaskEnv
+from .initializers import PhysicsRandomizer
+from .spec import TaskSpec
+
+__all__ = ["BatchEnv", "DeviceUnavailableError", "UnsupportedFeatureError", "make_batch"]
+
+MEMORY_SHARE = 0.8  # of the device's free memory a batch may plan to take
+
+
+class DeviceUnavailableError(MjkdlError, RuntimeError):
+    """The device asked for does not exist here (no CUDA GPU for `device="cuda"`)."""
+
+
+def make_batch(
+    task: str | TaskSpec,
+    num_envs: int,
+    device: str = "cuda:0",
+    *,
+    allow_cpu: bool = False,
+    nconmax: int | None = None,
+    njmax: int | None = None,
+    max_episode_steps: int | None = None,
+    **kwargs: Any,
+) -> BatchEnv:
+    """`num_envs` worlds of `task` (a registered id with its parameters as `kwargs`, or a
+    `TaskSpec`) on MuJoCo Warp's `device` ("cuda", "cuda:N" or "cpu").
+
+    Without a GPU, `device="cuda..."` raises unless `allow_cpu`, which runs on the CPU with a
+    warning. `nconmax`/`njmax` are MuJoCo Warp's contacts and constraints per world (its
+    defaults when None). `max_episode_steps` overrides the registered time limit.
+    """
+    device = _device(device, allow_cpu)
+    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
+        raise SpecTypeError(f"num_envs must be a positive integer, got {num_envs!r}")
+    if num_envs <= 0:
+        raise SpecError(f"num_envs must be a positive integer, got {num_envs}")
+    horizon = max_episode_steps
+    if isinstance(task, TaskSpec):
+        if kwargs:
+            raise SpecError(
+                f"make_batch: parameters {sorted(kwargs)} go with a registered task id, not a "
+                "TaskSpec (set them on the spec)"
+            )
+        host = TaskEnv(task)
+    elif isinstance(task, str):
+        if task not in gym.registry:
+            raise SpecError(f"make_batch: no registered task {task!r}; import mjkdl.task first")
+        registered = gym.registry[task]
+        made = gym.make(task, disable_env_checker=True, **kwargs).unwrapped
+        if not isinstance(made, TaskEnv):
+            made.close()
+            raise SpecError(f"make_batch: {task!r} is not an mjkdl task (TaskEnv)")
+        host = made
+        if horizon is None:
+            horizon = registered.max_episode_steps
+    else:
+        raise SpecTypeError(f"make_batch takes a task id or a TaskSpec, got {task!r}")
+    try:
+        return BatchEnv(host, num_envs, device, nconmax=nconmax, njmax=njmax, horizon=horizon)
+    except BaseException:
+        host.close()
+        raise
+
+
+def _device(device: object, allow_cpu: bool) -> str:
+    if not isinstance(device, str):
+        raise SpecTypeError(f"device must be 'cuda', 'cuda:N' or 'cpu', got {device!r}")
+    if device == "cpu":
+        return device
+    if device != "cuda" and not (device.startswith("cuda:") and device[5:].isdigit()):
+        raise SpecError(f"device must be 'cuda', 'cuda:N' or 'cpu', got {device!r}")
+    wp, _ = warp_modules()
+    count = wp.get_cuda_device_count()
+    index = 0 if device == "cuda" else int(device[5:])
+    if index < count and torch.cuda.is_available():
+        return f"cuda:{index}"
+    why = (
+        "this machine has no CUDA GPU that Warp can use"
+        if count == 0
+        else f"Warp sees {count} CUDA device(s)"
+        if index >= count
+        else "this torch build has no CUDA"
+    )
+    if allow_cpu:
+        warnings.warn(f"device={device!r}: {why}; running on the CPU", stacklevel=3)
+        return "cpu"
+    raise DeviceUnavailableError(
+        f"device={device!r}: {why}. Pass device='cpu' (MuJoCo Warp's CPU device, slow), or "
+        "allow_cpu=True to fall back with a warning, or run on a machine with an NVIDIA GPU "
+        "(and a CUDA build of torch)"
+    )
+
+
+class BatchEnv(VectorEnv):
+    """`num_envs` worlds of one task on MuJoCo Warp; Gymnasium's `VectorEnv` interface.
+
+    `reset(seed=s)` and `step(actions)` return torch tensors on `device` (float32 for
+    observations and rewards, bool for terminated/truncated): observations a dict of
+    `(num_envs, ...)` tensors, as the CPU env's observation space (goal-conditioned tasks:
+    `observation`, `achieved_goal`, `desired_goal`). `actions` is a `(num_envs, n)` tensor
+    (or array) in the CPU env's action space. Finished worlds start their next episode in
+    the same step (Gymnasium's SAME_STEP autoreset): their returned observation is the new
+    episode's, `info["final_obs"]` holds the last one for every world (rows of finished
+    worlds are meaningful) and `info["_final"]` marks them. `info["is_success"]` and
+    `info["diverged"]` are bool tensors.
+
+    The task's reward, success and termination callables run on the host, once per world
+    and step, on the world's observation (float64 NumPy arrays): the task's own definitions
+    with nothing re-written, at a cost that grows with `num_envs` (docs/task.md, "Many
+    worlds").
+    """
+
+    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP}  # noqa: RUF012
+
+    def __init__(
+        self,
+        host: TaskEnv,
+        num_envs: int,
+        device: str,
+        *,
+        nconmax: int | None = None,
+        njmax: int | None = None,
+        horizon: int | None = None,
+    ) -> None:
+        self.host = host
+        self.num_envs = num_envs
+        self.device = torch.device(device)
+        spec = host.task_spec
+        for i, init in enumerate(spec.initializers):
+            if isinstance(init, PhysicsRandomizer):
+                raise UnsupportedFeatureError(
+                    f"TaskSpec.initializers[{i}] (PhysicsRandomizer) edits the model per "
+                    "episode; the batched worlds share one model, so it runs only in the CPU env"
+                )
+        host.reset(seed=0)  # configures the arms' actuators (Robot control modes) in the model
+        model = host.scene.model
+        _check_memory(model, host.scene.data, num_envs, device, nconmax, njmax)
+        self.state = DeviceState(model, host.scene.data, num_envs, device, nconmax, njmax)
+        self.observer = BatchObserver(host, self.state)
+        self.state.tcps.update(self.observer.tcps)  # the arms' TCPs, shared with control
+        self.arms = [BatchArm(eff, model, self.state) for eff in host._effectors]
+        self._substeps, self._period = host._substeps, host._period
+        limit = host._max_steps if math.isfinite(host._max_steps) else None
+        if limit is None and horizon is not None:
+            limit = horizon
+        elif limit is not None and horizon is not None:
+            limit = min(limit, horizon)
+        self.max_episode_steps = limit
+        self._hold_steps = host._hold_steps
+        dev = self.device
+        self._low = torch.as_tensor(host._action_low, device=dev, dtype=torch.float32)
+        self._high = torch.as_tensor(host._action_high, device=dev, dtype=torch.float32)
+        self._normalized = spec.normalize_actions
+        if self._normalized:
+            self._mid = torch.as_tensor(host._action_mid, device=dev, dtype=torch.float32)
+            self._half = torch.as_tensor(host._action_half, device=dev, dtype=torch.float32)
+        self._steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
+        self._held = torch.zeros(num_envs, dtype=torch.long, device=dev)
+        self._rngs: list[np.random.Generator] = [np_random(i)[0] for i in range(num_envs)]
+        self.single_observation_space = host.observation_space
+        self.single_action_space = host.action_space
+        self.observation_space = gym.vector.utils.batch_space(
+            self.single_observation_space, num_envs
+        )
+        self.action_space = gym.vector.utils.batch_space(self.single_action_space, num_envs)
+        self.action_labels = host.action_labels
+        self._needs_reset = True
+        self.closed = False
+
+    # ------------------------------------------------------------------ episodes
+
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: Mapping[str, Any] | None = None
+    ) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
+        """Every world starts an episode; world `i` with seed `seed + i` (or `seed[i]`)."""
+        self._check_open()
+        if options:
+            raise SpecError(f"BatchEnv.reset(options=...) takes no options, got {options!r}")
+        if seed is not None:
+            seeds = list(seed) if isinstance(seed, (list, tuple)) else None
+            if seeds is None:
+                if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+                    raise SpecTypeError(
+                        f"reset(seed=...) must be an integer or a list, got {seed!r}"
+                    )
+                seeds = [int(seed) + i for i in range(self.num_envs)]
+            if len(seeds) != self.num_envs:
+                raise SpecError(f"reset(seed=[...]) needs {self.num_envs} seeds, got {len(seeds)}")
+            self._rngs = [np_random(int(s))[0] for s in seeds]
+        rows = torch.ones(self.num_envs, dtype=torch.bool, device=self.device)
+        self._reset_rows(rows)
+        self._needs_reset = False
+        obs = self.observer.read()
+        success = self._evaluate(obs, rows)[1]
+        return self._shown(obs), {"is_success": success, "diverged": ~rows}
+
+    def step(
+        self, actions: Any
+    ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor, torch.Tensor, dict[str, Any]]:
+        """Hold `actions` for one control period in every world; finished worlds reset."""
+        self._check_open()
+        if self._needs_reset:
+            raise RuntimeError("BatchEnv.step() before reset(): call reset() first")
+        a = self._checked(actions)
+        for arm in self.arms:
+            arm.apply(a, self._period)
+        self.state.step(self._substeps)
+        s = self.state
+        diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1))
+        obs = self.observer.read()
+        self._steps += 1
+        reward, success, terminated = self._evaluate(obs, ~diverged)
+        self._held = torch.where(success, self._held + 1, torch.zeros_like(self._held))
+        spec = self.host.task_spec
+        if spec.terminate_on_success:
+            ends = (self._held > self._hold_steps) & ~terminated
+            if self.max_episode_steps is not None:
+                # The steps this end cuts off would each have paid about this step's reward.
+                left = torch.clamp(self.max_episode_steps - self._steps, min=0)
+                reward = torch.where(ends, reward * (1 + left), reward)
+            terminated = terminated | ends
+        terminated = terminated | diverged
+        reward = torch.where(diverged, torch.zeros_like(reward), reward)
+        success = success & ~diverged
+        if self.max_episode_steps is not None:
+            truncated = self._steps >= self.max_episode_steps
+        else:
+            truncated = torch.zeros_like(terminated)
+        done = terminated | truncated
+        info: dict[str, Any] = {"is_success": success, "diverged": diverged}
+        shown = self._shown(obs)
+        if bool(done.any()):
+            info["final_obs"] = {k: v.clone() for k, v in shown.items()}
+            info["final_info"] = {"is_success": success.clone(), "diverged": diverged.clone()}
+            info["_final"] = done
+            self._reset_rows(done)
+            fresh = self.observer.read()
+            restart = self._evaluate(fresh, done)[1]
+            shown = {
+                k: torch.where(_rows(done, v), self._shown(fresh)[k], v) for k, v in shown.items()
+            }
+            info["is_success"] = torch.where(done, restart, success)
+        return shown, reward, terminated, truncated, info
+
+    def _reset_rows(self, rows: torch.Tensor) -> None:
+        """Run the CPU env's reset for each world in `rows` with that world's generator and
+        upload the state; then one `mj_forward` of every world."""
+        host, s = self.host, self.state
+        ids = torch.nonzero(rows).flatten().tolist()
+        q_cmd = [np.empty((len(ids), arm.n)) for arm in self.arms]
+        qd = [np.empty((len(ids), arm.n)) for arm in self.arms]
+        for k, i in enumerate(ids):
+            host.np_random = self._rngs[i]
+            host.reset()
+            s.upload(i, host.scene.data)
+            for j, eff in enumerate(host._effectors):
+                q_cmd[j][k] = eff.robot.jnt_pos_cmd
+                qd[j][k] = eff.robot.jnt_vel_msr
+        idx = torch.as_tensor(ids, device=self.device, dtype=torch.long)
+        for j, arm in enumerate(self.arms):
+            arm.reset_rows(idx, q_cmd[j], qd[j])
+        s.forward(keep=~rows)
+        self._steps[rows] = 0
+        self._held[rows] = 0
+
+    def _evaluate(
+        self, obs: dict[str, torch.Tensor], live: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Reward, success and termination of each world in `live` by the task's callables
+        (the others: 0, False, False)."""
+        spec = self.host.task_spec
+        n, dev = self.num_envs, self.device
+        reward = np.zeros(n)
+        success = np.zeros(n, dtype=bool)
+        terminated = np.zeros(n, dtype=bool)
+        fns = (spec.reward, spec.success, spec.terminated)
+        if any(f is not None for f in fns):
+            host_obs = {k: as_numpy(v) for k, v in obs.items()}
+            for i in torch.nonzero(live).flatten().tolist():
+                o = {k: v[i] for k, v in host_obs.items()}
+                if spec.reward is not None:
+                    reward[i] = float(spec.reward(o))
+                if spec.success is not None:
+                    success[i] = bool(spec.success(o))
+                if spec.terminated is not None:
+                    terminated[i] = bool(spec.terminated(o))
+        return (
+            torch.as_tensor(reward, device=dev, dtype=torch.float32),
+            torch.as_tensor(success, device=dev),
+            torch.as_tensor(terminated, device=dev),
+        )
+
+    def _shown(self, obs: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The agent's part of the observation, as the CPU env gives it."""
+        host = self.host
+        if isinstance(host, GoalTaskEnv):
+            g = host.goal_reward
+            out = {
+                "observation": torch.cat([obs[k] for k in host._vector_keys], dim=1),
+                "achieved_goal": obs[g.achieved][:, :3],
+                "desired_goal": obs[g.desired][:, :3],
+            }
+            out.update((k, obs[k]) for k in host._image_keys)
+            return out
+        return {k: obs[k] for k in host._shown}
+
+    def _checked(self, actions: Any) -> torch.Tensor:
+        a = torch.as_tensor(actions, device=self.device, dtype=torch.float32)
+        shape = (self.num_envs, len(self.action_labels))
+        if tuple(a.shape) != shape:
+            raise SpecError(
+                f"actions must have shape {shape} ({', '.join(self.action_labels)}), got "
+                f"{tuple(a.shape)}"
+            )
+        bad = ~torch.isfinite(a)
+        if bool(bad.any()):
+            world, entry = (int(x) for x in torch.nonzero(bad)[0])
+            raise SpecError(
+                f"actions must be finite: world {world}, {self.action_labels[entry]}="
+                f"{float(a[world, entry])}"
+            )
+        if self._normalized:
+            return torch.clamp(a, -1.0, 1.0) * self._half + self._mid
+        return torch.maximum(torch.minimum(a, self._high), self._low)
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise RuntimeError("this BatchEnv is closed")
+
+    def close(self, **kwargs: Any) -> None:
+        """Release the host env; later calls raise RuntimeError."""
+        if not self.closed:
+            self.host.close()
+        self.closed = True
+
+
+def _rows(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
+    return mask.reshape((-1,) + (1,) * (like.dim() - 1))
+
+
+def world_bytes(
+    model: Any, data: Any, device: str, nconmax: int | None, njmax: int | None
+) -> tuple[int, int]:
+    """(bytes per world, bytes shared) of MuJoCo Warp's data, measured from a one- and a
+    two-world allocation (small: made and freed before the real one)."""
+    wp, mjw = warp_modules()
+    sizes = []
+    with wp.ScopedDevice(wp.get_device(device)):
+        warp_model(model)  # fails first, with the feature named, on an unsupported scene
+        for n in (1, 2):
+            d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
+            sizes.append(_nbytes(d))
+            del d
+    return sizes[1] - sizes[0], 2 * sizes[0] - sizes[1]
+
+
+def _nbytes(obj: Any, seen: set[int] | None = None) -> int:
+    wp, _ = warp_modules()
+    seen = set() if seen is None else seen
+    total = 0
+    for value in vars(obj).values():
+        if id(value) in seen:
+            continue
+        seen.add(id(value))
+        if isinstance(value, wp.array):
+            total += int(value.capacity)
+        elif hasattr(value, "__dataclass_fields__"):
+            total += _nbytes(value, seen)
+    return total
+
+
+def _free_bytes(device: str) -> int:
+    if device.startswith("cuda"):
+        free, _ = torch.cuda.mem_get_info(torch.device(device))
+        return int(free)
+    import os
+
+    return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+
+
+def _check_memory(
+    model: Any, data: Any, num_envs: int, device: str, nconmax: int | None, njmax: int | None
+) -> None:
+    """Refuse, before allocating, a batch whose MuJoCo Warp data would not fit the device."""
+    per_world, shared = world_bytes(model, data, device, nconmax, njmax)
+    need = shared + per_world * num_envs
+    free = _free_bytes(device)
+    if need > MEMORY_SHARE * free:
+        fits = max(0, int((MEMORY_SHARE * free - shared) // max(per_world, 1)))
+        raise SpecError(
+            f"num_envs={num_envs} needs about {need / 2**30:.2f} GiB on {device} "
+            f"({per_world / 2**10:.0f} KiB per world), more than {MEMORY_SHARE:.0%} of the "
+            f"{free / 2**30:.2f} GiB free; use at most about {fits} worlds (or smaller "
+            "nconmax/njmax)"
+        )

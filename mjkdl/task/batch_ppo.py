@@ -1,0 +1,172 @@
+"""PPO on many worlds with rsl-rl (the `warp-rl` extra): `BatchEnv` as rsl-rl's `VecEnv`, a
+recipe per task, and `train`.
+
+rsl-rl (ETH Zurich's PPO, the learner of Isaac Lab and legged_gym) is built for thousands of
+worlds whose observations, rewards and dones are already torch tensors on the GPU: it
+collects rollouts without leaving the device, which is what `BatchEnv` gives. Stable-Baselines3
+(the `rl` extra) copies through NumPy at every step, and skrl's Gymnasium wrapper does too.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+from gymnasium import spaces
+from rsl_rl.env import VecEnv
+from rsl_rl.runners import OnPolicyRunner
+from tensordict import TensorDict
+
+from ..errors import SpecError
+from .batch import BatchEnv, make_batch
+
+
+class RslRlEnv(VecEnv):
+    """A `BatchEnv` as rsl-rl's `VecEnv`: every vector observation, flattened and concatenated
+    in the env's order, is the `policy` group that actor and critic read; `time_outs` are the
+    truncations, `log` the success rate of the step."""
+
+    def __init__(self, batch: BatchEnv) -> None:
+        self.batch = batch
+        self.num_envs = batch.num_envs
+        self.num_actions = len(batch.action_labels)
+        steps = batch.max_episode_steps
+        if steps is None:
+            raise SpecError(
+                "rsl-rl needs a bounded episode: give the task a time_limit or max_episode_steps"
+            )
+        self.max_episode_length = int(steps)
+        self.device = batch.device
+        self.cfg: dict[str, Any] = {}
+        single = batch.single_observation_space
+        assert isinstance(single, spaces.Dict)
+        for key, space in single.spaces.items():
+            if space.shape is None or len(space.shape) > 1:
+                raise SpecError(
+                    f"observation {key!r} (shape {space.shape}) is an image; the PPO recipe "
+                    "reads vector observations only"
+                )
+        self._obs = self._group(batch.reset(seed=0)[0])
+
+    @property
+    def episode_length_buf(self) -> torch.Tensor:
+        """Control steps of each world's current episode."""
+        return self.batch._steps
+
+    @episode_length_buf.setter
+    def episode_length_buf(self, value: torch.Tensor) -> None:
+        self.batch._steps[:] = value
+
+    def _group(self, obs: dict[str, torch.Tensor]) -> TensorDict:
+        flat = torch.cat([v.reshape(self.num_envs, -1).float() for v in obs.values()], dim=1)
+        return TensorDict({"policy": flat}, batch_size=[self.num_envs])
+
+    def get_observations(self) -> TensorDict:
+        return self._obs
+
+    def step(self, actions: torch.Tensor) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
+        obs, reward, terminated, truncated, info = self.batch.step(actions)
+        self._obs = self._group(obs)
+        done = terminated | truncated
+        success = info.get("final_info", info)["is_success"]
+        extras = {
+            "time_outs": truncated & ~terminated,
+            "log": {"/success": success.float().mean()},
+        }
+        return self._obs, reward, done.long(), extras
+
+
+@dataclass
+class Recipe:
+    """PPO settings for one task: worlds, rollout length, iterations and rsl-rl's config."""
+
+    num_envs: int
+    num_steps_per_env: int
+    iterations: int
+    config: dict[str, Any] = field(default_factory=dict)
+
+
+def _config(hidden: tuple[int, ...], lr: float, entropy: float, gamma: float) -> dict[str, Any]:
+    model = {
+        "class_name": "MLPModel",
+        "hidden_dims": list(hidden),
+        "activation": "elu",
+        "obs_normalization": True,
+    }
+    return {
+        "algorithm": {
+            "class_name": "PPO",
+            "num_learning_epochs": 5,
+            "num_mini_batches": 4,
+            "learning_rate": lr,
+            "entropy_coef": entropy,
+            "gamma": gamma,
+            "lam": 0.95,
+            "schedule": "adaptive",
+            "desired_kl": 0.01,
+        },
+        "actor": {
+            **model,
+            "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": 1.0},
+        },
+        "critic": dict(model),
+        "obs_groups": {"actor": ["policy"], "critic": ["policy"]},
+        "save_interval": 10**9,
+        "check_for_nan": True,
+    }
+
+
+# Starting points, not tuned results: no GPU was lent to measure them (docs/task.md).
+DEFAULT_RECIPE = Recipe(4096, 24, 300, _config((256, 128, 64), 1e-3, 5e-3, 0.97))
+RECIPES: dict[str, Recipe] = {
+    "mjkdl/PandaReach-v0": Recipe(2048, 24, 100, _config((128, 64), 1e-3, 5e-3, 0.97)),
+    "mjkdl/PandaPickCube-v0": Recipe(4096, 24, 400, _config((256, 128, 64), 1e-3, 5e-3, 0.97)),
+}
+
+
+def recipe(task_id: str) -> Recipe:
+    """The PPO recipe for `task_id` (a copy): its own, else `DEFAULT_RECIPE`."""
+    return copy.deepcopy(RECIPES.get(task_id, DEFAULT_RECIPE))
+
+
+@dataclass
+class TrainResult:
+    """What `train` did: the runner (its `alg` holds the policy), steps and wall time."""
+
+    runner: OnPolicyRunner
+    env_steps: int
+    seconds: float
+
+
+def train(
+    task_id: str,
+    *,
+    device: str = "cuda:0",
+    num_envs: int | None = None,
+    num_steps_per_env: int | None = None,
+    iterations: int | None = None,
+    log_dir: str | None = None,
+    seed: int = 0,
+    **task_kwargs: Any,
+) -> TrainResult:
+    """PPO (rsl-rl) on `task_id`'s recipe, any of its numbers overridden; `task_kwargs` go to
+    the task (`time_limit`, `reward_type`, ...). Returns the runner with the trained policy."""
+    r = recipe(task_id)
+    envs = num_envs or r.num_envs
+    steps = num_steps_per_env or r.num_steps_per_env
+    iters = iterations or r.iterations
+    torch.manual_seed(seed)
+    batch = make_batch(task_id, envs, device=device, **task_kwargs)
+    env = RslRlEnv(batch)
+    cfg = {**r.config, "num_steps_per_env": steps, "seed": seed}
+    try:
+        runner = OnPolicyRunner(env, cfg, log_dir=log_dir, device=str(batch.device))
+        start = time.perf_counter()
+        runner.learn(num_learning_iterations=iters)
+        seconds = time.perf_counter() - start
+    finally:
+        batch.close()
+    return TrainResult(runner, envs * steps * iters, seconds)

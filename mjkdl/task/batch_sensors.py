@@ -1,0 +1,167 @@
+"""A task's observations for every world at once, read from MuJoCo Warp's arrays.
+
+Each source mirrors one of the CPU env's bound readers (`ArmReader`, `PoseReader`,
+`RelativeReader`, `ContactReader`), built from the same reader and sensor spec, so the keys,
+shapes and order are the CPU env's; values are float32 tensors with the worlds first.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import mujoco
+import torch
+
+from ..names import model_id
+from .batch_state import DeviceState, Tcp, UnsupportedFeatureError, mat_to_quat
+from .sensors import ArmReader, ContactReader, PoseReader, RelativeReader
+from .spec import ContactSensor, RelativePositionSensor
+
+if TYPE_CHECKING:
+    from .env import TaskEnv
+
+Source = Callable[[], dict[str, torch.Tensor]]
+
+
+def arm_tcp(reader: ArmReader, device: str, model: mujoco.MjModel) -> Tcp:
+    """The TCP an `ArmReader` reads, as device tensors."""
+    site = reader._ref if reader._ref_kind == mujoco.mjtObj.mjOBJ_SITE else -1
+    body = int(model.site_bodyid[site]) if site >= 0 else reader._ref
+    f32 = torch.float32
+    return Tcp(
+        site=site,
+        body=body,
+        offset=torch.as_tensor(reader._off_pos, device=device, dtype=f32),
+        rotation=torch.as_tensor(reader._off_rot, device=device, dtype=f32),
+    )
+
+
+class BatchObserver:
+    """Reads every observation of the CPU env `host` (hidden ones too) for all worlds."""
+
+    def __init__(self, host: TaskEnv, state: DeviceState) -> None:
+        model = host.scene.model
+        self._state = state
+        self.tcps: dict[str, Tcp] = {}
+        self._sources: list[Source] = []
+        readers = host._readers
+        n_arms = len(host.task_spec.arms)
+        for arm, reader, eff in zip(
+            host.task_spec.arms, readers[:n_arms], host._effectors, strict=True
+        ):
+            assert isinstance(reader, ArmReader)
+            tcp = arm_tcp(reader, state.device, model)
+            self.tcps[arm.name] = tcp
+            self._sources.append(self._arm(reader, tcp, eff, model))
+        for i, (sensor, reader) in enumerate(
+            zip(host.task_spec.sensors, readers[n_arms:], strict=True)
+        ):
+            self._sources.append(self._sensor(sensor, reader, model, f"TaskSpec.sensors[{i}]"))
+
+    def read(self) -> dict[str, torch.Tensor]:
+        """Every observation, by name, in the CPU env's order (`time` last)."""
+        out: dict[str, torch.Tensor] = {}
+        for source in self._sources:
+            out.update(source())
+        out["time"] = self._state.time.reshape(-1, 1)
+        return out
+
+    def _arm(self, reader: ArmReader, tcp: Tcp, eff: object, model: mujoco.MjModel) -> Source:
+        s, p = self._state, reader.arm
+        dev = s.device
+        qadr = torch.as_tensor(reader._qadr, device=dev)
+        dadr = torch.as_tensor(reader._dadr, device=dev)
+        cf = reader._cf_mat is not None
+        cf_rot: Callable[[], torch.Tensor] | None = None
+        if cf:
+            arm = eff.arm  # type: ignore[attr-defined]
+            site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, arm.control_frame)
+            if site >= 0:
+                cf_rot = lambda: s.site_xmat[:, site]  # noqa: E731
+            else:
+                body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, arm.control_frame)
+                cf_rot = lambda: s.xmat[:, body]  # noqa: E731
+        grip = eff.gripper  # type: ignore[attr-defined]
+        grip_range = None
+        if grip is not None:
+            grip_range = (grip._id, grip._length_closed, grip._length_open)
+        for key in reader.buffers:
+            if key.endswith("_wrench"):
+                raise UnsupportedFeatureError(
+                    f"observation {key!r}: F/T sensors are not read by the batched backend yet; "
+                    "leave the tool's ft_sensors out or use the CPU env"
+                )
+
+        def read() -> dict[str, torch.Tensor]:
+            pos = s.tcp_pos(tcp)
+            vel = s.tcp_vel(tcp)
+            if cf_rot is not None:
+                rot_t = cf_rot().transpose(1, 2)
+                vel = torch.cat(
+                    [(rot_t @ vel[:, :3, None])[..., 0], (rot_t @ vel[:, 3:, None])[..., 0]], 1
+                )
+            out = {
+                f"{p}_joint_pos": s.qpos[:, qadr],
+                f"{p}_joint_vel": s.qvel[:, dadr],
+                f"{p}_joint_torques": s.qfrc_actuator[:, dadr],
+                f"{p}_tcp_pos": pos,
+                f"{p}_tcp_quat": mat_to_quat(s.tcp_rot(tcp)),
+                f"{p}_tcp_vel": vel,
+            }
+            if grip_range is not None:
+                gid, closed, open_ = grip_range
+                length = s.actuator_length[:, gid : gid + 1]
+                out[f"{p}_gripper"] = torch.clamp((length - closed) / (open_ - closed), 0.0, 1.0)
+            return out
+
+        return read
+
+    def _sensor(self, sensor: object, reader: object, model: mujoco.MjModel, where: str) -> Source:
+        s = self._state
+        if isinstance(reader, PoseReader):
+            (key,) = reader.buffers
+            body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", sensor.body, where)  # type: ignore[attr-defined]
+            return lambda: {key: torch.cat([s.xpos[:, body], s.xquat[:, body]], 1)}
+        if isinstance(reader, RelativeReader):
+            assert isinstance(sensor, RelativePositionSensor)
+            (key,) = reader.buffers
+            body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", sensor.body, where)
+            tcp = self.tcps[sensor.arm]
+            return lambda: {key: s.xpos[:, body] - s.tcp_pos(tcp)}
+        if isinstance(reader, ContactReader):
+            assert isinstance(sensor, ContactSensor)
+            return self._contacts(sensor, reader, model, where)
+        raise UnsupportedFeatureError(
+            f"{where} ({type(sensor).__name__}): the batched backend reads arms, "
+            "BodyPoseSensor, RelativePositionSensor and ContactSensor; cameras and user "
+            "Sensors are CPU-env only for now"
+        )
+
+    def _contacts(
+        self, sensor: ContactSensor, reader: ContactReader, model: mujoco.MjModel, where: str
+    ) -> Source:
+        s = self._state
+        (key,) = reader.buffers
+        dev = s.device
+        body = reader._body
+        others = list(reader._slot)
+        # slot[b] = index of body b among `others`, -1 for the rest.
+        slot = torch.full((model.nbody,), -1, dtype=torch.long, device=dev)
+        for i, b in enumerate(others):
+            slot[b] = i
+        geom_body = torch.as_tensor(model.geom_bodyid, device=dev, dtype=torch.long)
+        k = len(others)
+
+        def read() -> dict[str, torch.Tensor]:
+            out = torch.zeros(s.nworld * k, device=dev)
+            world, g1, g2 = s.contacts()
+            b1, b2 = geom_body[g1.long()], geom_body[g2.long()]
+            world = world.long()
+            for mine, other in ((b1, b2), (b2, b1)):
+                idx = slot[other]
+                hit = (mine == body) & (idx >= 0)
+                out[world[hit] * k + idx[hit]] = 1.0
+            return {key: out.reshape(s.nworld, k)}
+
+        return read

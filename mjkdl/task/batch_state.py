@@ -1,0 +1,226 @@
+"""MuJoCo Warp's model and data for many worlds, with torch views of the arrays tasks read.
+
+The views share memory with Warp's arrays (`wp.to_torch`, zero-copy on either device), so
+writing a row of `qpos` or `ctrl` writes the world's state. float32, as MuJoCo Warp is.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+import torch
+
+from ..errors import MjkdlError, SimulationError
+
+
+class UnsupportedFeatureError(MjkdlError, NotImplementedError):
+    """The scene uses a MuJoCo feature that MuJoCo Warp does not implement."""
+
+
+@dataclass(frozen=True)
+class Tcp:
+    """Where an arm's TCP is: its reference frame (site or body), the body that carries it,
+    and the tool's offset from that frame (as `ArmReader` computes it)."""
+
+    site: int
+    """The reference site, or -1 for the tip body."""
+    body: int
+    """The body carrying the frame (the tip body, or the site's body)."""
+    offset: torch.Tensor
+    """(3,) TCP position in the reference frame."""
+    rotation: torch.Tensor
+    """(3, 3) TCP orientation in the reference frame."""
+
+
+def warp_modules() -> tuple[Any, Any]:
+    """(`warp`, `mujoco_warp`), imported on first use (the `warp` extra). Warp logs warnings only
+    unless `MJKDL_WARP_VERBOSE` is set: it otherwise prints a line per kernel module loaded."""
+    import os
+
+    import mujoco_warp
+    import warp
+
+    if not os.environ.get("MJKDL_WARP_VERBOSE"):
+        warp.config.log_level = warp.LOG_WARNING
+    return warp, mujoco_warp
+
+
+def warp_model(model: mujoco.MjModel) -> Any:
+    """`model` put on Warp's current device; what MuJoCo Warp cannot run is named.
+
+    MuJoCo's own auto-reset of a diverging world (which mjkdl turns off, to report divergence)
+    does not exist in MuJoCo Warp: the flag is cleared on a copy and divergence is checked per
+    world instead.
+    """
+    _, mjw = warp_modules()
+    m = copy.copy(model)
+    m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+    try:
+        return mjw.put_model(m)
+    except (NotImplementedError, ValueError) as err:
+        raise UnsupportedFeatureError(
+            f"MuJoCo Warp 4.0 cannot run this scene: {err} Use the CPU env (TaskEnv), or "
+            "change the scene to avoid the feature"
+        ) from None
+
+
+class DeviceState:
+    """`nworld` copies of the host `data` on a Warp device, and torch views of its arrays."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        nworld: int,
+        device: str,
+        nconmax: int | None = None,
+        njmax: int | None = None,
+    ) -> None:
+        wp, mjw = warp_modules()
+        self.device, self.nworld = device, nworld
+        self._wp_device = wp.get_device(device)
+        self._mjw = mjw
+        with wp.ScopedDevice(self._wp_device):
+            self.model = warp_model(model)
+            self.data = mjw.put_data(model, data, nworld=nworld, nconmax=nconmax, njmax=njmax)
+        d = self.data
+        t = wp.to_torch
+        self.time = t(d.time)
+        self.qpos, self.qvel, self.ctrl, self.act = t(d.qpos), t(d.qvel), t(d.ctrl), t(d.act)
+        self.qacc_warmstart = t(d.qacc_warmstart)
+        self.mocap_pos, self.mocap_quat = t(d.mocap_pos), t(d.mocap_quat)
+        self.xpos, self.xquat, self.xmat, self.xipos = t(d.xpos), t(d.xquat), t(d.xmat), t(d.xipos)
+        self.xanchor, self.xaxis = t(d.xanchor), t(d.xaxis)
+        self.site_xpos, self.site_xmat = t(d.site_xpos), t(d.site_xmat)
+        self.cvel, self.subtree_com = t(d.cvel), t(d.subtree_com)
+        self.actuator_length, self.qfrc_actuator = t(d.actuator_length), t(d.qfrc_actuator)
+        self.sensordata = t(d.sensordata)
+        self.nacon = t(d.nacon)
+        self.contact_geom = t(d.contact.geom)
+        self.contact_dist = t(d.contact.dist)
+        self.contact_world = t(d.contact.worldid)
+        self.naconmax = int(d.naconmax)
+        self.root = torch.as_tensor(model.body_rootid, device=device)
+        self.tcps: dict[str, Tcp] = {}  # the arms' TCPs, by arm name
+
+    def tcp_of(self, arm: str) -> Tcp:
+        """The TCP of arm `arm` (registered by the observer)."""
+        return self.tcps[arm]
+
+    def upload(self, row: int, data: mujoco.MjData) -> None:
+        """World `row` takes the state of host `data` (positions, velocities, controls,
+        activations, mocap poses, clock and the solver's warm start)."""
+        dev = self.device
+        for view, value in (
+            (self.qpos, data.qpos),
+            (self.qvel, data.qvel),
+            (self.ctrl, data.ctrl),
+            (self.act, data.act),
+            (self.qacc_warmstart, data.qacc_warmstart),
+            (self.mocap_pos, data.mocap_pos),
+            (self.mocap_quat, data.mocap_quat),
+        ):
+            if value.size:
+                view[row] = torch.as_tensor(value, device=dev).reshape(view[row].shape)
+        self.time[row] = float(data.time)
+
+    def forward(self, keep: torch.Tensor | None = None) -> None:
+        """`mj_forward` on every world; worlds where `keep` is true get their solver warm start
+        back, so a world mid-episode steps on as if this had not run."""
+        wp, _ = warp_modules()
+        saved = None if keep is None else self.qacc_warmstart.clone()
+        with wp.ScopedDevice(self._wp_device):
+            self._mjw.forward(self.model, self.data)
+        if saved is not None and keep is not None:
+            self.qacc_warmstart[keep] = saved[keep]
+
+    def step(self, substeps: int) -> None:
+        """`substeps` physics steps of every world, then poses and velocities of the new state
+        (the CPU env's refresh after `mj_step`; forces stay those of the last step)."""
+        wp, mjw = warp_modules()
+        with wp.ScopedDevice(self._wp_device):
+            for _ in range(substeps):
+                mjw.step(self.model, self.data)
+            for stage in (mjw.kinematics, mjw.com_pos, mjw.tendon, mjw.transmission, mjw.com_vel):
+                stage(self.model, self.data)
+        if int(self.nacon[0]) > self.naconmax:
+            raise SimulationError(
+                f"MuJoCo Warp found {int(self.nacon[0])} contacts, more than the "
+                f"{self.naconmax} allocated for all worlds; pass a larger nconmax to make_batch",
+                float(self.time.max()),
+                {"contact overflow": (int(self.nacon[0]), 0)},
+            )
+
+    # ------------------------------------------------------------------ TCP quantities
+
+    def frame_pos(self, tcp: Tcp) -> tuple[torch.Tensor, torch.Tensor]:
+        """(N, 3) position and (N, 3, 3) rotation of the TCP's reference frame."""
+        if tcp.site >= 0:
+            return self.site_xpos[:, tcp.site], self.site_xmat[:, tcp.site]
+        return self.xpos[:, tcp.body], self.xmat[:, tcp.body]
+
+    def tcp_pos(self, tcp: Tcp) -> torch.Tensor:
+        """(N, 3) TCP position: reference frame * offset."""
+        pos, rot = self.frame_pos(tcp)
+        return pos + (rot @ tcp.offset)
+
+    def tcp_rot(self, tcp: Tcp) -> torch.Tensor:
+        _, rot = self.frame_pos(tcp)
+        return rot @ tcp.rotation
+
+    def tcp_vel(self, tcp: Tcp) -> torch.Tensor:
+        """(N, 6) [v, w] of the TCP point, world axes: MuJoCo's `cvel` (at the root's
+        subtree centre of mass) moved to the TCP."""
+        cvel = self.cvel[:, tcp.body]
+        w, v = cvel[:, :3], cvel[:, 3:]
+        com = self.subtree_com[:, self.root[tcp.body]]
+        lin = v + torch.linalg.cross(w, self.tcp_pos(tcp) - com, dim=-1)
+        return torch.cat([lin, w], dim=1)
+
+    def contacts(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(world, geom1, geom2) of the current contacts at zero or negative distance."""
+        n = min(int(self.nacon[0]), self.naconmax)
+        touching = self.contact_dist[:n] <= 0.0
+        geom = self.contact_geom[:n][touching]
+        return self.contact_world[:n][touching], geom[:, 0], geom[:, 1]
+
+
+def mat_to_quat(mat: torch.Tensor) -> torch.Tensor:
+    """(N, 3, 3) rotations to (N, 4) quaternions [w, x, y, z] with MuJoCo's `mju_mat2Quat`
+    branches, so the sign matches the CPU env's."""
+    m = mat.reshape(-1, 9)
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m.unbind(1)
+    tr = m00 + m11 + m22
+    one = torch.ones_like(tr)
+
+    def q(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
+        return torch.stack([a, b, c, d], 1)
+
+    s0 = 0.5 * torch.sqrt(torch.clamp(tr + 1, min=1e-12))
+    q0 = q(s0, (m21 - m12) / (4 * s0), (m02 - m20) / (4 * s0), (m10 - m01) / (4 * s0))
+    s1 = 0.5 * torch.sqrt(torch.clamp(one + m00 - m11 - m22, min=1e-12))
+    q1 = q((m21 - m12) / (4 * s1), s1, (m01 + m10) / (4 * s1), (m02 + m20) / (4 * s1))
+    s2 = 0.5 * torch.sqrt(torch.clamp(one - m00 + m11 - m22, min=1e-12))
+    q2 = q((m02 - m20) / (4 * s2), (m01 + m10) / (4 * s2), s2, (m12 + m21) / (4 * s2))
+    s3 = 0.5 * torch.sqrt(torch.clamp(one - m00 - m11 + m22, min=1e-12))
+    q3 = q((m10 - m01) / (4 * s3), (m02 + m20) / (4 * s3), (m12 + m21) / (4 * s3), s3)
+    out = torch.where(
+        (tr > 0).unsqueeze(1),
+        q0,
+        torch.where(
+            ((m00 > m11) & (m00 > m22)).unsqueeze(1),
+            q1,
+            torch.where((m11 > m22).unsqueeze(1), q2, q3),
+        ),
+    )
+    return out / torch.linalg.norm(out, dim=1, keepdim=True)
+
+
+def as_numpy(value: Any) -> np.ndarray:
+    """A host NumPy copy of a tensor (float64 for floats), for the task's host callables."""
+    arr = value.detach().cpu().numpy()
+    return arr.astype(np.float64) if arr.dtype.kind == "f" else arr

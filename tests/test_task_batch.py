@@ -1,0 +1,256 @@
+"""The batched MuJoCo Warp backend on Warp's CPU device, against the CPU env (`TaskEnv`)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco_warp")
+torch = pytest.importorskip("torch")
+
+from mjkdl.errors import SpecError  # noqa: E402
+from mjkdl.task import make_batch, registry  # noqa: E402
+from mjkdl.task.batch import DeviceUnavailableError  # noqa: E402
+from mjkdl.task.batch_state import UnsupportedFeatureError, mat_to_quat  # noqa: E402
+from mjkdl.task.env import TaskEnv  # noqa: E402
+from mjkdl.task.initializers import PhysicsRandomizer  # noqa: E402
+from mjkdl.task.spec import Actuation  # noqa: E402
+
+WORLDS = 2
+STEPS = 4  # control steps per episode (time_limit 0.4 s at 0.1 s): a whole short episode
+SEED = 7
+# Tolerances over a whole episode of full-range random actions (the controller's velocity
+# and acceleration bounds bind), float32 MuJoCo Warp against float64 MuJoCo: positions in
+# metres and joint positions in radians (measured: at most 7e-7), rewards (2e-7).
+POS_TOL = 1e-5
+JOINT_TOL = 1e-5
+REWARD_TOL = 1e-5
+PANDA_HOME = np.array(registry.PANDA_HOME)
+
+
+def _cpu_episode(env: TaskEnv, seed: int, actions: np.ndarray) -> list:
+    obs, info = env.reset(seed=seed)
+    out = [(obs, 0.0, info["is_success"])]
+    for a in actions:
+        obs, reward, _, _, info = env.step(a)
+        out.append((obs, reward, info["is_success"]))
+    return out
+
+
+def _positions(obs: dict) -> list[str]:
+    return [k for k in obs if k.endswith(("_tcp_pos", "_pose", "_rel", "goal"))]
+
+
+def _compare(batch, cpu_env: TaskEnv, actions: np.ndarray) -> tuple[dict[str, float], dict]:
+    """Worst gaps of one whole episode per world: positions, rewards, success mismatches;
+    and the observation the last step returned (the next episode's, after auto-reset)."""
+    episodes = [_cpu_episode(cpu_env, SEED + i, actions[:, i]) for i in range(WORLDS)]
+    obs, info = batch.reset(seed=SEED)
+    gaps = {"pos": 0.0, "joint": 0.0, "reward": 0.0, "success": 0.0, "done": 0.0}
+
+    def check(k: int, obs: dict, reward: np.ndarray, success: np.ndarray) -> None:
+        for i in range(WORLDS):
+            ref, ref_reward, ref_success = episodes[i][k]
+            for key in _positions(ref):
+                gap = np.abs(obs[key][i].numpy() - ref[key]).max()
+                gaps["pos"] = max(gaps["pos"], float(gap))
+            for key in (k for k in ref if k.endswith("_joint_pos")):
+                gap = np.abs(obs[key][i].numpy() - ref[key]).max()
+                gaps["joint"] = max(gaps["joint"], float(gap))
+            gaps["reward"] = max(gaps["reward"], abs(float(reward[i]) - ref_reward))
+            gaps["success"] += float(bool(success[i]) != ref_success)
+
+    check(0, obs, np.zeros(WORLDS), info["is_success"].numpy())
+    returned: dict = {}
+    for k in range(STEPS):
+        returned, reward, terminated, truncated, info = batch.step(torch.as_tensor(actions[k]))
+        obs = returned
+        done = (terminated | truncated).numpy()
+        if done.any():
+            obs = info["final_obs"]
+            success = info["final_info"]["is_success"]
+        else:
+            success = info["is_success"]
+        gaps["done"] += float(done.any() != (k == STEPS - 1))
+        check(k + 1, obs, reward.numpy(), success.numpy())
+    return gaps, returned
+
+
+@pytest.mark.parametrize("task_id", sorted(registry.TASKS))
+def test_registered_tasks_match_the_cpu_env(task_id: str) -> None:
+    batch = make_batch(task_id, WORLDS, device="cpu", time_limit=0.4)
+    cpu_env = gym.make(task_id, time_limit=0.4).unwrapped
+    try:
+        rng = np.random.default_rng(0)
+        n = len(batch.action_labels)
+        actions = rng.uniform(-1.0, 1.0, (STEPS, WORLDS, n)).astype(np.float32)
+        actions[..., -1] = 1.0  # the gripper closes (binary) in the last entry
+        gaps, _ = _compare(batch, cpu_env, actions)
+        assert gaps["pos"] < POS_TOL, gaps
+        assert gaps["joint"] < JOINT_TOL, gaps
+        assert gaps["reward"] < REWARD_TOL, gaps
+        assert gaps["success"] == 0 and gaps["done"] == 0, gaps
+    finally:
+        batch.close()
+        cpu_env.close()
+
+
+def test_joint_position_mode_matches_and_auto_resets() -> None:
+    spec = registry.panda_pick_cube_spec()
+    spec.arms[0].actuation = Actuation.JOINT_POSITION
+    spec.time_limit = 0.4
+    batch = make_batch(spec, WORLDS, device="cpu")
+    cpu_env = TaskEnv(spec)
+    try:
+        rng = np.random.default_rng(1)
+        # Normalised joint targets around home, the gripper closing.
+        mid = 0.5 * (cpu_env._action_low + cpu_env._action_high)[:7]
+        half = 0.5 * (cpu_env._action_high - cpu_env._action_low)[:7]
+        home = (PANDA_HOME - mid) / half
+        actions = np.empty((STEPS, WORLDS, 8), dtype=np.float32)
+        actions[..., :7] = home + rng.uniform(-0.05, 0.05, (STEPS, WORLDS, 7))
+        actions[..., 7] = 1.0
+        gaps, returned = _compare(batch, cpu_env, actions)
+        assert gaps["pos"] < POS_TOL and gaps["joint"] < JOINT_TOL, gaps
+        assert gaps["reward"] < REWARD_TOL, gaps
+        # The episode ended in the last step and every world started its next one at once,
+        # the one the CPU env starts with its next reset() after the seeded episode.
+        assert batch._steps.tolist() == [0] * WORLDS
+        for i in range(WORLDS):
+            cpu_env.reset(seed=SEED + i)
+            for a in actions[:, i]:
+                cpu_env.step(a)
+            second, _ = cpu_env.reset()
+            gap = np.abs(returned["cube_pose"][i].numpy() - second["cube_pose"]).max()
+            assert gap < POS_TOL, (i, gap)
+    finally:
+        batch.close()
+        cpu_env.close()
+
+
+@pytest.mark.parametrize(
+    "mode", [Actuation.JOINT_VELOCITY, Actuation.JOINT_TORQUE], ids=lambda m: m.value
+)
+def test_joint_velocity_and_torque_modes_match(mode: Actuation) -> None:
+    spec = registry.panda_pick_cube_spec()
+    spec.arms[0].actuation = mode
+    spec.time_limit = 0.4
+    batch = make_batch(spec, WORLDS, device="cpu")
+    cpu_env = TaskEnv(spec)
+    try:
+        rng = np.random.default_rng(2)
+        # Normalised: 0 is zero velocity, or gravity compensation alone.
+        actions = rng.uniform(-0.05, 0.05, (STEPS, WORLDS, 8)).astype(np.float32)
+        gaps, _ = _compare(batch, cpu_env, actions)
+        assert gaps["pos"] < POS_TOL and gaps["joint"] < JOINT_TOL, gaps
+        assert gaps["reward"] < REWARD_TOL and gaps["success"] == 0, gaps
+    finally:
+        batch.close()
+        cpu_env.close()
+
+
+def test_observations_are_device_tensors_and_the_vector_face() -> None:
+    batch = make_batch("mjkdl/PandaReach-v0", 3, device="cpu")
+    try:
+        obs, info = batch.reset(seed=0)
+        assert isinstance(batch, gym.vector.VectorEnv)
+        assert batch.num_envs == 3
+        assert batch.action_space.shape == (3, 7)
+        assert obs["panda_tcp_pos"].shape == (3, 3)
+        assert obs["panda_tcp_pos"].device.type == "cpu"
+        assert info["is_success"].dtype == torch.bool
+        # Zero-copy: the torch view is Warp's array.
+        batch.state.qpos[0, 0] = 0.25
+        assert float(batch.state.data.qpos.numpy()[0, 0]) == pytest.approx(0.25)
+    finally:
+        batch.close()
+
+
+def test_mat_to_quat_matches_mujoco() -> None:
+    import mujoco
+
+    rng = np.random.default_rng(3)
+    quats = rng.normal(size=(64, 4))
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    mats = np.empty((64, 9))
+    for q, m in zip(quats, mats, strict=True):
+        mujoco.mju_quat2Mat(m, q)
+    ref = np.empty((64, 4))
+    for m, out in zip(mats, ref, strict=True):
+        mujoco.mju_mat2Quat(out, m)
+    got = mat_to_quat(torch.as_tensor(mats, dtype=torch.float64).reshape(-1, 3, 3)).numpy()
+    assert np.abs(got - ref).max() < 1e-12
+
+
+# ---------------------------------------------------------------------- bad input
+
+
+def test_cuda_without_a_gpu_names_the_fix() -> None:
+    import warp as wp
+
+    if wp.get_cuda_device_count() > 0 and torch.cuda.is_available():
+        pytest.skip("this machine has a GPU")
+    with pytest.raises(DeviceUnavailableError, match=r"device='cpu'.*allow_cpu=True"):
+        make_batch("mjkdl/PandaReach-v0", 2, device="cuda")
+    with pytest.warns(UserWarning, match="running on the CPU"):
+        batch = make_batch("mjkdl/PandaReach-v0", 1, device="cuda:0", allow_cpu=True)
+    assert batch.device.type == "cpu"
+    batch.close()
+
+
+@pytest.mark.parametrize(
+    ("num_envs", "match"),
+    [(0, "positive integer, got 0"), (-3, "positive integer"), (10**9, "GiB.*at most about")],
+)
+def test_bad_num_envs(num_envs: int, match: str) -> None:
+    with pytest.raises(SpecError, match=match):
+        make_batch("mjkdl/PandaReach-v0", num_envs, device="cpu")
+
+
+def test_bad_device_and_task() -> None:
+    with pytest.raises(SpecError, match="'cuda', 'cuda:N' or 'cpu'"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="tpu")
+    with pytest.raises(SpecError, match="no registered task 'nope'"):
+        make_batch("nope", 1, device="cpu")
+
+
+def test_unsupported_scene_feature_is_named() -> None:
+    import mujoco
+
+    from mjkdl.task.batch_state import warp_model
+
+    model = mujoco.MjModel.from_xml_string(
+        "<mujoco><option integrator='RK4' noslip_iterations='2'/><worldbody><body>"
+        "<freejoint/><geom size='.1'/></body></worldbody></mujoco>"
+    )
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    model.opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    model.opt.solver = mujoco.mjtSolver.mjSOL_PGS
+    with pytest.raises(UnsupportedFeatureError, match="mjSOL_PGS is unsupported"):
+        warp_model(model)
+
+
+def test_physics_randomizer_and_cameras_are_refused() -> None:
+    spec = registry.panda_pick_cube_spec()
+    spec.initializers = [*spec.initializers, PhysicsRandomizer(["cube"], mass_scale=(0.5, 2))]
+    with pytest.raises(UnsupportedFeatureError, match=r"initializers\[1\] \(PhysicsRandomizer\)"):
+        make_batch(spec, 1, device="cpu")
+    with pytest.raises(UnsupportedFeatureError, match="CameraSensor"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", camera_names=["front"])
+
+
+def test_bad_actions() -> None:
+    batch = make_batch("mjkdl/PandaReach-v0", 2, device="cpu")
+    try:
+        with pytest.raises(RuntimeError, match="before reset"):
+            batch.step(torch.zeros(2, 7))
+        batch.reset(seed=0)
+        with pytest.raises(SpecError, match=r"shape \(2, 7\)"):
+            batch.step(torch.zeros(3, 7))
+        bad = torch.zeros(2, 7)
+        bad[1, 2] = float("nan")
+        with pytest.raises(SpecError, match=r"world 1, panda\.vz=nan"):
+            batch.step(bad)
+    finally:
+        batch.close()
