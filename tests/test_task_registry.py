@@ -585,3 +585,76 @@ def test_the_new_experts_succeed_on_at_least_95_of_100_seeds(env_id: str) -> Non
     wins = sum(run(env, expert, seed)[1] for seed in range(100))
     env.close()
     assert wins >= 95
+
+
+# ------------------------------------------------------------------ joint-space actions
+
+
+def test_joint_position_actions_span_the_joint_ranges() -> None:
+    env = gym.make(PICK, actuation="joint_position")
+    assert env.action_space == gym.spaces.Box(-1.0, 1.0, (8,), np.float32)
+    inner = env.unwrapped
+    assert inner.action_labels == [f"panda.joint{i}" for i in range(1, 8)] + ["panda.gripper"]
+    limits = inner.robots["panda"].joint_limits
+    env.reset(seed=0)
+    target = np.array([0.3, -0.2, 0.1, -1.9, 0.2, 1.9, 0.5])
+    action = np.append(2 * (target - limits[:, 0]) / (limits[:, 1] - limits[:, 0]) - 1, -1.0)
+    for _ in range(15):
+        obs, *_ = env.step(action.astype(np.float32))
+    np.testing.assert_allclose(obs["panda_joint_pos"], target, atol=0.02)
+    env.close()
+
+
+def test_joint_velocity_actions_move_each_joint_its_way() -> None:
+    env = gym.make(REACH, actuation="joint_velocity")
+    obs, _ = env.reset(seed=0)
+    start = obs["panda_joint_pos"].copy()
+    action = np.zeros(8, np.float32)
+    action[0], action[3] = 0.5, -0.5
+    for _ in range(3):
+        obs, *_ = env.step(action)
+    moved = obs["panda_joint_pos"] - start
+    assert moved[0] > 0.1 and moved[3] < -0.1
+    assert np.abs(np.delete(moved, [0, 3])).max() < 0.02
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_bad_actuation_and_experts_outside_cartesian_mode_are_named() -> None:
+    with pytest.raises(SpecError, match=r"actuation must be one of \['joint_position', "):
+        gym.make(REACH, actuation="joints")
+    env = gym.make(PUSH, actuation="joint_torque")
+    with pytest.raises(SpecError, match="the experts act in Cartesian velocity; this "):
+        expert_for(env)
+    env.close()
+
+
+# ------------------------------------------------------------ headless checker, options
+
+
+def test_headless_human_mode_opens_nothing_until_it_renders(monkeypatch) -> None:
+    """The window opens at the first render() (reset renders in "human" mode), so an env
+    can be built and checked headless; the render modes that need no window work."""
+    from gymnasium.utils.passive_env_checker import env_render_passive_checker
+
+    from mjkdl.viewer import NoDisplayError
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    env = gym.make(STACK, render_mode="human")
+    assert env.unwrapped._viewer is None
+    with pytest.raises(NoDisplayError, match="needs a display and DISPLAY is not set"):
+        env.reset(seed=0)
+    env.close()
+    for mode in ("rgb_array", "depth_array"):
+        env = gym.make(STACK, render_mode=mode, render_width=64, render_height=48)
+        env.reset(seed=0)
+        env_render_passive_checker(env.unwrapped)
+        env.close()
+
+
+def test_reset_takes_the_options_gymnasiums_vector_envs_pass() -> None:
+    envs = gym.make_vec(PUSH, num_envs=2, vectorization_mode="sync")
+    first, _ = envs.reset(seed=[5, 6], options={})
+    again, _ = envs.reset(options={"reset_mask": np.array([False, True])})
+    np.testing.assert_array_equal(again["cube_pose"][0], first["cube_pose"][0])  # kept
+    envs.close()

@@ -17,10 +17,11 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
-from ..errors import UnknownNameError
+from ..errors import SpecError, UnknownNameError
 from .env import TaskEnv
 from .goal import GoalTaskEnv
 from .registry import CUBE_HALF, LIFT, TASKS
+from .spec import Actuation
 
 _DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -294,6 +295,12 @@ def expert_for(env: gym.Env) -> Expert:
     inner = env.unwrapped
     for env_id, cls in TASKS.items():
         if type(inner) is cls:
+            mode = inner.task_spec.arms[0].actuation
+            if mode is not Actuation.CARTESIAN_VELOCITY:
+                raise SpecError(
+                    f"the experts act in Cartesian velocity; this {env_id} env has "
+                    f"actuation={mode.value!r} (make it without `actuation`)"
+                )
             return _EXPERTS[env_id](inner)
     raise UnknownNameError(
         f"no expert for {type(inner).__name__}; experts exist for {', '.join(_EXPERTS)}"

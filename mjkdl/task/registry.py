@@ -1,10 +1,13 @@
-"""Registered tasks: Menagerie's Franka Panda reaching a goal and lifting a cube.
+"""Registered tasks: Menagerie's Franka Panda reaching, lifting, pushing, placing, stacking.
 
-Both follow dm_robotics_panda: Cartesian velocity of the TCP plus the hand's binary gripper
+All follow dm_robotics_panda: Cartesian velocity of the TCP plus the hand's binary gripper
 (action of 7, each entry in [-1, 1]), a 0.1 s control period over 2 ms physics, episodes of
 100 steps (Gymnasium's `TimeLimit`: `gymnasium.make(id, max_episode_steps=N)` changes it).
 Parameters go through `gymnasium.make(id, **parameters)` (docs/task.md lists them);
-`time_limit` (seconds) ends episodes earlier.
+`time_limit` (seconds) ends episodes earlier; `actuation="joint_position"` (or
+"joint_velocity", "joint_torque") makes the arm's part of the action one entry per joint,
+each in [-1, 1] scaled onto the joint's range (limits, velocity limits, torque limits).
+Each task is one `TaskSpec` (`panda_*_spec()`), which the batched backend runs too.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from .goal import GoalTaskEnv, reward_type
 from .initializers import PlaceAbove, PoseInitializer, PropPlacer
 from .rewards import Held, LiftReward, Placed, PlaceReward, Reached, ReachReward, SparseReward
 from .spec import (
+    Actuation,
     ArmSpec,
     BodyPoseSensor,
     CameraSensor,
@@ -313,6 +317,7 @@ class _Registered(TaskEnv):
         spec.hide = given["hide_observations"]
         spec.time_limit = given["time_limit"]  # None: the registered TimeLimit alone
         spec.control_timestep = given["control_timestep"]
+        spec.arms[0].actuation = actuation(given["actuation"])
         if reward_type(reward) == "sparse":
             spec.reward = SparseReward(spec.success)
         size = given["camera_size"]
@@ -348,6 +353,7 @@ class PandaReachEnv(_Registered, TaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         goal_low: Sequence[float] = REACH_GOAL_LOW,
         goal_high: Sequence[float] = REACH_GOAL_HIGH,
         success_distance: float = 0.05,
@@ -383,6 +389,7 @@ class PandaPickCubeEnv(_Registered, TaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         reward_type: str = "dense",
@@ -415,6 +422,7 @@ class PandaReachGoalEnv(_Registered, GoalTaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         goal_low: Sequence[float] = REACH_GOAL_LOW,
         goal_high: Sequence[float] = REACH_GOAL_HIGH,
         success_distance: float = 0.05,
@@ -450,6 +458,7 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
@@ -491,6 +500,7 @@ class PandaPushEnv(_Registered, TaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         goal_low: Sequence[float] = PUSH_GOAL_LOW,
@@ -531,6 +541,7 @@ class PandaPickAndPlaceEnv(_Registered, TaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
@@ -572,6 +583,7 @@ class PandaStackEnv(_Registered, TaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         success_distance: float = STACK_DISTANCE,
@@ -603,6 +615,7 @@ class PandaPushGoalEnv(_Registered, GoalTaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         goal_low: Sequence[float] = PUSH_GOAL_LOW,
@@ -635,6 +648,7 @@ class PandaPickAndPlaceGoalEnv(_Registered, GoalTaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
@@ -668,6 +682,7 @@ class PandaStackGoalEnv(_Registered, GoalTaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         success_distance: float = STACK_DISTANCE,
@@ -686,6 +701,19 @@ class PandaStackGoalEnv(_Registered, GoalTaskEnv):
         goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "target_pose"}
         goal.update(threshold=threshold, reward_type=reward_type)
         self._finish(spec, locals(), "dense", goal)
+
+
+ACTUATIONS = tuple(a.value for a in Actuation)
+
+
+def actuation(value: object) -> Actuation:
+    """`value` (an `Actuation` or its name: "cartesian_velocity", "joint_position",
+    "joint_velocity", "joint_torque") checked as the arm's action mode."""
+    if isinstance(value, Actuation):
+        return value
+    if not isinstance(value, str) or value not in ACTUATIONS:
+        raise SpecError(f"actuation must be one of {list(ACTUATIONS)}, got {value!r}")
+    return Actuation(value)
 
 
 def _positive(value: object, field: str) -> float:
