@@ -928,9 +928,10 @@ def test_recorded_camera_frames_are_of_the_recorded_states(tmp_path) -> None:
     assert replay(out, 0, mode="states").max_pixel_error == 0
 
 
-def test_scene_step_leaves_the_poses_of_the_new_state() -> None:
-    """After `Scene.step` the bodies' and a wrist camera's poses are those `mj_forward`
-    gives for the state reached, not those of one timestep before."""
+def test_scene_poses_follow_the_state_a_step_reached() -> None:
+    """After `Scene.step`, `refresh_poses` (and the frame getters, renderers and viewer
+    that call it) give the bodies' and a wrist camera's poses `mj_forward` gives for the
+    state reached, not those of one timestep before."""
     spec = panda_reach_spec()
     with mjk.Env.build(spec.scene) as scene:
         model, data = scene.model, scene.data
@@ -939,7 +940,9 @@ def test_scene_step_leaves_the_poses_of_the_new_state() -> None:
         ref = mujoco.MjData(model)
         mujoco.mj_setState(model, ref, _state(model, data), mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_forward(model, ref)
-        cam = model.camera("wrist").id
+        cam, hand = model.camera("wrist").id, model.body("hand").id
+        assert not np.array_equal(data.cam_xpos[cam], ref.cam_xpos[cam])  # as mj_step leaves it
+        assert np.array_equal(scene.body_frame("hand").translation, ref.xpos[hand])
         assert np.array_equal(data.cam_xpos[cam], ref.cam_xpos[cam])
         assert np.array_equal(data.xpos, ref.xpos)
         assert np.array_equal(data.site_xpos, ref.site_xpos)

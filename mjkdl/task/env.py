@@ -574,7 +574,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         # state reached: each observation, image included, is of the state recorded with it.
         # MuJoCo's next mj_step recomputes the same from the same state (qacc_warmstart is
         # only written by the integrator), so the trajectory is unchanged.
-        mujoco.mj_forward(self.scene.model, self.scene.data)
+        self.scene.forward()
         obs = self._observe()  # every observation: rewards may read hidden ones
         spec = self.task_spec
         reward, terminated = 0.0, False
@@ -690,6 +690,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         `human`: the interactive viewer, which then shows every physics step in real time."""
         self._check_open()
         if self.render_mode in ("rgb_array", "depth_array"):
+            self.scene.refresh_poses()  # the user may have stepped the scene itself
             r = self._renderer(*self._render_size)
             flags = r.scene.flags  # shared with camera sensors of this size, which may differ
             flags[mujoco.mjtRndFlag.mjRND_SHADOW] = flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (

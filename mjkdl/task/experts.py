@@ -231,6 +231,7 @@ class PushExpert:
     BEHIND = 0.06  # metres behind the cube's centre to start from
     LOW = 0.022  # TCP height while pushing: the fingertips clear the floor
     SPEED = 0.3  # m/s at most
+    THERE = 0.015  # metres from the goal at which the push ends
 
     def __init__(self, env: TaskEnv, gain: float = 5.0) -> None:
         self._out = _Cartesian(env)
@@ -242,6 +243,7 @@ class PushExpert:
     def reset(self) -> None:
         """Start from the approach."""
         self.pushing = False
+        self.rest: np.ndarray | None = None
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
         o = self._out.named(obs)
@@ -264,9 +266,13 @@ class PushExpert:
                 self.pushing = True
         if self.pushing:
             # A point a few centimetres past the cube's near face, on the line to the goal:
-            # the TCP follows the cube as it moves and turns.
+            # the TCP follows the cube as it moves and turns; it stops once the cube is there.
             target = cube - d * (CUBE_HALF + 0.012) + d * min(dist, 0.05)
             target[2] = self.LOW
+            if dist < self.THERE and self.rest is None:
+                self.rest = tcp + np.array([0.0, 0.0, 0.08])
+        if self.rest is not None:
+            target = self.rest  # back off upwards, clear of the cube
         twist = np.zeros(6)
         v = self._gain * (target - tcp)
         speed = float(np.linalg.norm(v))
