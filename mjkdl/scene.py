@@ -343,8 +343,8 @@ class Scene(Closable):
         """Poses of bodies, geoms, sites, cameras and lights of the current state, when a
         `step` left them one timestep behind (a wrist camera would render the arm where it
         was); nothing to do otherwise. A fifth of a Panda `mj_step`, paid only when read."""
+        self._check_open()
         if self._poses_stale:
-            self._check_open()
             refresh_poses(self._model, self._data)
             self._poses_stale = False
 

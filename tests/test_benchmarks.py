@@ -66,6 +66,12 @@ def run_benchmark(name: str, *args: str) -> str:
             ("--blocks", "1", "--camera-blocks", "1", "--vector-seconds", "0.5"),
             r"async vector env, 128x128 camera, 1 sub-env\(s\):",
         ),
+        (
+            "grasp",
+            ("--seeds", "1"),
+            r"\| grasping\(\): elliptic, impratio 10 \(tasks' default\) \|",
+        ),
+        ("experts", ("--seeds", "1"), r"\| `mjkdl/PandaStack-v0` \|"),
     ],
 )
 def test_benchmark_runs_and_prints_its_figures(name, args, figure) -> None:
