@@ -10,9 +10,11 @@ Measured per option set, in the same process on the same seeds:
 - held: both fingers still touch the cube at the end, off the floor;
 - control-step time over the motion (the grasp in contact), as a ratio to MuJoCo's
   defaults (pyramidal cone, impratio 1), interleaved seed by seed.
-Then the PickCube expert's success (episodes of `mjkdl/PandaPickCube-v0`'s spec, 100 steps)
-lifting at full speed (its default) and gently (the old lift, a quarter of the gain), under
-MuJoCo's defaults and under `PhysicsOptions.grasping()`.
+The same with Menagerie's Robotiq 2F-85 on the hand-less Panda (its model's own options,
+elliptic and impratio 10, against pyramidal and impratio 1). Then the PickCube expert's
+success (episodes of `mjkdl/PandaPickCube-v0`'s spec, 100 steps) lifting at full speed (its
+default) and gently (the old lift, a quarter of the gain), under MuJoCo's defaults and under
+`PhysicsOptions.grasping()`.
 
     python benchmarks/grasp.py              # 30 seeds
     python benchmarks/grasp.py --seeds 10
@@ -22,15 +24,16 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
 
 import mjkdl as mjk
-from mjkdl.task import TaskEnv
+from mjkdl.task import ArmSpec, ContactSensor, GripperSpec, TaskEnv, TaskSpec
 from mjkdl.task.experts import PickCubeExpert, _Phase
-from mjkdl.task.registry import panda_pick_cube_spec
+from mjkdl.task.registry import PANDA_HOME, panda_pick_cube_spec
 
 # (contact options, physics timestep): the last rows show the slip's dependence on the step.
 OPTIONS = {
@@ -44,6 +47,44 @@ OPTIONS = {
 # (action index, sign) per control step: lift, carry sideways, shake.
 LIFT_STEPS = 2
 MOTION = [(2, 1)] * LIFT_STEPS + [(2, 1)] + [(1, 1)] * 3 + [(2, 1), (2, -1), (0, 1), (0, -1)] * 2
+
+
+ROBOTIQ_OPTIONS = {
+    "2F-85: its model's own (elliptic, impratio 10)": mjk.PhysicsOptions(),
+    "2F-85: pyramidal, impratio 1": mjk.PhysicsOptions(cone="pyramidal", impratio=1.0),
+}
+
+
+def robotiq_spec(physics: mjk.PhysicsOptions) -> TaskSpec:
+    """PickCube with the 2F-85 (prefix `g_`) on the hand-less Panda's flange, TCP at its
+    `pinch` site, contacts of the cube with its pads."""
+    spec = panda_pick_cube_spec()
+    nohand = Path(mjk.menagerie.model_path("franka_emika_panda")).parent / "panda_nohand.xml"
+    gripper = mjk.AttachmentSpec(
+        mjcf_path=mjk.menagerie.model_path("robotiq_2f85"),
+        attach_to=mjk.AttachTarget(mjk.AttachKind.Site, "attachment_site"),
+        prefix="g_",
+    )
+    spec.scene.robots = [mjk.RobotSpec(path=str(nohand), attachments=[gripper])]
+    spec.scene.cameras = []
+    spec.scene.physics = physics
+    spec.arms = [
+        ArmSpec(
+            name="panda",
+            base_body="link0",
+            tip_body="link7",
+            tool=mjk.ToolFrameSpec(tool_body="g_base", tcp_site="g_pinch"),
+            gripper=GripperSpec("g_fingers_actuator", open=0.0, closed=255.0),
+            home=list(PANDA_HOME),
+        )
+    ]
+    spec.sensors = [
+        s
+        if not isinstance(s, ContactSensor)
+        else ContactSensor("cube", ["g_left_pad", "g_right_pad"])
+        for s in spec.sensors
+    ]
+    return spec
 
 
 def _in_tcp(obs: dict[str, np.ndarray]) -> np.ndarray:
@@ -91,7 +132,9 @@ def main() -> None:
         spec = panda_pick_cube_spec()
         spec.scene.physics, spec.scene.timestep = physics, timestep
         envs[name] = TaskEnv(spec)
-    results: dict[str, list[tuple[float, float, bool, float]]] = {n: [] for n in OPTIONS}
+    for name, physics in ROBOTIQ_OPTIONS.items():
+        envs[name] = TaskEnv(robotiq_spec(physics))
+    results: dict[str, list[tuple[float, float, bool, float]]] = {n: [] for n in envs}
     for seed in range(args.seeds):
         for name, env in envs.items():  # interleaved: the same load on every option set
             r = trial(env, seed)
