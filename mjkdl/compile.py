@@ -24,6 +24,7 @@ from .spec import (
     AttachmentSpec,
     AttachTarget,
     CameraSpec,
+    PhysicsOptions,
     RobotSpec,
     SceneObject,
     SceneSpec,
@@ -88,7 +89,24 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
         _add_robot(s, robot, f"robots[{i}]")
     for i, cam in enumerate(spec.cameras):
         _add_camera(s, cam, f"cameras[{i}] ({cam.name!r})")
+    _apply_physics(s, spec.physics)
     return s
+
+
+def _apply_physics(s: mujoco.MjSpec, physics: PhysicsOptions) -> None:
+    """The set fields of `SceneSpec.physics`, over what the robots' `<option>`s merged in."""
+    if physics.cone is not None:
+        s.option.cone = (
+            mujoco.mjtCone.mjCONE_ELLIPTIC
+            if physics.cone == "elliptic"
+            else mujoco.mjtCone.mjCONE_PYRAMIDAL
+        )
+    if physics.impratio is not None:
+        s.option.impratio = float(physics.impratio)
+    if physics.noslip_iterations is not None:
+        s.option.noslip_iterations = int(physics.noslip_iterations)
+    if physics.iterations is not None:
+        s.option.iterations = int(physics.iterations)
 
 
 def compile_mjspec(s: mujoco.MjSpec) -> mujoco.MjModel:

@@ -574,6 +574,7 @@ class VideoRecorder(Closable):
         if self._following:
             _check_view(self._model, self._camera, "record_frame")
         renderer = self._renderer
+        self._scene.refresh_poses()  # a camera on a moving body: the state the step reached
         renderer.update_scene(data, camera=self._camera, scene_option=self._option)
         if self._overlay is not None:
             self._overlay(renderer.scene)

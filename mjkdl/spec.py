@@ -209,6 +209,33 @@ class ToolFrameSpec:
 
 
 @dataclass
+class PhysicsOptions:
+    """MuJoCo solver options for contacts, applied after the robots' own `<option>`s; None
+    keeps what the models set (MuJoCo's defaults otherwise).
+
+    For grasping, `PhysicsOptions.grasping()`: MuJoCo's documentation recommends elliptic
+    friction cones with `impratio` > 1 (friction constraints stiffer than the normal ones)
+    against objects creeping out of a grip. The registered tasks use it (docs/physics.md
+    gives the measurements and the cost).
+    """
+
+    cone: str | None = None
+    """Friction cone: "pyramidal" (MuJoCo's default, faster) or "elliptic"."""
+    impratio: float | None = None
+    """Ratio of frictional to normal constraint impedance (elliptic cones only), >= 1."""
+    noslip_iterations: int | None = None
+    """Iterations of MuJoCo's no-slip post-processing (0 off)."""
+    iterations: int | None = None
+    """Iterations of the main constraint solver (MuJoCo's default 100)."""
+
+    @classmethod
+    def grasping(cls) -> PhysicsOptions:
+        """Elliptic cones and `impratio=10`: a grasped object moved at an arm's twist limit
+        stays in the grip (docs/physics.md)."""
+        return cls(cone="elliptic", impratio=10.0)
+
+
+@dataclass
 class SceneSpec:
     """A whole scene. `timestep`, `add_floor` and `add_skybox` must be set explicitly."""
 
@@ -227,6 +254,9 @@ class SceneSpec:
     """Objects, built first, in this order."""
     cameras: list[CameraSpec] = field(default_factory=list)
     """Cameras, added last."""
+    physics: PhysicsOptions = field(default_factory=PhysicsOptions)
+    """Contact and solver options over the models' own (`PhysicsOptions.grasping()` for
+    grasping); the default keeps the models' own."""
 
 
 @dataclass

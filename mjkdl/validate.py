@@ -24,6 +24,7 @@ from .spec import (
     CameraSpec,
     Condim,
     ForceTorqueSensorSpec,
+    PhysicsOptions,
     RobotSpec,
     SceneObject,
     SceneSpec,
@@ -77,6 +78,29 @@ def validate_scene_spec(spec: SceneSpec) -> None:
         _check_robot(robot, f"robots[{i}]")
     for i, cam in enumerate(spec.cameras):
         _check_camera(cam, f"cameras[{i}] ({cam.name!r})")
+    _check_physics(spec.physics)
+
+
+CONES = ("pyramidal", "elliptic")
+
+
+def _check_physics(physics: object) -> None:
+    """`SceneSpec.physics`: a `PhysicsOptions` whose set fields MuJoCo accepts."""
+    where = "SceneSpec.physics"
+    if not isinstance(physics, PhysicsOptions):
+        raise SpecTypeError(f"{where} must be a PhysicsOptions, got {type(physics).__name__}")
+    if physics.cone is not None and physics.cone not in CONES:
+        raise SpecError(f"{where}.cone must be None or one of {list(CONES)}, got {physics.cone!r}")
+    if physics.impratio is not None and real(physics.impratio, f"{where}.impratio") < 1.0:
+        raise SpecError(f"{where}.impratio must be at least 1 (or None), got {physics.impratio!r}")
+    for name in ("noslip_iterations", "iterations"):
+        value = getattr(physics, name)
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+            raise SpecError(f"{where}.{name} must be None or a non-negative integer, got {value!r}")
+        if name == "iterations" and value < 1:
+            raise SpecError(f"{where}.iterations must be at least 1 (or None), got {value!r}")
 
 
 # ----------------------------------------------------------------------------- scalars

@@ -81,6 +81,12 @@ def run_benchmark(name: str, *args: str) -> str:
             ),
             r"\n\s+1\s+",
         ),
+        (
+            "grasp",
+            ("--seeds", "1"),
+            r"\| grasping\(\): elliptic, impratio 10 \(tasks' default\) \|",
+        ),
+        ("experts", ("--seeds", "1"), r"\| `mjkdl/PandaStack-v0` \|"),
     ],
 )
 def test_benchmark_runs_and_prints_its_figures(name, args, figure) -> None:

@@ -1503,3 +1503,59 @@ def test_bad_markers_are_refused(fields, error, message):
     with pytest.raises(error) as caught:
         _build(spec)
     assert message in str(caught.value)
+
+
+# ------------------------------------------------------------------ contact options
+
+
+def test_physics_options_reach_the_compiled_model_over_the_models_own() -> None:
+    """Unset fields keep what the models say (the 2F-85's elliptic cone and impratio 10);
+    set ones win over them, whatever order the robots were attached in."""
+    arm = mjk.RobotSpec(path=menagerie("kinova_gen3"), attachments=[gripper()])
+    own = compile_scene(base_spec(robots=[arm]))
+    assert own.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC and own.opt.impratio == 10.0
+    assert own.opt.noslip_iterations == 0 and own.opt.iterations == 100
+    physics = mjk.PhysicsOptions(cone="pyramidal", impratio=3.0, noslip_iterations=5, iterations=50)
+    model = compile_scene(base_spec(robots=[arm], physics=physics))
+    assert model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    assert (model.opt.impratio, model.opt.noslip_iterations, model.opt.iterations) == (3.0, 5, 50)
+    bare = compile_scene(base_spec(physics=mjk.PhysicsOptions.grasping()))
+    assert bare.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC and bare.opt.impratio == 10.0
+
+
+@pytest.mark.parametrize(
+    ("physics", "error", "message"),
+    [
+        ("elliptic", mjk.SpecTypeError, "SceneSpec.physics must be a PhysicsOptions, got str"),
+        (
+            mjk.PhysicsOptions(cone="Elliptic"),
+            mjk.SpecError,
+            "SceneSpec.physics.cone must be None or one of ['pyramidal', 'elliptic'], "
+            "got 'Elliptic'",
+        ),
+        (
+            mjk.PhysicsOptions(impratio=0.5),
+            mjk.SpecError,
+            "SceneSpec.physics.impratio must be at least 1 (or None), got 0.5",
+        ),
+        (
+            mjk.PhysicsOptions(impratio="10"),
+            mjk.SpecTypeError,
+            "SceneSpec.physics.impratio must be a number, got '10'",
+        ),
+        (
+            mjk.PhysicsOptions(noslip_iterations=2.5),
+            mjk.SpecError,
+            "SceneSpec.physics.noslip_iterations must be None or a non-negative integer, got 2.5",
+        ),
+        (
+            mjk.PhysicsOptions(iterations=0),
+            mjk.SpecError,
+            "SceneSpec.physics.iterations must be at least 1 (or None), got 0",
+        ),
+    ],
+)
+def test_bad_physics_options_are_named(physics, error, message) -> None:
+    with pytest.raises(error) as err:
+        compile_scene(base_spec(physics=physics))
+    assert str(err.value) == message

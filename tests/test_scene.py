@@ -239,6 +239,7 @@ CLOSED_CALLS = {
     "step": lambda s: s.step(),
     "step(5)": lambda s: s.step(5),
     "forward": lambda s: s.forward(),
+    "refresh_poses": lambda s: s.refresh_poses(),
     "camera_names": lambda s: s.camera_names(),
     "has_actuator": lambda s: s.has_actuator("joint_1"),
     "set_actuator_ctrl": lambda s: s.set_actuator_ctrl("joint_1", 0.0),

@@ -27,3 +27,7 @@ def test_task_doc_blocks_run_and_print_what_they_say(monkeypatch, tmp_path) -> N
     monkeypatch.setattr(mjkdl.task, "view", fake_view)
     assert_blocks_run(TASK_DOC, at_least=7)
     assert viewed == [(["panda_tcp_pos", "goal_pose"], {})]
+
+
+def test_physics_doc_blocks_run_and_print_what_they_say() -> None:
+    assert_blocks_run(ROOT / "docs" / "physics.md", at_least=1)

@@ -6,6 +6,7 @@ import math
 import re
 from collections.abc import Iterator
 
+import gymnasium as gym
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -890,3 +891,65 @@ def test_hiding_unknown_observations_is_refused(hide, error, message) -> None:
     with pytest.raises(error) as caught:
         make(hide=hide)
     assert message in str(caught.value)
+
+
+def test_recorded_camera_frames_are_of_the_recorded_states(tmp_path) -> None:
+    """A wrist camera moves with the hand: every recorded frame is the frame of the state
+    recorded with it, bit for bit, rendered again the way state replay renders it."""
+    from mjkdl.demos import DemoFile, collect, replay
+    from mjkdl.demos.hdf5 import STATE
+    from mjkdl.record import offscreen_renderer
+
+    out = tmp_path / "wrist.hdf5"
+    cams = {"camera_names": ["wrist", "front"], "camera_size": [48, 64], "max_episode_steps": 8}
+    collect("mjkdl/PandaPickCube-v0", "demo_envs:approach", out, episodes=1,
+            keep_failures=True, env_kwargs=cams, progress=False)  # fmt: skip
+    env = gym.make("mjkdl/PandaPickCube-v0", **cams).unwrapped
+    model, data = env.scene.model, env.scene.data
+    with DemoFile(out) as demos:
+        demo = demos.demo(0)
+        assert demo.num_samples == 8
+        renderer = offscreen_renderer(model, 64, 48, shadows=False, reflections=False)
+        worst = {}
+        for cam in ("wrist", "front"):
+            diffs = []
+            for t in range(demo.num_samples):
+                mujoco.mj_setState(model, data, demo.states[t], STATE)
+                mujoco.mj_forward(model, data)
+                renderer.update_scene(data, camera=cam)
+                frame = renderer.render().astype(np.int16)
+                diffs.append(int(np.abs(frame - demo.obs[f"{cam}_rgb"][t]).max()))
+            worst[cam] = diffs
+        renderer.close()
+        # The hand moves between the frames: a lag of one physics step would show.
+        assert np.abs(np.diff(demo.obs["wrist_rgb"].astype(np.int16), axis=0)).max() > 50
+    env.close()
+    assert worst == {"wrist": [0] * 8, "front": [0] * 8}
+    assert replay(out, 0, mode="states").max_pixel_error == 0
+
+
+def test_scene_poses_follow_the_state_a_step_reached() -> None:
+    """After `Scene.step`, `refresh_poses` (and the frame getters, renderers and viewer
+    that call it) give the bodies' and a wrist camera's poses `mj_forward` gives for the
+    state reached, not those of one timestep before."""
+    spec = panda_reach_spec()
+    with mjk.Env.build(spec.scene) as scene:
+        model, data = scene.model, scene.data
+        data.ctrl[:7] = np.array(PANDA_HOME) + 0.5  # the arm swings towards it
+        scene.step(20)
+        ref = mujoco.MjData(model)
+        mujoco.mj_setState(model, ref, _state(model, data), mujoco.mjtState.mjSTATE_INTEGRATION)
+        mujoco.mj_forward(model, ref)
+        cam, hand = model.camera("wrist").id, model.body("hand").id
+        assert not np.array_equal(data.cam_xpos[cam], ref.cam_xpos[cam])  # as mj_step leaves it
+        assert np.array_equal(scene.body_frame("hand").translation, ref.xpos[hand])
+        assert np.array_equal(data.cam_xpos[cam], ref.cam_xpos[cam])
+        assert np.array_equal(data.xpos, ref.xpos)
+        assert np.array_equal(data.site_xpos, ref.site_xpos)
+        assert np.abs(data.qvel).max() > 0.1  # moving: a lag would differ
+
+
+def _state(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    out = np.empty(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_INTEGRATION))
+    mujoco.mj_getState(model, data, out, mujoco.mjtState.mjSTATE_INTEGRATION)
+    return out

@@ -315,7 +315,7 @@ def test_an_unknown_parameter_lists_the_valid_ones() -> None:
         gym.make(PICK, goal_low=[0, 0, 0])
     assert str(caught.value).startswith(
         "PandaPickCubeEnv: unknown parameter(s) ['goal_low']; valid: render_mode, time_limit, "
-        "control_timestep, cube_low, cube_high, reward_type, terminate_on_success, "
+        "control_timestep, actuation, cube_low, cube_high, reward_type, terminate_on_success, "
     )
 
 
@@ -489,3 +489,172 @@ def test_a_worker_forked_after_its_parent_rendered_says_why_it_cannot() -> None:
             vec.reset(seed=0)
     finally:
         vec.close(terminate=True)
+
+
+# ------------------------------------------------------------- Push, PickAndPlace, Stack
+
+PUSH, PLACE, STACK = "mjkdl/PandaPush-v0", "mjkdl/PandaPickAndPlace-v0", "mjkdl/PandaStack-v0"
+NEW = [PUSH, PLACE, STACK]
+NEW_GOALS = [i.replace("-v0", "Goal-v0") for i in NEW]
+
+
+def steps_to_success(env: gym.Env, expert, seed: int) -> int | None:
+    """Control steps the expert needs to succeed from `seed`, None within 100."""
+    obs, _ = env.reset(seed=seed)
+    expert.reset()
+    for k in range(100):
+        obs, _, terminated, truncated, info = env.step(expert(obs))
+        if info["is_success"]:
+            return k + 1
+        if terminated or truncated:
+            return None
+    return None
+
+
+@pytest.mark.parametrize(
+    ("env_id", "seeds"), [(i, (0, 1)) for i in NEW] + [(i, (2,)) for i in NEW_GOALS]
+)
+def test_the_new_experts_succeed_on_a_few_seeds(env_id: str, seeds: tuple[int, ...]) -> None:
+    env = gym.make(env_id)
+    expert = expert_for(env)
+    steps = [steps_to_success(env, expert, s) for s in seeds]
+    env.close()
+    assert all(n is not None and n < 80 for n in steps), steps
+
+
+def test_push_goals_lie_on_the_floor_and_pick_and_place_targets_in_the_air() -> None:
+    push, place = gym.make(PUSH), gym.make(PLACE)
+    for seed in range(3):
+        goal = push.reset(seed=seed)[0]["goal_pose"]
+        assert goal[2] == pytest.approx(CUBE_HALF)
+        assert 0.35 <= goal[0] <= 0.65 and -0.2 <= goal[1] <= 0.2
+        target = place.reset(seed=seed)[0]["target_pose"]
+        assert CUBE_HALF + 0.08 <= target[2] <= CUBE_HALF + 0.2
+    push.close()
+    place.close()
+
+
+def test_stack_succeeds_only_once_the_cube_is_let_go_on_the_base() -> None:
+    env = gym.make(STACK)
+    obs, info = env.reset(seed=3)
+    above = obs["base_pose"][:3] + np.array([0.0, 0.0, 2 * CUBE_HALF])
+    np.testing.assert_allclose(obs["target_pose"][:3], above)
+    expert = expert_for(env)
+    held_there = []
+    for _ in range(100):
+        obs, reward, _, _, info = env.step(expert(obs))
+        there = np.linalg.norm(obs["cube_pose"][:3] - obs["target_pose"][:3]) <= 0.02
+        if there and obs["cube_contacts"].max() > 0.5:
+            held_there.append((info["is_success"], reward))
+        if info["is_success"]:
+            break
+    env.close()
+    assert info["is_success"] and reward == 1.0
+    assert held_there and all(not s and r < 1.0 for s, r in held_there)
+
+
+@pytest.mark.parametrize("env_id", NEW_GOALS)
+def test_new_goal_variants_recompute_reward_and_ends_from_goals(env_id: str) -> None:
+    env = gym.make(env_id)
+    inner = env.unwrapped
+    obs, _ = env.reset(seed=4)
+    expert = expert_for(env)
+    rows = []
+    for _ in range(40):
+        obs, reward, terminated, truncated, info = env.step(expert(obs))
+        ag, dg = obs["achieved_goal"], obs["desired_goal"]
+        assert reward == inner.compute_reward(ag, dg, info)
+        assert terminated == inner.compute_terminated(ag, dg, info)
+        assert truncated == inner.compute_truncated(ag, dg, info)
+        rows.append((ag, dg, reward))
+    ag, dg, rewards = (np.array(c) for c in zip(*rows, strict=True))
+    np.testing.assert_array_equal(inner.compute_reward(ag, dg, [{}] * 40), rewards)
+    # Relabelled with the achieved goal, every step pays the success reward.
+    np.testing.assert_array_equal(inner.compute_reward(ag, ag, [{}] * 40), np.ones(40))
+    assert inner.compute_terminated(ag, dg, [{}] * 40).shape == (40,)
+    assert 1.0 in rewards  # the expert gets there within 40 steps
+    env.close()
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("env_id", NEW + NEW_GOALS)
+def test_the_new_experts_succeed_on_at_least_95_of_100_seeds(env_id: str) -> None:
+    """Whole episodes: success at the last of the 100 steps (the cube stays put)."""
+    env = gym.make(env_id)
+    expert = expert_for(env)
+    wins = sum(run(env, expert, seed)[1] for seed in range(100))
+    env.close()
+    assert wins >= 95
+
+
+# ------------------------------------------------------------------ joint-space actions
+
+
+def test_joint_position_actions_span_the_joint_ranges() -> None:
+    env = gym.make(PICK, actuation="joint_position")
+    assert env.action_space == gym.spaces.Box(-1.0, 1.0, (8,), np.float32)
+    inner = env.unwrapped
+    assert inner.action_labels == [f"panda.joint{i}" for i in range(1, 8)] + ["panda.gripper"]
+    limits = inner.robots["panda"].joint_limits
+    env.reset(seed=0)
+    target = np.array([0.3, -0.2, 0.1, -1.9, 0.2, 1.9, 0.5])
+    action = np.append(2 * (target - limits[:, 0]) / (limits[:, 1] - limits[:, 0]) - 1, -1.0)
+    for _ in range(15):
+        obs, *_ = env.step(action.astype(np.float32))
+    np.testing.assert_allclose(obs["panda_joint_pos"], target, atol=0.02)
+    env.close()
+
+
+def test_joint_velocity_actions_move_each_joint_its_way() -> None:
+    env = gym.make(REACH, actuation="joint_velocity")
+    obs, _ = env.reset(seed=0)
+    start = obs["panda_joint_pos"].copy()
+    action = np.zeros(8, np.float32)
+    action[0], action[3] = 0.5, -0.5
+    for _ in range(3):
+        obs, *_ = env.step(action)
+    moved = obs["panda_joint_pos"] - start
+    assert moved[0] > 0.1 and moved[3] < -0.1
+    assert np.abs(np.delete(moved, [0, 3])).max() < 0.02
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_bad_actuation_and_experts_outside_cartesian_mode_are_named() -> None:
+    with pytest.raises(SpecError, match=r"actuation must be one of \['joint_position', "):
+        gym.make(REACH, actuation="joints")
+    env = gym.make(PUSH, actuation="joint_torque")
+    with pytest.raises(SpecError, match="the experts act in Cartesian velocity; this "):
+        expert_for(env)
+    env.close()
+
+
+# ------------------------------------------------------------ headless checker, options
+
+
+def test_headless_human_mode_opens_nothing_until_it_renders(monkeypatch) -> None:
+    """The window opens at the first render() (reset renders in "human" mode), so an env
+    can be built and checked headless; the render modes that need no window work."""
+    from gymnasium.utils.passive_env_checker import env_render_passive_checker
+
+    from mjkdl.viewer import NoDisplayError
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    env = gym.make(STACK, render_mode="human")
+    assert env.unwrapped._viewer is None
+    with pytest.raises(NoDisplayError, match="needs a display and DISPLAY is not set"):
+        env.reset(seed=0)
+    env.close()
+    for mode in ("rgb_array", "depth_array"):
+        env = gym.make(STACK, render_mode=mode, render_width=64, render_height=48)
+        env.reset(seed=0)
+        env_render_passive_checker(env.unwrapped)
+        env.close()
+
+
+def test_reset_takes_the_options_gymnasiums_vector_envs_pass() -> None:
+    envs = gym.make_vec(PUSH, num_envs=2, vectorization_mode="sync")
+    first, _ = envs.reset(seed=[5, 6], options={})
+    again, _ = envs.reset(options={"reset_mask": np.array([False, True])})
+    np.testing.assert_array_equal(again["cube_pose"][0], first["cube_pose"][0])  # kept
+    envs.close()

@@ -12,11 +12,14 @@ from mjkdl.task import (
     Held,
     Lifted,
     LiftReward,
+    Placed,
+    PlaceReward,
     Reached,
     ReachReward,
     SparseReward,
     distance,
     height,
+    place_reward,
 )
 
 
@@ -175,6 +178,26 @@ NAN = float("nan")
             mjk.SpecTypeError,
             "LiftReward.tcp must be a string, got 5",
         ),
+        (
+            lambda: Placed("o", "g", 0),
+            mjk.SpecError,
+            "Placed.tolerance must be positive, got 0",
+        ),
+        (
+            lambda: Placed("o", "g", 0.02, contacts=None),
+            mjk.SpecTypeError,
+            "Placed.contacts must be a string, got None",
+        ),
+        (
+            lambda: PlaceReward("t", "o", "g", success=3),
+            mjk.SpecTypeError,
+            "PlaceReward.success must be callable, got 3",
+        ),
+        (
+            lambda: PlaceReward("t", "o", "g", Placed("o", "g", 0.02), goal_scale=-1),
+            mjk.SpecError,
+            "PlaceReward.goal_scale must be positive, got -1",
+        ),
     ],
 )
 def test_helpers_check_their_fields_when_built(build, error, message) -> None:
@@ -205,3 +228,43 @@ def test_distance_and_height_check_their_arguments(call, message) -> None:
     with pytest.raises(mjk.SpecTypeError) as err:
         call(obs([0, 0, 0], [0, 0, 0]))
     assert str(err.value) == message
+
+
+def test_placed_needs_the_goal_and_with_contacts_the_release() -> None:
+    near = {**obs([0, 0, 0], [0.3, 0.0, 0.06], (0, 0)), "goal_pose": np.array([0.3, 0.019, 0.06])}
+    assert Placed("cube_pose", "goal_pose", 0.02)(near)
+    assert not Placed("cube_pose", "goal_pose", 0.018)(near)
+    stack = Placed("cube_pose", "goal_pose", 0.02, contacts="cube_contacts")
+    assert stack(near)
+    assert not stack({**near, "cube_contacts": np.array([1.0, 0.0])})  # still held
+
+
+def test_place_reward_stages_and_pays_success_most() -> None:
+    success = Placed("cube_pose", "goal_pose", 0.05)
+    r = PlaceReward("tcp_pos", "cube_pose", "goal_pose", success, contacts="cube_contacts")
+    goal = {"goal_pose": np.array([0.5, 0.0, 0.02])}
+    far = {**obs([0, 0, 0.3], [0.0, 0.0, 0.02]), **goal}
+    expected = 0.25 * (1 - math.tanh(math.hypot(0.28, 0) / 0.1)) + 0.5 * (1 - math.tanh(2.0))
+    assert r(far) == pytest.approx(expected)
+    held = {**obs([0.2, 0, 0.02], [0.2, 0.0, 0.02], (1, 1)), **goal}
+    assert r(held) == pytest.approx(0.25 + 0.25 + 0.5 * (1 - math.tanh(0.3 / 0.25)))
+    there = {**obs([0.47, 0, 0.02], [0.47, 0.0, 0.02]), **goal}
+    assert r(there) == 1.0
+    # Just outside the goal, grasped and at the cube: below 1.
+    edge = {**obs([0.449, 0, 0.02], [0.449, 0.0, 0.02], (1, 1)), **goal}
+    assert r(edge) < 1.0
+
+
+def test_place_reward_formula_takes_batches() -> None:
+    """The formula a batched backend evaluates: arrays with a leading batch axis give the
+    numbers the scalar reward gives one by one."""
+    rng = np.random.default_rng(0)
+    d_reach, d_goal = rng.uniform(0, 0.5, 64), rng.uniform(0.01, 0.5, 64)
+    grasped = rng.uniform(size=64) < 0.5
+    batch = place_reward(d_reach, d_goal, grasped, 0.1, 0.25)
+    one = [
+        place_reward(a, b, c, 0.1, 0.25) for a, b, c in zip(d_reach, d_goal, grasped, strict=True)
+    ]
+    assert batch.shape == (64,)
+    np.testing.assert_allclose(batch, one, rtol=0, atol=1e-15)
+    assert batch.max() < 1.0

@@ -1,23 +1,33 @@
 """Gymnasium task environments on mjkdl scenes: `TaskSpec` -> `TaskEnv`.
 
-Importing this package registers `mjkdl/PandaReach-v0`, `mjkdl/PandaPickCube-v0` and their
-goal-conditioned variants `mjkdl/PandaReachGoal-v0` and `mjkdl/PandaPickCubeGoal-v0`;
-`mjkdl.task.experts.expert_for(env)` gives each a scripted expert.
+Importing this package registers `mjkdl/PandaReach-v0`, `mjkdl/PandaPickCube-v0`,
+`mjkdl/PandaPush-v0`, `mjkdl/PandaPickAndPlace-v0`, `mjkdl/PandaStack-v0` and their
+goal-conditioned variants (`mjkdl/PandaReachGoal-v0`, ...); `mjkdl.task.experts.expert_for(env)`
+gives each a scripted expert.
 """
 
 from .env import Sensor, TaskEnv
 from .goal import GoalReward, GoalTaskEnv
-from .initializers import JointInitializer, PhysicsRandomizer, PoseInitializer, PropPlacer
+from .initializers import (
+    JointInitializer,
+    PhysicsRandomizer,
+    PlaceAbove,
+    PoseInitializer,
+    PropPlacer,
+)
 from .registry import register as _register
 from .rewards import (
     Held,
     Lifted,
     LiftReward,
+    Placed,
+    PlaceReward,
     Reached,
     ReachReward,
     SparseReward,
     distance,
     height,
+    place_reward,
 )
 from .rollout import Episode, ray_collect, run_episode
 from .sensors import intrinsics
@@ -50,6 +60,9 @@ __all__ = [
     "LiftReward",
     "Lifted",
     "PhysicsRandomizer",
+    "PlaceAbove",
+    "PlaceReward",
+    "Placed",
     "PoseInitializer",
     "PropPlacer",
     "ReachReward",
@@ -62,6 +75,7 @@ __all__ = [
     "distance",
     "height",
     "intrinsics",
+    "place_reward",
     "ray_collect",
     "run_episode",
     "view",

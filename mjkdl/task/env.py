@@ -570,7 +570,11 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             obs = {k: b.copy() for k, b in self._buffers if k in self._task_space.spaces}
             info = {"is_success": False, "diverged": True, "error": why}  # obs: the last finite
             return obs, 0.0, True, truncated, info
-        _refresh_kinematics(self.scene.model, self.scene.data)
+        # Everything derived (poses, cameras, contacts, forces, sensordata) recomputed from the
+        # state reached: each observation, image included, is of the state recorded with it.
+        # MuJoCo's next mj_step recomputes the same from the same state (qacc_warmstart is
+        # only written by the integrator), so the trajectory is unchanged.
+        self.scene.forward()
         obs = self._observe()  # every observation: rewards may read hidden ones
         spec = self.task_spec
         reward, terminated = 0.0, False
@@ -686,6 +690,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         `human`: the interactive viewer, which then shows every physics step in real time."""
         self._check_open()
         if self.render_mode in ("rgb_array", "depth_array"):
+            self.scene.refresh_poses()  # the user may have stepped the scene itself
             r = self._renderer(*self._render_size)
             flags = r.scene.flags  # shared with camera sensors of this size, which may differ
             flags[mujoco.mjtRndFlag.mjRND_SHADOW] = flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
@@ -803,21 +808,6 @@ def _shown_keys(hide: object, every: Mapping[str, spaces.Space]) -> list[str]:
 def _controller(robot: Robot, arm: ArmSpec) -> CartesianVelocityController:
     """The arm's Cartesian controller, its null-space posture at `home` when there is one."""
     return CartesianVelocityController(robot, control_frame=arm.control_frame, posture=arm.home)
-
-
-def _refresh_kinematics(model: mujoco.MjModel, data: mujoco.MjData) -> None:
-    """Poses, tendon/actuator lengths and velocities of the state `mj_step` left.
-
-    `mj_step` computes everything from the state it starts with, then integrates, so poses
-    would lag the joints by one physics step. These stages bring them up to date for a tenth
-    of an `mj_forward`; forces (joint torques, F/T sensors, contacts) stay those of the last
-    physics step, which are the ones that moved the arm there.
-    """
-    mujoco.mj_kinematics(model, data)
-    mujoco.mj_comPos(model, data)
-    mujoco.mj_tendon(model, data)
-    mujoco.mj_transmission(model, data)
-    mujoco.mj_comVel(model, data)
 
 
 def _positive(value: object) -> bool:

@@ -17,10 +17,11 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
-from ..errors import UnknownNameError
+from ..errors import SpecError, UnknownNameError
 from .env import TaskEnv
 from .goal import GoalTaskEnv
 from .registry import CUBE_HALF, LIFT, TASKS
+from .spec import Actuation
 
 _DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -66,9 +67,12 @@ class _Cartesian:
         return out
 
 
-def _upright(quat: np.ndarray, yaw_gain: float, target_yaw: float | None) -> np.ndarray:
+def _upright(
+    quat: np.ndarray, yaw_gain: float, target_yaw: float | None, period: float = math.pi / 2
+) -> np.ndarray:
     """Angular velocity turning the TCP's z axis to point down and, when `target_yaw` is
-    given, its finger axis (y) square to a cube side (yaw modulo 90 degrees)."""
+    given, its x axis to that yaw modulo `period` (90 degrees: the finger axis (y) square
+    to a cube side)."""
     w, x, y, z = quat
     # Columns of the rotation matrix of quaternion [w, x, y, z].
     x_axis = np.array([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)])
@@ -76,7 +80,7 @@ def _upright(quat: np.ndarray, yaw_gain: float, target_yaw: float | None) -> np.
     omega = 4.0 * np.cross(z_axis, _DOWN)
     if target_yaw is not None:
         yaw = math.atan2(x_axis[1], x_axis[0])
-        err = (target_yaw - yaw + math.pi / 4) % (math.pi / 2) - math.pi / 4
+        err = (target_yaw - yaw + period / 2) % period - period / 2
         omega[2] += yaw_gain * err
     return omega
 
@@ -112,15 +116,21 @@ class _Phase(enum.Enum):
     DESCEND = "descend"
     CLOSE = "close"
     LIFT = "lift"
+    RELEASE = "release"  # Stack: open over the base, then back up
 
 
 class PickCubeExpert:
-    """Over the cube, square to its sides; down; close; lift 15 cm (or to the goal of the
-    goal-conditioned variant). Starts over when the cube slips out."""
+    """Over the cube, square to its sides; down; close; lift 8 cm (or carry it to the goal
+    of PickAndPlace and the goal-conditioned variants) at the twist limit until 5 cm out
+    (`lift_gain`, 1/s). Starts over when the cube slips out."""
 
-    def __init__(self, env: TaskEnv, gain: float = 5.0, hover: float = 0.08) -> None:
+    def __init__(
+        self, env: TaskEnv, gain: float = 5.0, hover: float = 0.08, lift_gain: float = 10.0
+    ) -> None:
         self._out = _Cartesian(env)
-        self._gain, self._hover = gain, hover
+        self._gain, self._hover, self._lift_gain = gain, hover, lift_gain
+        names = env.observation_space.spaces
+        self._goal = "desired_goal" if "desired_goal" in names else "target_pose"
         self.reset()
 
     def reset(self) -> None:
@@ -134,14 +144,14 @@ class PickCubeExpert:
         tcp, quat = o["panda_tcp_pos"], o["panda_tcp_quat"]
         cube = o["cube_pose"][:3]
         held = bool(np.all(o["cube_contacts"] > 0.5))
-        square = _yaw(o["cube_pose"][3:])
+        square, period = self._grasp_yaw(o)
         if self.phase is _Phase.LIFT and not held and cube[2] < CUBE_HALF + 0.01:
             self.phase = _Phase.ABOVE  # dropped: try again
         target = cube + np.array([0.0, 0.0, self._hover])
         close = False
         if self.phase is _Phase.ABOVE:
             err = target - tcp
-            yaw_err = _upright(quat, 1.0, square)[2]
+            yaw_err = _upright(quat, 1.0, square, period)[2]
             if math.hypot(err[0], err[1]) < 0.01 and abs(err[2]) < 0.02 and abs(yaw_err) < 0.05:
                 self.phase = _Phase.DESCEND
         if self.phase is _Phase.DESCEND:
@@ -158,17 +168,118 @@ class PickCubeExpert:
                 self.phase = _Phase.ABOVE  # closed on nothing: reopen
         if self.phase is _Phase.LIFT:
             close = True
-            if "desired_goal" in o:
-                target = o["desired_goal"] + (tcp - cube)
-            else:
-                target = self._lift_from + np.array([0.0, 0.0, LIFT + 0.03])
+            target = self._carry(o, tcp, cube)
+        if self.phase is _Phase.RELEASE:
+            target = tcp + np.array([0.0, 0.0, 0.05 if self._closing > 3 else 0.0])
+            self._closing += 1
         twist = np.zeros(6)
-        # Lift gently: MuJoCo's soft friction lets a fast-lifted cube creep out of the grip.
-        gain = self._gain if self.phase is not _Phase.LIFT else 0.5 * self._gain
+        # Carry at the twist limit until 5 cm out (`lift_gain`): the grasp holds at full
+        # speed with the tasks' contact options (PhysicsOptions.grasping(), docs/physics.md).
+        gain = self._gain if self.phase is not _Phase.LIFT else self._lift_gain
         twist[:3] = gain * (target - tcp)
         # Square to the cube until the fingers close on it; then only keep the hand upright.
-        twist[3:] = _upright(quat, 4.0, None if self.phase is _Phase.LIFT else square)
+        carrying = self.phase in (_Phase.LIFT, _Phase.RELEASE)
+        twist[3:] = _upright(quat, 4.0, None if carrying else square, period)
         return self._out.action(twist, close=close)
+
+    def _grasp_yaw(self, o: Mapping[str, np.ndarray]) -> tuple[float, float]:
+        """The hand's yaw for the grasp and its period: square to the cube's sides."""
+        return _yaw(o["cube_pose"][3:]), math.pi / 2
+
+    def _carry(self, o: Mapping[str, np.ndarray], tcp: np.ndarray, cube: np.ndarray) -> np.ndarray:
+        """Where the TCP heads once the cube is held: straight to the goal with the cube
+        (goal tasks), else straight up."""
+        if self._goal in o:
+            return o[self._goal][:3] + (tcp - cube)
+        return self._lift_from + np.array([0.0, 0.0, LIFT + 0.03])
+
+
+class StackExpert(PickCubeExpert):
+    """PickCube's grasp, the fingers closing across the line to the base cube so neither
+    touches it; up to a clearance over the target, across, down onto it, open, back up."""
+
+    CLEARANCE = 0.03
+
+    def _grasp_yaw(self, o: Mapping[str, np.ndarray]) -> tuple[float, float]:
+        cube, base = o["cube_pose"], o[self._goal]
+        away = math.atan2(base[1] - cube[1], base[0] - cube[0])
+        square = _yaw(cube[3:])
+        # Of the cube's four sides, the hand's x axis (between the fingers' faces) along
+        # the line to the base: the fingers close across it.
+        best = min(
+            (square + k * math.pi / 2 for k in range(4)),
+            key=lambda y: abs((y - away + math.pi / 2) % math.pi - math.pi / 2),
+        )
+        return best, math.pi
+
+    def _carry(self, o: Mapping[str, np.ndarray], tcp: np.ndarray, cube: np.ndarray) -> np.ndarray:
+        goal = o[self._goal][:3]
+        aim = goal.copy()
+        if math.hypot(*(goal - cube)[:2]) > 0.006:
+            aim[2] += self.CLEARANCE  # across at a clearance over the base
+            if cube[2] < goal[2] + 0.6 * self.CLEARANCE:
+                aim[:2] = cube[:2]  # up first
+        elif np.linalg.norm(goal - cube) < 0.006:
+            self.phase, self._closing = _Phase.RELEASE, 0
+        return aim + (tcp - cube)
+
+
+class PushExpert:
+    """Gripper closed; over a point behind the cube on the line from the goal, down to the
+    floor, then pushes the cube along that line; backs up and realigns when it drifts."""
+
+    BEHIND = 0.06  # metres behind the cube's centre to start from
+    LOW = 0.022  # TCP height while pushing: the fingertips clear the floor
+    SPEED = 0.3  # m/s at most
+    THERE = 0.015  # metres from the goal at which the push ends
+
+    def __init__(self, env: TaskEnv, gain: float = 5.0) -> None:
+        self._out = _Cartesian(env)
+        self._gain = gain
+        names = env.observation_space.spaces
+        self._goal = "desired_goal" if "desired_goal" in names else "goal_pose"
+        self.reset()
+
+    def reset(self) -> None:
+        """Start from the approach."""
+        self.pushing = False
+        self.rest: np.ndarray | None = None
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        o = self._out.named(obs)
+        tcp, quat = o["panda_tcp_pos"], o["panda_tcp_quat"]
+        cube, goal = o["cube_pose"][:3], o[self._goal][:3]
+        line = (goal - cube)[:2]
+        dist = float(np.linalg.norm(line))
+        d = np.append(line / max(dist, 1e-9), 0.0)
+        rel = (tcp - cube)[:2]
+        along = float(rel @ d[:2])
+        across = abs(float(rel[0] * d[1] - rel[1] * d[0]))
+        start = cube - d * self.BEHIND
+        if self.pushing and (across > 0.012 or along > -CUBE_HALF):
+            self.pushing = False  # slipped past or beside the cube: realign
+        if not self.pushing:
+            target = np.array([start[0], start[1], self.LOW])
+            if math.hypot(*(tcp - target)[:2]) > 0.01:
+                target[2] = CUBE_HALF * 2 + 0.05  # over the cube's height until behind it
+            elif abs(tcp[2] - self.LOW) < 0.008:
+                self.pushing = True
+        if self.pushing:
+            # A point a few centimetres past the cube's near face, on the line to the goal:
+            # the TCP follows the cube as it moves and turns; it stops once the cube is there.
+            target = cube - d * (CUBE_HALF + 0.012) + d * min(dist, 0.05)
+            target[2] = self.LOW
+            if dist < self.THERE and self.rest is None:
+                self.rest = tcp + np.array([0.0, 0.0, 0.08])
+        if self.rest is not None:
+            target = self.rest  # back off upwards, clear of the cube
+        twist = np.zeros(6)
+        v = self._gain * (target - tcp)
+        speed = float(np.linalg.norm(v))
+        # Scaled as a whole, not clipped per axis: the push keeps its direction.
+        twist[:3] = v if speed <= self.SPEED else v * (self.SPEED / speed)
+        twist[3:] = _upright(quat, 0.0, None)
+        return self._out.action(twist, close=True)
 
 
 _EXPERTS: dict[str, type[Any]] = {
@@ -176,6 +287,12 @@ _EXPERTS: dict[str, type[Any]] = {
     "mjkdl/PandaReachGoal-v0": ReachExpert,
     "mjkdl/PandaPickCube-v0": PickCubeExpert,
     "mjkdl/PandaPickCubeGoal-v0": PickCubeExpert,
+    "mjkdl/PandaPush-v0": PushExpert,
+    "mjkdl/PandaPushGoal-v0": PushExpert,
+    "mjkdl/PandaPickAndPlace-v0": PickCubeExpert,
+    "mjkdl/PandaPickAndPlaceGoal-v0": PickCubeExpert,
+    "mjkdl/PandaStack-v0": StackExpert,
+    "mjkdl/PandaStackGoal-v0": StackExpert,
 }
 
 
@@ -184,6 +301,12 @@ def expert_for(env: gym.Env) -> Expert:
     inner = env.unwrapped
     for env_id, cls in TASKS.items():
         if type(inner) is cls:
+            mode = inner.task_spec.arms[0].actuation
+            if mode is not Actuation.CARTESIAN_VELOCITY:
+                raise SpecError(
+                    f"the experts act in Cartesian velocity; this {env_id} env has "
+                    f"actuation={mode.value!r} (make it without `actuation`)"
+                )
             return _EXPERTS[env_id](inner)
     raise UnknownNameError(
         f"no expert for {type(inner).__name__}; experts exist for {', '.join(_EXPERTS)}"

@@ -2,7 +2,8 @@
 
 `GoalTaskEnv` observes `{"observation", "achieved_goal", "desired_goal"}` and offers a
 vectorised `compute_reward(achieved_goal, desired_goal, info)` that agrees with the reward of
-`step`, so a replay buffer (Stable-Baselines3's `HerReplayBuffer`) can relabel goals.
+`step`, and `compute_terminated` / `compute_truncated` as Gymnasium-Robotics' `GoalEnv` has
+them, so a replay buffer (Stable-Baselines3's `HerReplayBuffer`) can relabel goals.
 """
 
 from __future__ import annotations
@@ -149,3 +150,20 @@ class GoalTaskEnv(TaskEnv):
         axes: what `step` would have paid had `desired_goal` been the goal."""
         d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
         return self.goal_reward.of_distance(d)
+
+    def compute_terminated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        """Whether `step` would have ended the episode for these goals (Gymnasium-Robotics'
+        `GoalEnv` API), vectorised like `compute_reward`: with `terminate_on_success` (and
+        no `success_hold`) when the goals are within `threshold`, else never (the registered
+        goal variants run to their time limit, as Gymnasium-Robotics' Fetch tasks do)."""
+        d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+        spec = self.task_spec
+        if spec.terminate_on_success and spec.success_hold == 0 and spec.terminated is None:
+            return d <= self.goal_reward.threshold
+        return np.zeros(np.shape(d), dtype=bool)
+
+    def compute_truncated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        """Never, whatever the goals (Gymnasium-Robotics' `GoalEnv` API): episodes end by time
+        (Gymnasium's `TimeLimit`, or `TaskSpec.time_limit`), which no goal changes."""
+        d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+        return np.zeros(np.shape(d), dtype=bool)

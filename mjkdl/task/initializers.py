@@ -19,7 +19,7 @@ import pinocchio as pin
 from ..compile import euler_quat, vector
 from ..errors import SpecError, unknown_name
 from ..names import model_id
-from ..validate import flag, text
+from ..validate import flag, real, text
 from ._check import integer, names
 
 if TYPE_CHECKING:
@@ -104,6 +104,28 @@ class PropPlacer:
                 "marker"
             )
         return b
+
+
+@dataclass
+class PlaceAbove:
+    """Puts the free or marker body `body` `height` metres straight above body `base`, with
+    its initial orientation: a target on top of a cube placed before it (Stack's)."""
+
+    body: str
+    base: str
+    height: float
+
+    def __call__(self, env: TaskEnv, rng: np.random.Generator) -> None:
+        where = "PlaceAbove"
+        height = real(self.height, f"{where}.height")
+        scene = env.scene
+        model, data = scene.model, scene.data
+        PropPlacer._free_body(model, text(self.body, f"{where}.body"), f"{where}.body")
+        base = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", self.base, f"{where}.base")
+        mujoco.mj_kinematics(model, data)
+        pos = data.xpos[base] + np.array([0.0, 0.0, height])
+        scene.set_body_pose(self.body, pos.tolist())
+        mujoco.mj_forward(model, data)
 
 
 def _subtree_geoms(model: mujoco.MjModel, root: int) -> list[int]:

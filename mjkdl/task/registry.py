@@ -1,10 +1,13 @@
-"""Registered tasks: Menagerie's Franka Panda reaching a goal and lifting a cube.
+"""Registered tasks: Menagerie's Franka Panda reaching, lifting, pushing, placing, stacking.
 
-Both follow dm_robotics_panda: Cartesian velocity of the TCP plus the hand's binary gripper
+All follow dm_robotics_panda: Cartesian velocity of the TCP plus the hand's binary gripper
 (action of 7, each entry in [-1, 1]), a 0.1 s control period over 2 ms physics, episodes of
 100 steps (Gymnasium's `TimeLimit`: `gymnasium.make(id, max_episode_steps=N)` changes it).
 Parameters go through `gymnasium.make(id, **parameters)` (docs/task.md lists them);
-`time_limit` (seconds) ends episodes earlier.
+`time_limit` (seconds) ends episodes earlier; `actuation="joint_position"` (or
+"joint_velocity", "joint_torque") makes the arm's part of the action one entry per joint,
+each in [-1, 1] scaled onto the joint's range (limits, velocity limits, torque limits).
+Each task is one `TaskSpec` (`panda_*_spec()`), which the batched backend runs too.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from ..spec import (
     AttachTarget,
     CameraSpec,
     Condim,
+    PhysicsOptions,
     RobotSpec,
     SceneObject,
     SceneSpec,
@@ -33,9 +37,10 @@ from ..validate import flag, real
 from ._check import integer, names
 from .env import TaskEnv
 from .goal import GoalTaskEnv, reward_type
-from .initializers import PoseInitializer, PropPlacer
-from .rewards import Held, LiftReward, Reached, ReachReward, SparseReward
+from .initializers import PlaceAbove, PoseInitializer, PropPlacer
+from .rewards import Held, LiftReward, Placed, PlaceReward, Reached, ReachReward, SparseReward
 from .spec import (
+    Actuation,
     ArmSpec,
     BodyPoseSensor,
     CameraSensor,
@@ -62,6 +67,11 @@ CUBE_LOW = (0.4, -0.15)
 CUBE_HIGH = (0.6, 0.15)
 TARGET_LOW = (0.4, -0.15, CUBE_HALF + 0.08)
 TARGET_HIGH = (0.6, 0.15, CUBE_HALF + 0.2)
+PUSH_GOAL_LOW = (0.35, -0.2)
+PUSH_GOAL_HIGH = (0.65, 0.2)
+PUSH_DISTANCE = 0.05  # panda-gym's distance_threshold
+PLACE_DISTANCE = 0.03
+STACK_DISTANCE = 0.02
 
 
 def panda_arm(name: str = "panda") -> ArmSpec:
@@ -78,11 +88,13 @@ def panda_arm(name: str = "panda") -> ArmSpec:
 
 def panda_scene(objects: list[SceneObject]) -> SceneSpec:
     """Menagerie's Panda at the world origin on a floor, `objects`, a `front` camera facing
-    the arm and a `wrist` camera on the hand looking between the fingers."""
+    the arm and a `wrist` camera on the hand looking between the fingers; contact options
+    for grasping (`PhysicsOptions.grasping()`)."""
     return SceneSpec(
         timestep=0.002,
         add_floor=True,
         add_skybox=False,
+        physics=PhysicsOptions.grasping(),
         robots=[RobotSpec(path=menagerie.model_path("franka_emika_panda"))],
         objects=objects,
         cameras=[
@@ -98,12 +110,12 @@ def panda_scene(objects: list[SceneObject]) -> SceneSpec:
     )
 
 
-def _cube() -> SceneObject:
+def _cube(name: str = "cube", rgba: tuple[float, ...] = (0.1, 0.4, 1.0, 1.0)) -> SceneObject:
     return SceneObject(
-        name="cube",
+        name=name,
         shape=Shape.BOX,
         size=[CUBE_HALF] * 3,
-        rgba=[0.1, 0.4, 1.0, 1.0],
+        rgba=list(rgba),
         mass=0.05,
         condim=Condim.Torsional,
         friction=[1.0, 0.02, 0.001],
@@ -172,6 +184,108 @@ def panda_pick_cube_spec(
     )
 
 
+def _cube_box(
+    cube_low: Sequence[float], cube_high: Sequence[float]
+) -> tuple[list[float], list[float]]:
+    z = CUBE_HALF + 0.002
+    return _box3([*_pair(cube_low, "cube_low"), z], [*_pair(cube_high, "cube_high"), z], "cube")
+
+
+def _place_spec(
+    objects: list[SceneObject],
+    initializers: list[Any],
+    goal: str,
+    success: Placed,
+    contacts: bool,
+) -> TaskSpec:
+    """A Panda task: bring `cube` to the marker `goal` (`success`), placed by
+    `initializers`; `PlaceReward` dense reward."""
+    touch = ContactSensor("cube", ["left_finger", "right_finger"])
+    return TaskSpec(
+        scene=panda_scene(objects),
+        arms=[panda_arm()],
+        sensors=[
+            BodyPoseSensor("cube"),
+            RelativePositionSensor("cube", "panda"),
+            touch,
+            BodyPoseSensor(goal),
+            *(BodyPoseSensor(o.name) for o in objects if o.name not in ("cube", goal)),
+        ],
+        initializers=initializers,
+        reward=PlaceReward(
+            "panda_tcp_pos",
+            "cube_pose",
+            f"{goal}_pose",
+            success,
+            contacts="cube_contacts" if contacts else "",
+        ),
+        success=success,
+        normalize_actions=True,
+    )
+
+
+def panda_push_spec(
+    cube_low: Sequence[float] = CUBE_LOW,
+    cube_high: Sequence[float] = CUBE_HIGH,
+    goal_low: Sequence[float] = PUSH_GOAL_LOW,
+    goal_high: Sequence[float] = PUSH_GOAL_HIGH,
+    success_distance: float = PUSH_DISTANCE,
+) -> TaskSpec:
+    """Push the cube along the floor until its centre is within `success_distance` of a
+    goal marker on the floor (xy box `goal_low`..`goal_high`). Observations add
+    `cube_pose`, `cube_rel`, `cube_contacts` and `goal_pose`."""
+    lo, hi = _cube_box(cube_low, cube_high)
+    z = CUBE_HALF
+    glo, ghi = _box3([*_pair(goal_low, "goal_low"), z], [*_pair(goal_high, "goal_high"), z], "goal")
+    objects = [_cube(), _marker("goal", [1.0, 0.1, 0.1, 0.5])]
+    inits: list[Any] = [PropPlacer(["cube"], lo, hi), PropPlacer(["goal"], glo, ghi, False)]
+    return _place_spec(
+        objects, inits, "goal", Placed("cube_pose", "goal_pose", success_distance), False
+    )
+
+
+def panda_pick_and_place_spec(
+    cube_low: Sequence[float] = CUBE_LOW,
+    cube_high: Sequence[float] = CUBE_HIGH,
+    target_low: Sequence[float] = TARGET_LOW,
+    target_high: Sequence[float] = TARGET_HIGH,
+    success_distance: float = PLACE_DISTANCE,
+) -> TaskSpec:
+    """Pick the cube up and bring its centre within `success_distance` of a target marker
+    in the air (box `target_low`..`target_high`). Observations add `cube_pose`,
+    `cube_rel`, `cube_contacts` and `target_pose`."""
+    lo, hi = _cube_box(cube_low, cube_high)
+    tlo, thi = _box3(target_low, target_high, "target")
+    objects = [_cube(), _marker("target", [0.1, 1.0, 0.1, 0.5])]
+    inits: list[Any] = [PropPlacer(["cube"], lo, hi), PropPlacer(["target"], tlo, thi, False)]
+    return _place_spec(
+        objects, inits, "target", Placed("cube_pose", "target_pose", success_distance), True
+    )
+
+
+def panda_stack_spec(
+    cube_low: Sequence[float] = CUBE_LOW,
+    cube_high: Sequence[float] = CUBE_HIGH,
+    success_distance: float = STACK_DISTANCE,
+) -> TaskSpec:
+    """Put the blue cube on the red `base` cube (both placed apart in the xy box): success
+    once its centre is within `success_distance` of the `target` marker a cube's height
+    above where the base was put, with no finger touching it. Observations add
+    `cube_pose`, `cube_rel`, `cube_contacts`, `target_pose` and `base_pose`."""
+    lo, hi = _cube_box(cube_low, cube_high)
+    objects = [
+        _cube(),
+        _cube("base", (1.0, 0.3, 0.2, 1.0)),
+        _marker("target", [0.1, 1.0, 0.1, 0.3]),
+    ]
+    inits: list[Any] = [
+        PropPlacer(["cube", "base"], lo, hi),
+        PlaceAbove("target", "base", 2 * CUBE_HALF),
+    ]
+    success = Placed("cube_pose", "target_pose", success_distance, "cube_contacts")
+    return _place_spec(objects, inits, "target", success, True)
+
+
 def _pair(value: object, field: str) -> list[float]:
     from ..compile import vector
 
@@ -203,6 +317,7 @@ class _Registered(TaskEnv):
         spec.hide = given["hide_observations"]
         spec.time_limit = given["time_limit"]  # None: the registered TimeLimit alone
         spec.control_timestep = given["control_timestep"]
+        spec.arms[0].actuation = actuation(given["actuation"])
         if reward_type(reward) == "sparse":
             spec.reward = SparseReward(spec.success)
         size = given["camera_size"]
@@ -238,6 +353,7 @@ class PandaReachEnv(_Registered, TaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         goal_low: Sequence[float] = REACH_GOAL_LOW,
         goal_high: Sequence[float] = REACH_GOAL_HIGH,
         success_distance: float = 0.05,
@@ -273,6 +389,7 @@ class PandaPickCubeEnv(_Registered, TaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         reward_type: str = "dense",
@@ -305,6 +422,7 @@ class PandaReachGoalEnv(_Registered, GoalTaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         goal_low: Sequence[float] = REACH_GOAL_LOW,
         goal_high: Sequence[float] = REACH_GOAL_HIGH,
         success_distance: float = 0.05,
@@ -340,6 +458,7 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         *,
         time_limit: float | None = None,
         control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
@@ -367,6 +486,236 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         self._finish(spec, locals(), "dense", goal)
 
 
+class PandaPushEnv(_Registered, TaskEnv):
+    """`mjkdl/PandaPush-v0`: push the cube along the floor to a goal on the floor.
+
+    Success: the cube's centre within `success_distance` (5 cm, panda-gym's) of the goal.
+    `reward_type`: "dense" (`PlaceReward`: reach the cube, bring it to the goal) or
+    "sparse". The gripper stays in the action; the expert keeps it closed.
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
+        cube_low: Sequence[float] = CUBE_LOW,
+        cube_high: Sequence[float] = CUBE_HIGH,
+        goal_low: Sequence[float] = PUSH_GOAL_LOW,
+        goal_high: Sequence[float] = PUSH_GOAL_HIGH,
+        success_distance: float = PUSH_DISTANCE,
+        reward_type: str = "dense",
+        terminate_on_success: bool = False,
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        spec = panda_push_spec(
+            cube_low,
+            cube_high,
+            goal_low,
+            goal_high,
+            _positive(success_distance, "success_distance"),
+        )
+        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
+        self._finish(spec, locals(), reward_type)
+
+
+class PandaPickAndPlaceEnv(_Registered, TaskEnv):
+    """`mjkdl/PandaPickAndPlace-v0`: pick the cube up and bring it to a target in the air.
+
+    Success: the cube's centre within `success_distance` (3 cm) of the target marker.
+    `reward_type`: "dense" (`PlaceReward`: reach, grasp, bring to the target) or "sparse".
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
+        cube_low: Sequence[float] = CUBE_LOW,
+        cube_high: Sequence[float] = CUBE_HIGH,
+        target_low: Sequence[float] = TARGET_LOW,
+        target_high: Sequence[float] = TARGET_HIGH,
+        success_distance: float = PLACE_DISTANCE,
+        reward_type: str = "dense",
+        terminate_on_success: bool = False,
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        spec = panda_pick_and_place_spec(
+            cube_low,
+            cube_high,
+            target_low,
+            target_high,
+            _positive(success_distance, "success_distance"),
+        )
+        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
+        self._finish(spec, locals(), reward_type)
+
+
+class PandaStackEnv(_Registered, TaskEnv):
+    """`mjkdl/PandaStack-v0`: put the blue cube on top of the red one and let go.
+
+    Success: the blue cube's centre within `success_distance` (2 cm) of the point a cube's
+    height above where the red cube was placed (`target_pose`), no finger touching it.
+    `reward_type`: "dense" (`PlaceReward`) or "sparse".
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
+        cube_low: Sequence[float] = CUBE_LOW,
+        cube_high: Sequence[float] = CUBE_HIGH,
+        success_distance: float = STACK_DISTANCE,
+        reward_type: str = "dense",
+        terminate_on_success: bool = False,
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        spec = panda_stack_spec(
+            cube_low, cube_high, _positive(success_distance, "success_distance")
+        )
+        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
+        self._finish(spec, locals(), reward_type)
+
+
+class PandaPushGoalEnv(_Registered, GoalTaskEnv):
+    """`mjkdl/PandaPushGoal-v0`: `PandaPush-v0` goal-conditioned, for HER: `achieved_goal`
+    the cube's position, `desired_goal` the goal's; sparse reward by default."""
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
+        cube_low: Sequence[float] = CUBE_LOW,
+        cube_high: Sequence[float] = CUBE_HIGH,
+        goal_low: Sequence[float] = PUSH_GOAL_LOW,
+        goal_high: Sequence[float] = PUSH_GOAL_HIGH,
+        success_distance: float = PUSH_DISTANCE,
+        reward_type: str = "sparse",
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        threshold = _positive(success_distance, "success_distance")
+        spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold)
+        goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "goal_pose"}
+        goal.update(threshold=threshold, reward_type=reward_type)
+        self._finish(spec, locals(), "dense", goal)
+
+
+class PandaPickAndPlaceGoalEnv(_Registered, GoalTaskEnv):
+    """`mjkdl/PandaPickAndPlaceGoal-v0`: `PandaPickAndPlace-v0` goal-conditioned, for HER:
+    `achieved_goal` the cube's position, `desired_goal` the target's."""
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
+        cube_low: Sequence[float] = CUBE_LOW,
+        cube_high: Sequence[float] = CUBE_HIGH,
+        target_low: Sequence[float] = TARGET_LOW,
+        target_high: Sequence[float] = TARGET_HIGH,
+        success_distance: float = PLACE_DISTANCE,
+        reward_type: str = "sparse",
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        threshold = _positive(success_distance, "success_distance")
+        spec = panda_pick_and_place_spec(cube_low, cube_high, target_low, target_high, threshold)
+        goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "target_pose"}
+        goal.update(threshold=threshold, reward_type=reward_type)
+        self._finish(spec, locals(), "dense", goal)
+
+
+class PandaStackGoalEnv(_Registered, GoalTaskEnv):
+    """`mjkdl/PandaStackGoal-v0`: `PandaStack-v0` goal-conditioned, for HER: `achieved_goal`
+    the blue cube's position, `desired_goal` the point on top of the red one (success and
+    reward by distance alone, as HER relabels them)."""
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        time_limit: float | None = None,
+        control_timestep: float = 0.1,
+        actuation: str = "cartesian_velocity",
+        cube_low: Sequence[float] = CUBE_LOW,
+        cube_high: Sequence[float] = CUBE_HIGH,
+        success_distance: float = STACK_DISTANCE,
+        reward_type: str = "sparse",
+        camera_names: Sequence[str] = (),
+        camera_size: Sequence[int] = (128, 128),
+        hide_observations: Sequence[str] = HIDDEN,
+        render_camera: str = "front",
+        render_width: int = 640,
+        render_height: int = 480,
+        render_shadows: bool = False,
+        **unknown: Any,
+    ) -> None:
+        threshold = _positive(success_distance, "success_distance")
+        spec = panda_stack_spec(cube_low, cube_high, threshold)
+        goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "target_pose"}
+        goal.update(threshold=threshold, reward_type=reward_type)
+        self._finish(spec, locals(), "dense", goal)
+
+
+ACTUATIONS = tuple(a.value for a in Actuation)
+
+
+def actuation(value: object) -> Actuation:
+    """`value` (an `Actuation` or its name: "cartesian_velocity", "joint_position",
+    "joint_velocity", "joint_torque") checked as the arm's action mode."""
+    if isinstance(value, Actuation):
+        return value
+    if not isinstance(value, str) or value not in ACTUATIONS:
+        raise SpecError(f"actuation must be one of {list(ACTUATIONS)}, got {value!r}")
+    return Actuation(value)
+
+
 def _positive(value: object, field: str) -> float:
     out = real(value, field)
     if out <= 0:
@@ -379,6 +728,12 @@ TASKS: dict[str, type[TaskEnv]] = {
     "mjkdl/PandaPickCube-v0": PandaPickCubeEnv,
     "mjkdl/PandaReachGoal-v0": PandaReachGoalEnv,
     "mjkdl/PandaPickCubeGoal-v0": PandaPickCubeGoalEnv,
+    "mjkdl/PandaPush-v0": PandaPushEnv,
+    "mjkdl/PandaPickAndPlace-v0": PandaPickAndPlaceEnv,
+    "mjkdl/PandaStack-v0": PandaStackEnv,
+    "mjkdl/PandaPushGoal-v0": PandaPushGoalEnv,
+    "mjkdl/PandaPickAndPlaceGoal-v0": PandaPickAndPlaceGoalEnv,
+    "mjkdl/PandaStackGoal-v0": PandaStackGoalEnv,
 }
 
 

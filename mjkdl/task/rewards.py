@@ -228,3 +228,89 @@ class SparseReward:
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
         return 1.0 if self.success(obs) else 0.0
+
+
+@dataclass(frozen=True)
+class Placed:
+    """Success of a placement: the object of `obj` within `tolerance` metres of the goal
+    position `goal`, and, with `contacts` (a `ContactSensor` observation), let go of: no
+    finger touches it (a stacked cube that stays where it was put)."""
+
+    obj: str
+    goal: str
+    tolerance: float
+    contacts: str = ""
+
+    def __post_init__(self) -> None:
+        text(self.obj, "Placed.obj")
+        text(self.goal, "Placed.goal")
+        positive(self.tolerance, "Placed.tolerance")
+        if not isinstance(self.contacts, str):
+            raise SpecTypeError(f"Placed.contacts must be a string, got {self.contacts!r}")
+
+    def _positions(self) -> dict[str, str]:
+        return {"Placed.obj": self.obj, "Placed.goal": self.goal}
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
+        there = distance(obs, self.obj, self.goal) <= self.tolerance
+        if not self.contacts or not there:
+            return there
+        return not bool(np.any(np.asarray(obs[self.contacts]) > 0.5))
+
+
+@dataclass(frozen=True)
+class PlaceReward:
+    """Staged dense reward in [0, 1] for bringing an object to a goal (push, pick and place,
+    stack): `place_reward` of the TCP-object and object-goal distances and, with `contacts`,
+    whether the fingers hold the object. A success step (`success`) pays 1."""
+
+    tcp: str
+    obj: str
+    goal: str
+    success: Any
+    contacts: str = ""
+    reach_scale: float = 0.1
+    goal_scale: float = 0.25
+
+    def __post_init__(self) -> None:
+        text(self.tcp, "PlaceReward.tcp")
+        text(self.obj, "PlaceReward.obj")
+        text(self.goal, "PlaceReward.goal")
+        if not callable(self.success):
+            raise SpecTypeError(f"PlaceReward.success must be callable, got {self.success!r}")
+        if not isinstance(self.contacts, str):
+            raise SpecTypeError(f"PlaceReward.contacts must be a string, got {self.contacts!r}")
+        positive(self.reach_scale, "PlaceReward.reach_scale")
+        positive(self.goal_scale, "PlaceReward.goal_scale")
+
+    def _positions(self) -> dict[str, str]:
+        return {
+            "PlaceReward.tcp": self.tcp,
+            "PlaceReward.obj": self.obj,
+            "PlaceReward.goal": self.goal,
+        }
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
+        if self.success(obs):
+            return 1.0
+        grasped = _grasped(obs, self.contacts) if self.contacts else False
+        return float(
+            place_reward(
+                distance(obs, self.tcp, self.obj),
+                distance(obs, self.obj, self.goal),
+                grasped,
+                self.reach_scale,
+                self.goal_scale,
+            )
+        )
+
+
+def place_reward(
+    d_reach: Any, d_goal: Any, grasped: Any, reach_scale: float, goal_scale: float
+) -> Any:
+    """`PlaceReward`'s formula before success, for numbers or arrays with a leading batch
+    axis: `0.25 * (1 - tanh(d_reach / reach_scale)) + 0.25 * grasped
+    + 0.5 * (1 - tanh(d_goal / goal_scale))`, below 1 whenever `d_goal > 0`."""
+    reach = 1.0 - np.tanh(np.asarray(d_reach) / reach_scale)
+    goal = 1.0 - np.tanh(np.asarray(d_goal) / goal_scale)
+    return 0.25 * reach + 0.25 * np.asarray(grasped, dtype=float) + 0.5 * goal

@@ -2,8 +2,8 @@
 
 Each source is bound to the compiled model once and then copies MuJoCo's numbers into arrays
 allocated at binding, so reading a step's observation allocates nothing but what the caller
-returns. Poses and velocities are those of the joint state of the same step; forces (joint
-torques, F/T wrenches) those MuJoCo applied over the last physics step (see `TaskEnv.step`).
+returns. Everything is of the state the step reached: poses, velocities, images, contacts and
+forces (joint torques, F/T wrenches) as `mj_forward` computes them there (see `TaskEnv.step`).
 """
 
 from __future__ import annotations
@@ -299,7 +299,7 @@ class CameraReader(Reader):
 class ContactReader(Reader):
     """`{name}_contacts`: 1.0 for each of `others` that `body` touches, else 0.0.
 
-    A touch is a MuJoCo contact (from the last physics step) at zero or negative distance
+    A touch is a MuJoCo contact (of the state observed) at zero or negative distance
     between a geom of `body` and a geom of the other body; geoms of child bodies do not count.
     """
 

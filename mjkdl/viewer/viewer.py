@@ -205,6 +205,7 @@ class SimulateViewer(Closable):
         return reset
 
     def _sync(self, now: float) -> None:
+        self._scene.refresh_poses()  # the window shows the state the last step reached
         full = now >= self._full_sync_due
         self._window.sync(full, hide_user_geoms=not self._overlays.trace)
         self._sync_due = now + _SYNC_PERIOD
