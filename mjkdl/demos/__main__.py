@@ -6,6 +6,7 @@ import argparse
 import sys
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 from ..errors import MjkdlError
 from .policy import PolicySource
@@ -34,7 +35,12 @@ def _run_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("env_id", metavar="ENV_ID", help="a Gymnasium id, e.g. mjkdl/PandaPickCube-v0")
     _policy_flags(p)
     p.add_argument("--episodes", type=int, required=True, help="episodes to run")
-    p.add_argument("--seed", type=int, default=0, help="first seed (then seed+1, ...)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="first seed (then seed+1, ...); default 0, or after the last one with --append",
+    )
     p.add_argument("--env-kwargs", default="", metavar="JSON", help="gymnasium.make keywords")
     p.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
 
@@ -72,7 +78,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("env_id", metavar="ENV_ID")
     p.add_argument("--device", default="keyboard", help="keyboard (default) or spacemouse")
     p.add_argument("--out", required=True, help="HDF5 file (appended to when it exists)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    p.add_argument(
+        "--seed", type=int, default=None, help="first seed (default: after the file's last)"
+    )
     p.add_argument("--env-kwargs", default="", metavar="JSON")
     p.add_argument("--speed", type=float, default=1.0, help="fraction of full speed (0-1]")
     p.add_argument("--deadzone", type=float, default=0.1, help="SpaceMouse dead zone [0-1)")
@@ -140,20 +148,16 @@ def _collect(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from .hdf5 import DemoFile
-    from .replay import replay
+    from .episodes import Video
+    from .replay import replay_all
 
-    if args.demo == "all":
-        with DemoFile(args.file) as f:
-            demos: list[int | str] = list(f.names)
-    else:
-        demos = [int(args.demo) if args.demo.isdigit() else args.demo]
-    if args.video and len(demos) > 1:
+    demos = None if args.demo == "all" else [int(args.demo) if args.demo.isdigit() else args.demo]
+    if args.video and demos is None:
         print("error: --video films one demo: add --demo i", file=sys.stderr)
         return 2
+    video = Video(Path(args.video)) if args.video else None
     worst = 0.0
-    for d in demos:
-        r = replay(args.file, d, mode=args.mode, video=args.video)
+    for r in replay_all(args.file, demos, mode=args.mode, video=video):
         if r.mode == "actions":
             at = "" if r.first_mismatch < 0 else f", first at step {r.first_mismatch}"
             print(f"{r.demo}: {r.steps} steps, max state error {r.max_state_error:g}{at}")
@@ -190,7 +194,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         args.env_id,
         _source(args),
         episodes=args.episodes,
-        seed=args.seed,
+        seed=0 if args.seed is None else args.seed,
         env_kwargs=parse_env_kwargs(args.env_kwargs),
         video_dir=args.video,
         videos=args.videos,

@@ -3,10 +3,13 @@ one reader that checks the file is one.
 
 Layout (what robomimic, robosuite, MimicGen and LIBERO read)::
 
-    data.attrs: env_args (JSON: env_name, env_kwargs, mjkdl_version, mujoco_version), total
+    data.attrs: env_args (JSON: env_name, type, env_kwargs, mjkdl_version, mujoco_version), total
     data/demo_<i>/actions (T×A), rewards (T), dones (T), states (T×S), obs/<key> (T×...)
+    data/demo_<i>/next_obs/<key>: obs/<key> one step on (virtual: rows 1.. of obs/<key>,
+        then final_obs/<key>, the observation after the last action), so it costs one row
     data/demo_<i>.attrs: num_samples, seed, model_file (MJCF), model_hash, success
     mask/train, mask/valid: demo names, 90/10
+    models/<model_hash>: the compiled model as MJB bytes (gzip), one per distinct model
 
 `states[t]` is MuJoCo's `mjSTATE_INTEGRATION` state *before* `actions[t]`, `obs/<key>[t]` the
 observation the policy saw then.
@@ -35,6 +38,9 @@ from ..errors import MjkdlError, unknown_name
 from ..scene import Scene, mujoco_version
 
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+ENV_TYPE = 100
+"""robomimic's `EnvType` of mjkdl files (robomimic's own are 1-3); `mjkdl.demos.robomimic`
+makes robomimic's `env_utils` build an mjkdl env for it."""
 _IMAGE_COMPRESSION = {"compression": "gzip", "compression_opts": 4}
 
 
@@ -59,6 +65,8 @@ class EpisodeData:
     success: bool
     model_file: str = ""
     model_hash: str = ""
+    final_obs: dict[str, np.ndarray] = field(default_factory=dict)
+    model_mjb: bytes = field(default=b"", repr=False)
 
     @property
     def num_samples(self) -> int:
@@ -76,6 +84,7 @@ class EpisodeBuffer:
     rewards: list[float] = field(default_factory=list)
     dones: list[bool] = field(default_factory=list)
     obs: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    final_obs: dict[str, np.ndarray] = field(default_factory=dict)
 
     def before_step(self, obs: Mapping[str, np.ndarray]) -> None:
         """Keep the state and observation the next action starts from."""
@@ -86,16 +95,19 @@ class EpisodeBuffer:
         for key, value in obs.items():
             self.obs.setdefault(key, []).append(value)
 
-    def after_step(self, action: np.ndarray, reward: float, done: bool) -> None:
-        """Keep what the step did (`action` is copied)."""
+    def after_step(
+        self, action: np.ndarray, reward: float, done: bool, obs: Mapping[str, np.ndarray]
+    ) -> None:
+        """Keep what the step did (`action` is copied) and the observation it led to."""
         self.actions.append(np.array(action, copy=True))
         self.rewards.append(float(reward))
         self.dones.append(bool(done))
+        self.final_obs = dict(obs)
 
     def finish(self, seed: int, success: bool) -> EpisodeData:
         """The episode as arrays, with the scene's model for `model_file`/`model_hash`."""
         n = len(self.actions)
-        xml, fingerprint = scene_model(self.scene)
+        xml, fingerprint, mjb = scene_model(self.scene)
         return EpisodeData(
             seed=seed,
             actions=np.stack(self.actions),
@@ -106,25 +118,37 @@ class EpisodeBuffer:
             success=success,
             model_file=xml,
             model_hash=fingerprint,
+            final_obs=dict(self.final_obs),
+            model_mjb=mjb,
         )
 
 
-def scene_model(scene: Scene) -> tuple[str, str]:
-    """The scene's compiled MJCF (robomimic's `model_file`) and `model_hash`, from its spec
-    compiled afresh: a Robot rewrites actuator parameters of the live model for its control
-    mode, which must not change the fingerprint. Cached per scene."""
+def scene_model(scene: Scene) -> tuple[str, str, bytes]:
+    """The scene's compiled MJCF (robomimic's `model_file`), `model_hash` and MJB bytes, from
+    its spec compiled afresh: a Robot rewrites actuator parameters of the live model for its
+    control mode, which must not change the fingerprint. Cached per scene."""
     known = _SCENE_MODELS.get(scene)
     if known is None:
         with warnings.catch_warnings():  # MuJoCo's attach notes, already shown at build time
             warnings.simplefilter("ignore")
             spec = build_mjspec(scene.spec)
             model = spec.compile()
-            known = (str(spec.to_xml()), model_hash(model))
+            known = (str(spec.to_xml()), model_hash(model), model_binary(model))
         _SCENE_MODELS[scene] = known
     return known
 
 
-_SCENE_MODELS: weakref.WeakKeyDictionary[Scene, tuple[str, str]] = weakref.WeakKeyDictionary()
+_SCENE_MODELS: weakref.WeakKeyDictionary[Scene, tuple[str, str, bytes]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def model_binary(model: mujoco.MjModel) -> bytes:
+    """`model` as MuJoCo's MJB bytes: meshes and textures included, so it loads on a machine
+    without the asset files (by the same MuJoCo version)."""
+    buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return buffer.tobytes()
 
 
 def model_hash(model: mujoco.MjModel) -> str:
@@ -150,8 +174,9 @@ def env_args(env_name: str, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
     """robomimic's `env_args` record, with the versions that made the file."""
     return {
         "env_name": env_name,
+        "type": ENV_TYPE,
         "env_kwargs": dict(env_kwargs),
-        "env_type": "mjkdl",
+        "env_version": mjkdl_version,  # robomimic compares it with EnvMjkdl.version
         "mjkdl_version": mjkdl_version,
         "mujoco_version": mujoco_version(),
     }
@@ -205,8 +230,10 @@ class EpisodeWriter(Closable):
             f.create_group("mask")
             f.flush()
             self._file = f
-        self._demos = sorted(_finished(self._file["data"]), key=_demo_index)
-        self._next = 1 + max((_demo_index(n) for n in self._file["data"]), default=-1)
+        data = self._file["data"]
+        self._demos = sorted(_finished(data), key=_demo_index)
+        self._next = 1 + max((_demo_index(n) for n in data), default=-1)
+        self._seeds = {int(data[n].attrs["seed"]): n for n in self._demos}
 
     @staticmethod
     def _open(path: Path, mode: str) -> h5py.File:
@@ -226,23 +253,42 @@ class EpisodeWriter(Closable):
         return len(self._demos)
 
     @property
+    def seeds(self) -> list[int]:
+        """The seeds of the finished demos, in the file's order."""
+        return list(self._seeds)
+
+    @property
+    def next_seed(self) -> int:
+        """The seed after the file's last one (0 for an empty file)."""
+        return 1 + max(self._seeds, default=-1)
+
+    @property
     def closed(self) -> bool:
         return self._file is None
 
     def write(self, episode: EpisodeData) -> str:
-        """Add `episode` as the next `demo_<i>`, flush the file; the demo's name."""
+        """Add `episode` as the next `demo_<i>`, flush the file; the demo's name. A seed the
+        file already holds is refused: the same seed twice is the same demo twice."""
         self._check_open()
         f = self._file
         assert f is not None
         if episode.num_samples == 0:
             raise DemoFileError("an episode of 0 steps has nothing to record")
+        if episode.seed in self._seeds:
+            raise DemoFileError(
+                f"{self._path} already holds seed {episode.seed} ({self._seeds[episode.seed]}); "
+                "continue after its last seed (collect --append without --seed) or pick unused "
+                "seeds"
+            )
         name = f"demo_{self._next}"
         try:
+            self.add_model(episode)
             self._write_group(f["data"], name, episode)
             self._demos.append(name)
             f["data"].attrs["total"] = int(f["data"].attrs["total"]) + episode.num_samples
             _add_to_mask(f, name)
             f.flush()
+            self._seeds[episode.seed] = name
         except (OSError, RuntimeError) as err:
             self._demos = [d for d in self._demos if d != name]
             kept = len(self._demos)
@@ -260,6 +306,24 @@ class EpisodeWriter(Closable):
         self._next += 1
         return name
 
+    def add_model(self, episode: EpisodeData) -> None:
+        """Store the episode's compiled model (`models/<model_hash>`) unless the file has it:
+        `write` does this; call it for an episode that is not written so that the model of
+        the ones that follow (which may come without `model_mjb`) is kept."""
+        self._check_open()
+        f = self._file
+        assert f is not None
+        if not episode.model_mjb or not episode.model_hash:
+            return
+        models = f.require_group("models")
+        if episode.model_hash not in models:
+            raw = np.frombuffer(episode.model_mjb, dtype=np.uint8)
+            # gzip 1: 35 MB of Panda MJB -> 15 MB in 1.3 s (level 4: 14.8 MB, 2.0 s)
+            models.create_dataset(
+                episode.model_hash, data=raw, compression="gzip", compression_opts=1
+            )
+            models[episode.model_hash].attrs["mujoco_version"] = mujoco_version()
+
     @staticmethod
     def _write_group(data: h5py.Group, name: str, ep: EpisodeData) -> None:
         g = data.create_group(name)
@@ -269,12 +333,12 @@ class EpisodeWriter(Closable):
         g.create_dataset("states", data=ep.states)
         obs = g.create_group("obs")
         for key, value in ep.obs.items():
-            if value.dtype == np.uint8 and value.ndim >= 3:  # camera frames, one chunk each
-                obs.create_dataset(
-                    key, data=value, chunks=(1, *value.shape[1:]), **_IMAGE_COMPRESSION
-                )
-            else:
-                obs.create_dataset(key, data=value)
+            _obs_dataset(obs, key, value)
+        if ep.obs and ep.final_obs.keys() >= ep.obs.keys():
+            final = g.create_group("final_obs")
+            for key in ep.obs:
+                last = _obs_dataset(final, key, np.asarray(ep.final_obs[key])[None])
+                _next_obs(g, key, obs[key], last)
         g.attrs["seed"] = ep.seed
         g.attrs["model_file"] = ep.model_file
         g.attrs["model_hash"] = ep.model_hash
@@ -288,6 +352,25 @@ class EpisodeWriter(Closable):
                 self._file.close()
             finally:
                 self._file = None
+
+
+def _obs_dataset(group: h5py.Group, key: str, value: np.ndarray) -> h5py.Dataset:
+    if value.dtype == np.uint8 and value.ndim >= 3:  # camera frames, one chunk each
+        return group.create_dataset(
+            key, data=value, chunks=(1, *value.shape[1:]), **_IMAGE_COMPRESSION
+        )
+    return group.create_dataset(key, data=value)
+
+
+def _next_obs(demo: h5py.Group, key: str, obs: h5py.Dataset, last: h5py.Dataset) -> None:
+    """`next_obs/<key>` as a virtual dataset over `obs/<key>` rows 1.. and the final row:
+    robomimic's `next_obs` without a second copy of the frames."""
+    n = obs.shape[0]
+    layout = h5py.VirtualLayout(shape=obs.shape, dtype=obs.dtype)
+    if n > 1:
+        layout[: n - 1] = h5py.VirtualSource(obs)[1:]
+    layout[n - 1 :] = h5py.VirtualSource(last)
+    demo.require_group("next_obs").create_virtual_dataset(key, layout)
 
 
 def _demo_index(name: str) -> int:
@@ -429,9 +512,49 @@ class DemoFile(Closable):
                 success=bool(g.attrs.get("success", False)),
                 model_file=str(g.attrs.get("model_file", "")),
                 model_hash=str(g.attrs.get("model_hash", "")),
+                final_obs={k: v[0] for k, v in g["final_obs"].items()} if "final_obs" in g else {},
             )
         except (KeyError, OSError) as err:
             raise DemoFileError(f"{self._path}: {name} is incomplete or damaged: {err}") from None
+
+    @property
+    def seeds(self) -> list[int]:
+        """Each finished demo's seed, in order."""
+        self._check_open()
+        assert self._file is not None
+        data = self._file["data"]
+        return [int(data[n].attrs["seed"]) for n in self._names]
+
+    def _model_bytes(self, fingerprint: str) -> bytes:
+        assert self._file is not None
+        models = self._file.get("models")
+        if not fingerprint or models is None or fingerprint not in models:
+            return b""
+        return bytes(models[fingerprint][()].tobytes())
+
+    def model(self, key: int | str = 0) -> mujoco.MjModel:
+        """The compiled model demo `key` was recorded with, from the MJB bytes the file
+        stores: no asset files needed (the same MuJoCo version is)."""
+        self._check_open()
+        assert self._file is not None
+        name = f"demo_{key}" if isinstance(key, (int, np.integer)) else str(key)
+        if name not in self._names:
+            raise unknown_name("demo", name, self._names, str(self._path))
+        fingerprint = str(self._file["data"][name].attrs.get("model_hash", ""))
+        raw = self._model_bytes(fingerprint)
+        if not raw:
+            raise DemoFileError(
+                f"{self._path}: {name} has no stored model (models/{fingerprint or '?'}); files "
+                "written before mjkdl stored models hold only model_file, which names asset files"
+            )
+        version = self._file["models"][fingerprint].attrs.get("mujoco_version", "")
+        try:
+            return mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": raw})
+        except ValueError as err:
+            raise DemoFileError(
+                f"{self._path}: models/{fingerprint} (MJB of MuJoCo {version}) does not load in "
+                f"MuJoCo {mujoco_version()}: {err}; rebuild the env by name instead"
+            ) from None
 
     def close(self) -> None:
         """Close the file (again: nothing)."""
