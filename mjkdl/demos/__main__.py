@@ -1,4 +1,5 @@
-"""`python -m mjkdl.demos collect | replay | teleop | evaluate | export-lerobot`."""
+"""`python -m mjkdl.demos collect | replay | teleop | evaluate | convert | merge | filter |
+export-lerobot`."""
 
 from __future__ import annotations
 
@@ -91,6 +92,38 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--video", default=None, metavar="DIR", help="MP4s of the first episodes")
     p.add_argument("--videos", type=int, default=3, help="how many episodes to film")
 
+    p = sub.add_parser(
+        "convert", help="regenerate observations for other env keywords (cameras, sizes, keys)"
+    )
+    p.add_argument("file", metavar="IN")
+    p.add_argument("out", metavar="OUT")
+    p.add_argument(
+        "--env-kwargs", default="", metavar="JSON", help="keywords updating the recorded ones"
+    )
+    p.add_argument(
+        "--mode",
+        choices=("actions", "states"),
+        default="actions",
+        help="replay the actions exactly (default) or set the recorded states",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+
+    p = sub.add_parser("merge", help="one file of several files' demos (same env, new masks)")
+    p.add_argument("files", metavar="IN", nargs="+")
+    p.add_argument("--out", required=True)
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+
+    p = sub.add_parser("filter", help="the demos that pass tests, in a new file (new masks)")
+    p.add_argument("file", metavar="IN")
+    p.add_argument("out", metavar="OUT")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--success", action="store_true", help="successful demos only")
+    g.add_argument("--failures", action="store_true", help="unsuccessful demos only")
+    p.add_argument("--min-length", type=int, default=None, help="at least this many steps")
+    p.add_argument("--max-length", type=int, default=None, help="at most this many steps")
+    p.add_argument("--seeds", default=None, help="seeds to keep, e.g. 1,4,10-19")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+
     p = sub.add_parser("export-lerobot", help="write a LeRobot v3.0 dataset")
     p.add_argument("file", metavar="FILE")
     p.add_argument("--root", required=True, help="dataset folder to create")
@@ -124,7 +157,44 @@ def _dispatch(args: argparse.Namespace) -> int:
         "teleop": _teleop,
         "evaluate": _evaluate,
         "export-lerobot": _export,
+        "convert": _convert,
+        "merge": _merge,
+        "filter": _filter,
     }[args.command](args)
+
+
+def _convert(args: argparse.Namespace) -> int:
+    from .convert import convert
+    from .episodes import parse_env_kwargs
+
+    kwargs = parse_env_kwargs(args.env_kwargs)
+    w = convert(args.file, args.out, kwargs, mode=args.mode, overwrite=args.overwrite)
+    print(f"{w.path}: {w.demos} demos, observations by {args.mode}")
+    return 0
+
+
+def _merge(args: argparse.Namespace) -> int:
+    from .convert import merge
+
+    w = merge(args.files, args.out, overwrite=args.overwrite)
+    print(f"{w.path}: {w.demos} demos from {len(args.files)} files")
+    return 0
+
+
+def _filter(args: argparse.Namespace) -> int:
+    from .convert import filter_demos, parse_seeds
+
+    w = filter_demos(
+        args.file,
+        args.out,
+        success=True if args.success else False if args.failures else None,
+        min_length=args.min_length,
+        max_length=args.max_length,
+        seeds=None if args.seeds is None else parse_seeds(args.seeds),
+        overwrite=args.overwrite,
+    )
+    print(f"{w.path}: {w.demos} demos kept")
+    return 0
 
 
 def _collect(args: argparse.Namespace) -> int:

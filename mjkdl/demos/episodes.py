@@ -137,6 +137,13 @@ def scene_of(env: gym.Env) -> Scene:
     return scene
 
 
+def observe(env: gym.Env) -> dict[str, np.ndarray]:
+    """The observation of the state the env's scene holds now (one just set), as `step`
+    returns it: the task's sensors read again."""
+    unwrapped: Any = env.unwrapped
+    return dict(unwrapped._shown_part(unwrapped._observe()))
+
+
 def video_recorder(env: gym.Env, video: Video) -> VideoRecorder:
     """`video` of the env's render camera (`front` on the registered tasks)."""
     unwrapped: Any = env.unwrapped

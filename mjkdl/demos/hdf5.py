@@ -437,6 +437,7 @@ class DemoFile(Closable):
             raise
         data = self._file["data"]
         self._names = sorted(_finished(data), key=_demo_index)
+        self._models: dict[str, bytes] = {}
 
     def _read_args(self) -> dict[str, Any]:
         f = self._file
@@ -525,28 +526,41 @@ class DemoFile(Closable):
         data = self._file["data"]
         return [int(data[n].attrs["seed"]) for n in self._names]
 
-    def _model_bytes(self, fingerprint: str) -> bytes:
-        assert self._file is not None
-        models = self._file.get("models")
-        if not fingerprint or models is None or fingerprint not in models:
-            return b""
-        return bytes(models[fingerprint][()].tobytes())
+    def model_bytes(self, key: int | str = 0) -> bytes:
+        """The MJB bytes of demo `key`'s model (b"" when the file has none)."""
+        return self._model_bytes(str(self._group(key).attrs.get("model_hash", "")))
 
-    def model(self, key: int | str = 0) -> mujoco.MjModel:
-        """The compiled model demo `key` was recorded with, from the MJB bytes the file
-        stores: no asset files needed (the same MuJoCo version is)."""
+    def _group(self, key: int | str) -> h5py.Group:
         self._check_open()
         assert self._file is not None
         name = f"demo_{key}" if isinstance(key, (int, np.integer)) else str(key)
         if name not in self._names:
             raise unknown_name("demo", name, self._names, str(self._path))
-        fingerprint = str(self._file["data"][name].attrs.get("model_hash", ""))
+        return self._file["data"][name]
+
+    def _model_bytes(self, fingerprint: str) -> bytes:
+        assert self._file is not None
+        models = self._file.get("models")
+        if not fingerprint or models is None or fingerprint not in models:
+            return b""
+        known = self._models.get(fingerprint)
+        if known is None:
+            known = self._models[fingerprint] = models[fingerprint][()].tobytes()
+        return known
+
+    def model(self, key: int | str = 0) -> mujoco.MjModel:
+        """The compiled model demo `key` was recorded with, from the MJB bytes the file
+        stores: no asset files needed (the same MuJoCo version is)."""
+        g = self._group(key)
+        name = g.name.rsplit("/", 1)[1]
+        fingerprint = str(g.attrs.get("model_hash", ""))
         raw = self._model_bytes(fingerprint)
         if not raw:
             raise DemoFileError(
                 f"{self._path}: {name} has no stored model (models/{fingerprint or '?'}); files "
                 "written before mjkdl stored models hold only model_file, which names asset files"
             )
+        assert self._file is not None
         version = self._file["models"][fingerprint].attrs.get("mujoco_version", "")
         try:
             return mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": raw})
