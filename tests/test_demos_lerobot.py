@@ -75,7 +75,9 @@ def test_info_tasks_and_stats(exported: tuple[Path, Path]) -> None:
     assert feats["observation.images.front"]["dtype"] == "video"
     assert feats["action"] == {"dtype": "float32", "shape": [7], "names": None}
     assert feats["observation.state"]["shape"][0] == len(feats["observation.state"]["names"])
-    assert "panda_tcp_pos.2" in feats["observation.state"]["names"]
+    names = feats["observation.state"]["names"]
+    assert "panda_tcp_pos.2" in names and "panda_joint_pos.6" in names
+    assert not [n for n in names if n.startswith("cube")]  # privileged: only when asked
     # lerobot reads the task from the pandas index, wherever the writer put it
     tasks = pq.read_table(root / "meta/tasks.parquet")
     index = json.loads(tasks.schema.metadata[b"pandas"])["index_columns"]
@@ -127,7 +129,7 @@ def test_video_has_one_frame_per_row_within_codec_tolerance(exported: tuple[Path
     with DemoFile(demos) as f:
         recorded = np.concatenate([d.obs["front_rgb"] for d in f])
     quality = [psnr(a, b) for a, b in zip(decoded, recorded, strict=True)]
-    if root.name.endswith("pyarrow"):  # H.264 at CRF 16
+    if root.name.endswith("pyarrow"):  # H.264 at CRF 16, full-resolution colour
         assert min(quality) >= 35.0, quality
     else:  # lerobot's fixed SVT-AV1 at CRF 30: 33.6 dB at worst on these 64x48 frames
         assert np.median(quality) >= 35.0 and min(quality) >= 33.0, quality
@@ -182,3 +184,41 @@ def test_writer_choice(demos: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPa
     with pytest.warns(UserWarning, match="lerobot does not import .*; exporting with pyarrow"):
         out = export_lerobot(demos, tmp_path / "z", writer="auto")
     assert (out.writer, out.frames) == ("pyarrow", 21)
+
+
+def test_every_camera_keeps_35_db_on_84x84_frames(tmp_path: Path) -> None:
+    """The pyarrow writer's worst frame, each camera, on an expert demo seen by the front and
+    the wrist camera at 84×84."""
+    path = tmp_path / "two.hdf5"
+    collect(PICK, "expert", path, episodes=1, seed=5, progress=False,
+            env_kwargs={"camera_names": ["front", "wrist"], "camera_size": [84, 84]})  # fmt: skip
+    root = export_lerobot(path, tmp_path / "ds", writer="pyarrow").root
+    with DemoFile(path) as f:
+        for cam in ("front", "wrist"):
+            recorded = np.concatenate([d.obs[f"{cam}_rgb"] for d in f])
+            video = root / f"videos/observation.images.{cam}/chunk-000/file-000.mp4"
+            reader = imageio_ffmpeg.read_frames(str(video))
+            next(reader)
+            decoded = [np.frombuffer(b, np.uint8).reshape(84, 84, 3) for b in reader]
+            assert len(decoded) == len(recorded)
+            worst = min(psnr(a, b) for a, b in zip(decoded, recorded, strict=True))
+            assert worst >= 35.0, (cam, worst)
+
+
+def test_state_keys_choose_what_observation_state_holds(demos: Path, tmp_path: Path) -> None:
+    root = tmp_path / "privileged"
+    r = cli("export-lerobot", str(demos), "--root", str(root), "--writer", "pyarrow",
+            "--state-keys", "cube_pose,panda_tcp_pos")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    info = json.loads((root / "meta/info.json").read_text())
+    names = info["features"]["observation.state"]["names"]
+    assert names == [f"cube_pose.{i}" for i in range(7)] + [f"panda_tcp_pos.{i}" for i in range(3)]
+    rows = pq.read_table(root / "data/chunk-000/file-000.parquet").to_pydict()
+    with DemoFile(demos) as f:
+        d = f.demo(0)
+        expected = np.hstack([d.obs["cube_pose"], d.obs["panda_tcp_pos"]]).astype(np.float32)
+    assert np.array_equal(np.array(rows["observation.state"][:7], np.float32), expected)
+    bad = r"--state-keys: .*cam\.hdf5 has no vector observation 'front_rgb'; it has cube_contacts, "
+    with pytest.raises(ExportError, match=bad):
+        export_lerobot(demos, tmp_path / "bad", writer="pyarrow", state_keys=["front_rgb"])
+    assert not (tmp_path / "bad").exists()

@@ -135,6 +135,13 @@ def parser() -> argparse.ArgumentParser:
         default="auto",
         help="lerobot's own LeRobotDataset, or pyarrow + ffmpeg (auto: lerobot where it imports)",
     )
+    p.add_argument(
+        "--state-keys",
+        default=None,
+        metavar="K1,K2",
+        help="observations in observation.state (default: the robot's proprioception; "
+        "privileged ones such as cube_pose only when named)",
+    )
     return top
 
 
@@ -279,8 +286,14 @@ def _evaluate(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     from .lerobot import export_lerobot
 
+    keys = None if args.state_keys is None else [k for k in args.state_keys.split(",") if k]
     out = export_lerobot(
-        args.file, args.root, repo_id=args.repo_id, task=args.task, writer=args.writer
+        args.file,
+        args.root,
+        repo_id=args.repo_id,
+        task=args.task,
+        writer=args.writer,
+        state_keys=keys,
     )
     print(f"{out.root}: {out.episodes} episodes, {out.frames} frames (written by {out.writer})")
     return 0
