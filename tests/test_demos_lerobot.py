@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -222,3 +223,74 @@ def test_state_keys_choose_what_observation_state_holds(demos: Path, tmp_path: P
     with pytest.raises(ExportError, match=bad):
         export_lerobot(demos, tmp_path / "bad", writer="pyarrow", state_keys=["front_rgb"])
     assert not (tmp_path / "bad").exists()
+
+
+@pytest.fixture(scope="module")
+def trained(demos: Path) -> tuple[Path, Path]:
+    """A tiny ACT policy trained offline for 2 steps by lerobot-train on the pyarrow export
+    (no downloads: `--policy.pretrained_backbone_weights=null`)."""
+    root = demos.parent / "ds_train"
+    export_lerobot(demos, root, repo_id="me/pick", writer="pyarrow")
+    out = demos.parent / "act"
+    env = {**os.environ, "HF_HUB_OFFLINE": "1", "WANDB_MODE": "disabled"}
+    r = subprocess.run(
+        [sys.executable, "-m", "lerobot.scripts.lerobot_train", "--dataset.repo_id=me/pick",
+         f"--dataset.root={root}", "--dataset.video_backend=pyav", "--policy.type=act",
+         "--policy.device=cpu", "--policy.pretrained_backbone_weights=null",
+         "--policy.push_to_hub=false", "--policy.chunk_size=4", "--policy.n_action_steps=4",
+         "--steps=2", "--batch_size=2", "--save_freq=2", "--num_workers=0",
+         "--wandb.enable=false", f"--output_dir={out}"],
+        capture_output=True, text=True, env=env, timeout=900,
+    )  # fmt: skip
+    assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
+    return root, out / "checkpoints" / "last" / "pretrained_model"
+
+
+@NO_LEROBOT
+def test_a_lerobot_policy_acts_with_the_exports_observations(
+    demos: Path, trained: tuple[Path, Path]
+) -> None:
+    from lerobot.datasets import lerobot_dataset
+
+    from mjkdl.demos import make_env
+    from mjkdl.demos.lerobot_policy import LeRobotPolicy
+
+    root, model = trained
+    env = make_env(PICK, {**CAMERA, "max_episode_steps": 7})
+    policy = LeRobotPolicy(model, env)
+    ds = lerobot_dataset.LeRobotDataset("me/pick", root=root, video_backend="pyav")
+    with DemoFile(demos) as f:
+        demo = f.demo(0)
+    for t in (0, 6):  # the batch from the env's observation is the dataset's item
+        obs = {k: v[t] for k, v in demo.obs.items()}
+        batch, item = policy.batch(obs), ds[t]
+        assert np.array_equal(batch["observation.state"][0].numpy(), item["observation.state"])
+        ours = batch["observation.images.front"][0].numpy().transpose(1, 2, 0)
+        theirs = item["observation.images.front"].numpy().transpose(1, 2, 0)
+        assert psnr(np.round(ours * 255), np.round(theirs * 255)) >= 35.0
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    action = policy(obs)
+    assert action.shape == (7,) and np.isfinite(action).all()
+    env.close()
+
+
+@NO_LEROBOT
+def test_evaluate_runs_a_lerobot_policy(trained: tuple[Path, Path]) -> None:
+    _, model = trained
+    kwargs = json.dumps({**CAMERA, "max_episode_steps": 6})
+    r = cli("evaluate", PICK, "--policy", f"lerobot:{model}", "--episodes", "2",
+            "--env-kwargs", kwargs)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stdout.splitlines() if ln.startswith(("seed ", "success: "))]
+    assert lines[0].startswith("seed 0: success=") and lines[0].endswith("length=6")
+    assert lines[1].startswith("seed 1: success=") and lines[1].endswith("length=6")
+    assert lines[2].startswith("success: ") and "/2)" in lines[2]
+    r = cli("evaluate", PICK, "--policy", f"lerobot:{model}", "--episodes", "1")  # no camera
+    assert r.returncode == 2
+    assert "looks at observation.images.front; this env has no front_rgb observation" in r.stderr
+    r = cli("evaluate", PICK, "--policy", f"lerobot:{model}", "--episodes", "1", "--env-kwargs",
+            kwargs, "--state-keys", "cube_pose")  # fmt: skip
+    assert r.returncode == 2 and "takes an observation.state of 28 numbers; cube_pose give 7" in (
+        r.stderr
+    )

@@ -4,6 +4,7 @@ export-lerobot`."""
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import warnings
 from collections.abc import Sequence
@@ -20,7 +21,8 @@ def _policy_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--policy",
         metavar="MODULE:FN",
-        help="fn(env) returns a policy(obs) -> action (with an optional reset())",
+        help="MODULE:FN, fn(env) returns a policy(obs) -> action (with an optional reset()); "
+        "or lerobot:PATH, a policy lerobot-train saved",
     )
 
 
@@ -89,6 +91,12 @@ def parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="success rate of a policy over many seeds")
     _run_flags(p)
+    p.add_argument(
+        "--state-keys",
+        default=None,
+        metavar="K1,K2",
+        help="with --policy lerobot:PATH: the observation.state keys the export used",
+    )
     p.add_argument("--video", default=None, metavar="DIR", help="MP4s of the first episodes")
     p.add_argument("--videos", type=int, default=3, help="how many episodes to film")
 
@@ -267,9 +275,15 @@ def _evaluate(args: argparse.Namespace) -> int:
     from .episodes import parse_env_kwargs
     from .evaluate import evaluate
 
+    source = _source(args)
+    if args.state_keys is not None and isinstance(source, str) and source.startswith("lerobot:"):
+        from .lerobot_policy import lerobot_policy
+
+        keys = [k for k in args.state_keys.split(",") if k]
+        source = functools.partial(lerobot_policy, source, state_keys=keys)
     ev = evaluate(
         args.env_id,
-        _source(args),
+        source,
         episodes=args.episodes,
         seed=0 if args.seed is None else args.seed,
         env_kwargs=parse_env_kwargs(args.env_kwargs),

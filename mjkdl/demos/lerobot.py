@@ -12,7 +12,7 @@ Written by lerobot's own `LeRobotDataset` (`create`, `add_frame`, `save_episode`
     data/chunk-000/file-000.parquet        one row per frame
     videos/observation.images.<camera>/chunk-000/file-000.mp4   every episode, one frame a row
 
-`observation.state` concatenates the `state_keys` observations in the file's key order: by
+`observation.state` concatenates the `state_keys` observations in alphabetical order: by
 default the robot's proprioception (the observations of the task's arms, `{arm}_...`: joint
 positions and velocities, TCP pose and twist, gripper); the others (the objects' poses and
 contacts, e.g. `cube_pose`, `cube_rel`, `cube_contacts`) are privileged, which a real robot does
@@ -27,7 +27,7 @@ import json
 import os
 import shutil
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -99,15 +99,21 @@ def _lerobot_dataset(writer: str) -> Any:
     return LeRobotDataset
 
 
-def _split(demo: Demo) -> tuple[list[str], list[str]]:
-    """State keys (1-D or scalar per step) and camera keys (`<camera>_rgb`, uint8 H×W×3)."""
+def observation_keys(obs: Mapping[str, np.ndarray], leading: int) -> tuple[list[str], list[str]]:
+    """Sorted vector keys (1-D or scalar per step) and camera keys (`<camera>_rgb`, uint8
+    H×W×3) of `obs`, whose arrays have `leading` extra dimensions (1 for a demo's rows)."""
     state, cams = [], []
-    for key, value in demo.obs.items():
-        if key.endswith("_rgb") and value.dtype == np.uint8 and value.ndim == 4:
+    for key, value in obs.items():
+        value = np.asarray(value)
+        if key.endswith("_rgb") and value.dtype == np.uint8 and value.ndim == 3 + leading:
             cams.append(key)
-        elif key not in _SKIPPED and not key.endswith("_intrinsics") and value.ndim <= 2:
+        elif key not in _SKIPPED and not key.endswith("_intrinsics") and value.ndim <= 1 + leading:
             state.append(key)
-    return state, cams
+    return sorted(state), sorted(cams)
+
+
+def _split(demo: Demo) -> tuple[list[str], list[str]]:
+    return observation_keys(demo.obs, leading=1)
 
 
 def _state_matrix(demo: Demo, keys: list[str]) -> np.ndarray:
@@ -195,7 +201,7 @@ def _chosen_state_keys(
                 f"--state-keys: {path} has no vector observation {k!r}; it has "
                 f"{', '.join(candidates)}"
             )
-    # the file's order, whatever order they were named in
+    # alphabetical, whatever order they were named in (as the policy evaluator takes them)
     return [k for k in candidates if k in keys]
 
 
