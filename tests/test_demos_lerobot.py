@@ -225,19 +225,30 @@ def test_state_keys_choose_what_observation_state_holds(demos: Path, tmp_path: P
     assert not (tmp_path / "bad").exists()
 
 
-@pytest.fixture(scope="module")
-def trained(demos: Path) -> tuple[Path, Path]:
-    """A tiny ACT policy trained offline for 2 steps by lerobot-train on the pyarrow export
-    (no downloads: `--policy.pretrained_backbone_weights=null`)."""
+# Sized for 7-step episodes of 48x64 frames; diffusion denoises in 2 steps to run quickly.
+POLICIES = {
+    "act": ["--policy.chunk_size=4", "--policy.n_action_steps=4"],
+    "diffusion": ["--policy.horizon=8", "--policy.n_action_steps=4",
+                  "--policy.drop_n_last_frames=0", "--policy.crop_shape=[40,56]",
+                  "--policy.num_inference_steps=2"],
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module", params=list(POLICIES))
+def trained(request: pytest.FixtureRequest, demos: Path) -> tuple[Path, Path]:
+    """A tiny ACT or diffusion policy trained offline for 2 steps by lerobot-train on the
+    pyarrow export (no downloads: `--policy.pretrained_backbone_weights=null`)."""
+    kind = request.param
     root = demos.parent / "ds_train"
-    export_lerobot(demos, root, repo_id="me/pick", writer="pyarrow")
-    out = demos.parent / "act"
+    if not root.exists():
+        export_lerobot(demos, root, repo_id="me/pick", writer="pyarrow")
+    out = demos.parent / kind
     env = {**os.environ, "HF_HUB_OFFLINE": "1", "WANDB_MODE": "disabled"}
     r = subprocess.run(
         [sys.executable, "-m", "lerobot.scripts.lerobot_train", "--dataset.repo_id=me/pick",
-         f"--dataset.root={root}", "--dataset.video_backend=pyav", "--policy.type=act",
+         f"--dataset.root={root}", "--dataset.video_backend=pyav", f"--policy.type={kind}",
          "--policy.device=cpu", "--policy.pretrained_backbone_weights=null",
-         "--policy.push_to_hub=false", "--policy.chunk_size=4", "--policy.n_action_steps=4",
+         "--policy.push_to_hub=false", *POLICIES[kind],
          "--steps=2", "--batch_size=2", "--save_freq=2", "--num_workers=0",
          "--wandb.enable=false", f"--output_dir={out}"],
         capture_output=True, text=True, env=env, timeout=900,
