@@ -48,8 +48,16 @@ def test_convert_adds_a_camera_by_exact_replay(picks: Path, tmp_path: Path) -> N
                 assert np.array_equal(rows, db.obs[key]), key
             assert db.success == da.success and np.array_equal(db.rewards, da.rewards)
             assert b.model(db.name).ncam == a.model(da.name).ncam  # a model of its own, stored
-    with h5py.File(out, "r") as f:
-        assert f["data/demo_1/next_obs/wrist_rgb"].shape == (8, 32, 40, 3)
+    with h5py.File(out, "r") as f:  # the frames' next_obs: a view, not a second copy
+        g = f["data/demo_1"]
+        assert g["next_obs/wrist_rgb"].is_virtual and g["next_obs/wrist_rgb"].shape == (
+            8,
+            32,
+            40,
+            3,
+        )
+        assert np.array_equal(g["next_obs/wrist_rgb"][:7], g["obs/wrist_rgb"][1:])
+        assert np.array_equal(g["next_obs/wrist_rgb"][7], g["final_obs/wrist_rgb"][0])
 
 
 def test_convert_from_states(picks: Path, tmp_path: Path) -> None:

@@ -5,8 +5,8 @@ Layout (what robomimic, robosuite, MimicGen and LIBERO read)::
 
     data.attrs: env_args (JSON: env_name, type, env_kwargs, mjkdl_version, mujoco_version), total
     data/demo_<i>/actions (T×A), rewards (T), dones (T), states (T×S), obs/<key> (T×...)
-    data/demo_<i>/next_obs/<key>: obs/<key> one step on (virtual: rows 1.. of obs/<key>,
-        then final_obs/<key>, the observation after the last action), so it costs one row
+    data/demo_<i>/next_obs/<key>: obs/<key> one step on (camera frames: a virtual dataset
+        over rows 1.. of obs/<key> and final_obs/<key>, the frame after the last action)
     data/demo_<i>.attrs: num_samples, seed, model_file (MJCF), model_hash, success
     mask/train, mask/valid: demo names, 90/10
     models/<model_hash>: the compiled model as MJB bytes (LZF), one per distinct model
@@ -334,10 +334,14 @@ class EpisodeWriter(Closable):
         for key, value in ep.obs.items():
             _obs_dataset(obs, key, value)
         if ep.obs and ep.final_obs.keys() >= ep.obs.keys():
-            final = g.create_group("final_obs")
-            for key in ep.obs:
-                last = _obs_dataset(final, key, np.asarray(ep.final_obs[key])[None])
-                _next_obs(g, key, obs[key], last)
+            nxt = g.create_group("next_obs")
+            for key, rows in ep.obs.items():
+                last = np.asarray(ep.final_obs[key])[None]
+                if _is_frames(rows):  # a virtual dataset: no second copy of the frames
+                    final = _obs_dataset(g.require_group("final_obs"), key, last)
+                    _next_obs(nxt, key, obs[key], final)
+                else:  # a copy: cheaper to write than a virtual dataset (0.1 ms against 1 ms)
+                    nxt.create_dataset(key, data=np.concatenate([rows[1:], last]))
         g.attrs["seed"] = ep.seed
         g.attrs["model_file"] = ep.model_file
         g.attrs["model_hash"] = ep.model_hash
@@ -353,23 +357,26 @@ class EpisodeWriter(Closable):
                 self._file = None
 
 
+def _is_frames(value: np.ndarray) -> bool:
+    return bool(value.dtype == np.uint8 and value.ndim >= 3)
+
+
 def _obs_dataset(group: h5py.Group, key: str, value: np.ndarray) -> h5py.Dataset:
-    if value.dtype == np.uint8 and value.ndim >= 3:  # camera frames, one chunk each
+    if _is_frames(value):  # camera frames, one chunk each
         return group.create_dataset(
             key, data=value, chunks=(1, *value.shape[1:]), **_IMAGE_COMPRESSION
         )
     return group.create_dataset(key, data=value)
 
 
-def _next_obs(demo: h5py.Group, key: str, obs: h5py.Dataset, last: h5py.Dataset) -> None:
-    """`next_obs/<key>` as a virtual dataset over `obs/<key>` rows 1.. and the final row:
-    robomimic's `next_obs` without a second copy of the frames."""
+def _next_obs(nxt: h5py.Group, key: str, obs: h5py.Dataset, last: h5py.Dataset) -> None:
+    """`next_obs/<key>` as a virtual dataset over `obs/<key>` rows 1.. and the final row."""
     n = obs.shape[0]
     layout = h5py.VirtualLayout(shape=obs.shape, dtype=obs.dtype)
     if n > 1:
         layout[: n - 1] = h5py.VirtualSource(obs)[1:]
     layout[n - 1 :] = h5py.VirtualSource(last)
-    demo.require_group("next_obs").create_virtual_dataset(key, layout)
+    nxt.create_virtual_dataset(key, layout)
 
 
 def _demo_index(name: str) -> int:
@@ -512,7 +519,7 @@ class DemoFile(Closable):
                 success=bool(g.attrs.get("success", False)),
                 model_file=str(g.attrs.get("model_file", "")),
                 model_hash=str(g.attrs.get("model_hash", "")),
-                final_obs={k: v[0] for k, v in g["final_obs"].items()} if "final_obs" in g else {},
+                final_obs={k: v[-1] for k, v in g["next_obs"].items()} if "next_obs" in g else {},
             )
         except (KeyError, OSError) as err:
             raise DemoFileError(f"{self._path}: {name} is incomplete or damaged: {err}") from None
