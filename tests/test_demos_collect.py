@@ -135,8 +135,8 @@ def test_expert_demos_are_successes_and_other_envs_have_none(tmp_path: Path) -> 
 def test_append_continues_after_the_last_seed_and_refuses_held_ones(tmp_path: Path) -> None:
     out = tmp_path / "more.hdf5"
     kw = ["--env-kwargs", '{"max_episode_steps": 2}', "--keep-failures", "--out", str(out)]
-    r = cli("collect", REACH, "--random", "--episodes", "2", "--seed", "5", *kw)
-    assert r.returncode == 0, r.stderr
+    collect(REACH, "random", out, episodes=2, seed=5, env_kwargs={"max_episode_steps": 2},
+            keep_failures=True, progress=False)  # fmt: skip
     r = cli("collect", REACH, "--random", "--episodes", "2", "--append", *kw)
     assert r.returncode == 0, r.stderr
     with DemoFile(out) as f:
