@@ -20,6 +20,7 @@ Then the LeRobot v3.0 export of the camera file (parquet + H.264).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import tempfile
 import time
@@ -57,11 +58,12 @@ def env_alone(env: Any, expert: Any, seed: int) -> int:
     return steps
 
 
-def recorded(env: Any, expert: Any, seed: int, writer: EpisodeWriter) -> int:
-    """The same episode recorded and written (flushed); control steps taken."""
+def recorded(env: Any, expert: Any, seed: int, writer: EpisodeWriter, stored: int) -> int:
+    """The same episode recorded and written (flushed) under the seed `stored` (a file refuses
+    a seed twice, and every round writes the seeds again); control steps taken."""
     ep = run_episode(env, expert, seed, record=True, source="expert")
     assert ep.data is not None
-    writer.write(ep.data)
+    writer.write(dataclasses.replace(ep.data, seed=stored))
     return ep.length
 
 
@@ -76,11 +78,12 @@ def parts(env: Any, expert: Any, path: Path, repeats: int = 30) -> tuple[float, 
 
     def keep() -> int:
         buffer.before_step(obs)
-        buffer.after_step(action, 0.0, False)
+        buffer.after_step(action, 0.0, False, obs)
         return 1
 
+    copies = [dataclasses.replace(data, seed=k) for k in range(repeats)]  # one seed per write
     with EpisodeWriter(path, ENV, overwrite=True) as writer:  # a scratch file
-        write = min(timed(lambda: writer.write(data) and 1)[1] for _ in range(repeats))
+        write = min(timed(lambda d=d: writer.write(d) and 1)[1] for d in copies)
     step = min(timed(keep)[1] for _ in range(repeats * 10))
     return write, step
 
@@ -107,11 +110,15 @@ def compare(label: str, kwargs: dict, seeds: list[int], rounds: int, folder: Pat
                 write, keep = parts(env, expert, folder / "parts.hdf5")
             steps = 0
             for i, seed in enumerate(seeds):
+                stored = r * len(seeds) + i
                 # Each seed runs both ways back to back, in alternating order, so a swing in
                 # the machine's load hits both alike.
                 runs = [
                     ("alone", lambda s=seed: env_alone(env, expert, s)),
-                    ("recorded", lambda s=seed: recorded(env, expert, s, writer)),
+                    (
+                        "recorded",
+                        lambda s=seed, k=stored: recorded(env, expert, s, writer, k),
+                    ),
                 ]
                 for kind, fn in runs if (i + r) % 2 == 0 else runs[::-1]:
                     wall, cpu, n = timed(fn)

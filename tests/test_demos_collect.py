@@ -130,3 +130,20 @@ def test_expert_demos_are_successes_and_other_envs_have_none(tmp_path: Path) -> 
     r2 = cli("evaluate", "CartPole-v1", "--expert", "--episodes", "1")
     assert r2.returncode == 2
     assert "error: no expert for CartPoleEnv; experts exist for mjkdl/PandaReach-v0" in r2.stderr
+
+
+def test_append_continues_after_the_last_seed_and_refuses_held_ones(tmp_path: Path) -> None:
+    out = tmp_path / "more.hdf5"
+    kw = ["--env-kwargs", '{"max_episode_steps": 2}', "--keep-failures", "--out", str(out)]
+    collect(REACH, "random", out, episodes=2, seed=5, env_kwargs={"max_episode_steps": 2},
+            keep_failures=True, progress=False)  # fmt: skip
+    r = cli("collect", REACH, "--random", "--episodes", "2", "--append", *kw)
+    assert r.returncode == 0, r.stderr
+    with DemoFile(out) as f:
+        assert f.seeds == [5, 6, 7, 8] and f.names == [f"demo_{i}" for i in range(4)]
+    r = cli("collect", REACH, "--random", "--episodes", "3", "--seed", "4", "--append", *kw)
+    assert r.returncode == 2
+    assert f"error: {out} already holds seeds [5, 6]: the same seed twice" in r.stderr
+    assert "leave out --seed to continue at 9" in r.stderr
+    with DemoFile(out) as f:
+        assert f.seeds == [5, 6, 7, 8]  # untouched

@@ -3,7 +3,9 @@ a full disk or a foreign file."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import re
 import resource
 import signal
 import subprocess
@@ -23,10 +25,13 @@ import mjkdl as mjk
 from mjkdl.demos import (
     DemoFile,
     DemoFileError,
+    EpisodeData,
     EpisodeWriter,
+    collect,
     make_env,
     run_episode,
 )
+from mjkdl.demos.hdf5 import scene_model
 
 REACH = "mjkdl/PandaReach-v0"
 PICK = "mjkdl/PandaPickCube-v0"
@@ -75,6 +80,48 @@ def test_layout_is_robomimics(tmp_path: Path) -> None:
         assert d.attrs["success"] in (True, False)
         assert [n.decode() for n in f["mask/valid"][()]] == ["demo_9"]
         assert len(f["mask/train"]) == 10
+        assert args["type"] == 100 and args["env_version"] == mjk.__version__
+        for key, rows in d["obs"].items():  # robomimic's next_obs: obs one step on
+            nxt = d["next_obs"][key]
+            assert nxt.shape == rows.shape and not nxt.is_virtual  # a camera's is (below)
+            assert np.array_equal(nxt[:-1], rows[1:])
+        assert list(f["models"]) == [d.attrs["model_hash"]]  # one model, stored once
+
+
+def test_the_file_is_self_contained(tmp_path: Path) -> None:
+    """The stored MJB loads with no asset files, in a process that cannot see them, and is
+    the model the demos were recorded with; next_obs survives a move of the file."""
+    out = tmp_path / "demos.hdf5"
+    collect(PICK, "demo_envs:approach", out, episodes=2, keep_failures=True,
+            env_kwargs={"max_episode_steps": 3}, progress=False)  # fmt: skip
+    moved = tmp_path / "elsewhere" / "moved.hdf5"
+    moved.parent.mkdir()
+    out.rename(moved)
+    code = f"""
+import mujoco, numpy as np
+from mjkdl.demos import DemoFile
+from mjkdl.demos.hdf5 import model_hash
+f = DemoFile({str(moved)!r})
+m, d = f.model(1), f.demo(1)
+data = mujoco.MjData(m)
+mujoco.mj_setState(m, data, d.states[2], mujoco.mjtState.mjSTATE_INTEGRATION)
+mujoco.mj_forward(m, data)
+print(model_hash(m) == d.model_hash, m.nmesh, np.array_equal(data.body("cube").xpos,
+      d.obs["cube_pose"][2][:3]))
+"""
+    env = {**__import__("os").environ, "PYTHONPATH": str(ROOT), "MENAGERIE_ROOT": "/nonexistent"}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                       cwd=tmp_path, timeout=120)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    nmesh = r.stdout.split()[1]
+    assert r.stdout.split() == ["True", nmesh, "True"] and int(nmesh) > 0
+    with h5py.File(moved, "r") as f:
+        g = f["data/demo_0"]
+        assert np.array_equal(g["next_obs/cube_pose"][0], g["obs/cube_pose"][1])
+    with h5py.File(moved, "a") as f:
+        del f["models"]
+    with DemoFile(moved) as f, pytest.raises(DemoFileError, match="demo_0 has no stored model"):
+        f.model(0)
 
 
 def test_states_are_taken_before_each_action(tmp_path: Path) -> None:
@@ -164,9 +211,12 @@ def test_append_continues_the_numbering(tmp_path: Path) -> None:
     with EpisodeWriter(path, REACH) as w:
         w.write(eps[0].data)
     with EpisodeWriter(path, REACH, append=True) as w:
+        assert (w.seeds, w.next_seed) == ([0], 1)
         assert w.write(eps[1].data) == "demo_1"
+        with pytest.raises(DemoFileError, match=r"a\.hdf5 already holds seed 0 \(demo_0\)"):
+            w.write(eps[0].data)
     with DemoFile(path) as f:
-        assert f.names == ["demo_0", "demo_1"] and f.demo(1).seed == 1
+        assert f.names == ["demo_0", "demo_1"] and f.seeds == [0, 1]
     w.close()  # idempotent
     with pytest.raises(RuntimeError, match="EpisodeWriter is closed"):
         w.write(eps[0].data)
@@ -184,15 +234,15 @@ def test_masks_grow_in_place_and_take_over_fixed_size_ones(tmp_path: Path) -> No
     env.close()
     path = tmp_path / "m.hdf5"
     with EpisodeWriter(path, REACH) as w:
-        for _ in range(3):
-            w.write(ep)
+        for seed in range(3):
+            w.write(dataclasses.replace(ep, seed=seed))
     with h5py.File(path, "a") as f:  # as robomimic's own scripts leave them: fixed-size "S"
         train = f["mask/train"][()]
         del f["mask/train"]
         f["mask"].create_dataset("train", data=np.array(train, dtype="S"))
     with EpisodeWriter(path, REACH, append=True) as w:
-        for _ in range(19):
-            w.write(ep)
+        for seed in range(3, 22):
+            w.write(dataclasses.replace(ep, seed=seed))
     with h5py.File(path, "r") as f:
         train = [n.decode() for n in f["mask/train"][()]]
         valid = [n.decode() for n in f["mask/valid"][()]]
@@ -232,18 +282,28 @@ def test_sigkill_loses_at_most_the_episode_in_progress(tmp_path: Path) -> None:
 
 def test_a_full_disk_keeps_the_finished_demos(tmp_path: Path) -> None:
     out = tmp_path / "full.hdf5"
+    env = make_env(PICK)
+    xml, fingerprint, mjb = scene_model(env.unwrapped.scene)
+    env.close()
+    with EpisodeWriter(tmp_path / "model.hdf5", PICK) as w:  # what the model takes alone
+        w.add_model(EpisodeData(0, *[np.zeros(1)] * 4, {}, False, xml, fingerprint, {}, mjb))
+    limit = (tmp_path / "model.hdf5").stat().st_size + 900_000  # and 3-4 demos of 100 steps
 
     def small_files() -> None:
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails (EFBIG)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (600_000, 600_000))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
     r = cli("collect", PICK, "--random", "--episodes", "10", "--keep-failures", "--out",
             str(out), preexec_fn=small_files)  # fmt: skip
     assert r.returncode == 2
-    assert "error: could not write demo_3" in r.stderr
-    assert "File too large" in r.stderr and "the file keeps its 3 finished demos" in r.stderr
+    kept = re.search(r"could not write demo_(\d+) to .*full\.hdf5 \(File too large: it needs "
+                     r"about \d+ bytes, \d+ are left\); the file keeps its (\d+) finished demos",
+                     r.stderr)  # fmt: skip
+    assert kept is not None and kept[1] == kept[2], r.stderr
+    n = int(kept[2])
+    assert n >= 3  # refused before HDF5 wrote any of it: nothing lost, nothing broken
     with DemoFile(out) as f:
-        assert f.names == ["demo_0", "demo_1", "demo_2"]
+        assert f.names == [f"demo_{i}" for i in range(n)]
         assert all(d.num_samples == 100 for d in f)
 
 

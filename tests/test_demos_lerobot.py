@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -75,7 +76,9 @@ def test_info_tasks_and_stats(exported: tuple[Path, Path]) -> None:
     assert feats["observation.images.front"]["dtype"] == "video"
     assert feats["action"] == {"dtype": "float32", "shape": [7], "names": None}
     assert feats["observation.state"]["shape"][0] == len(feats["observation.state"]["names"])
-    assert "panda_tcp_pos.2" in feats["observation.state"]["names"]
+    names = feats["observation.state"]["names"]
+    assert "panda_tcp_pos.2" in names and "panda_joint_pos.6" in names
+    assert not [n for n in names if n.startswith("cube")]  # privileged: only when asked
     # lerobot reads the task from the pandas index, wherever the writer put it
     tasks = pq.read_table(root / "meta/tasks.parquet")
     index = json.loads(tasks.schema.metadata[b"pandas"])["index_columns"]
@@ -127,7 +130,7 @@ def test_video_has_one_frame_per_row_within_codec_tolerance(exported: tuple[Path
     with DemoFile(demos) as f:
         recorded = np.concatenate([d.obs["front_rgb"] for d in f])
     quality = [psnr(a, b) for a, b in zip(decoded, recorded, strict=True)]
-    if root.name.endswith("pyarrow"):  # H.264 at CRF 16
+    if root.name.endswith("pyarrow"):  # H.264 at CRF 16, full-resolution colour
         assert min(quality) >= 35.0, quality
     else:  # lerobot's fixed SVT-AV1 at CRF 30: 33.6 dB at worst on these 64x48 frames
         assert np.median(quality) >= 35.0 and min(quality) >= 33.0, quality
@@ -182,3 +185,123 @@ def test_writer_choice(demos: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPa
     with pytest.warns(UserWarning, match="lerobot does not import .*; exporting with pyarrow"):
         out = export_lerobot(demos, tmp_path / "z", writer="auto")
     assert (out.writer, out.frames) == ("pyarrow", 21)
+
+
+def test_every_camera_keeps_35_db_on_84x84_frames(tmp_path: Path) -> None:
+    """The pyarrow writer's worst frame, each camera, on an expert demo seen by the front and
+    the wrist camera at 84×84."""
+    path = tmp_path / "two.hdf5"
+    collect(PICK, "expert", path, episodes=1, seed=5, progress=False,
+            env_kwargs={"camera_names": ["front", "wrist"], "camera_size": [84, 84]})  # fmt: skip
+    root = export_lerobot(path, tmp_path / "ds", writer="pyarrow").root
+    with DemoFile(path) as f:
+        for cam in ("front", "wrist"):
+            recorded = np.concatenate([d.obs[f"{cam}_rgb"] for d in f])
+            video = root / f"videos/observation.images.{cam}/chunk-000/file-000.mp4"
+            reader = imageio_ffmpeg.read_frames(str(video))
+            next(reader)
+            decoded = [np.frombuffer(b, np.uint8).reshape(84, 84, 3) for b in reader]
+            assert len(decoded) == len(recorded)
+            worst = min(psnr(a, b) for a, b in zip(decoded, recorded, strict=True))
+            assert worst >= 35.0, (cam, worst)
+
+
+def test_state_keys_choose_what_observation_state_holds(demos: Path, tmp_path: Path) -> None:
+    root = tmp_path / "privileged"
+    r = cli("export-lerobot", str(demos), "--root", str(root), "--writer", "pyarrow",
+            "--state-keys", "cube_pose,panda_tcp_pos")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    info = json.loads((root / "meta/info.json").read_text())
+    names = info["features"]["observation.state"]["names"]
+    assert names == [f"cube_pose.{i}" for i in range(7)] + [f"panda_tcp_pos.{i}" for i in range(3)]
+    rows = pq.read_table(root / "data/chunk-000/file-000.parquet").to_pydict()
+    with DemoFile(demos) as f:
+        d = f.demo(0)
+        expected = np.hstack([d.obs["cube_pose"], d.obs["panda_tcp_pos"]]).astype(np.float32)
+    assert np.array_equal(np.array(rows["observation.state"][:7], np.float32), expected)
+    bad = r"--state-keys: .*cam\.hdf5 has no vector observation 'front_rgb'; it has cube_contacts, "
+    with pytest.raises(ExportError, match=bad):
+        export_lerobot(demos, tmp_path / "bad", writer="pyarrow", state_keys=["front_rgb"])
+    assert not (tmp_path / "bad").exists()
+
+
+# Sized for 7-step episodes of 48x64 frames; diffusion denoises in 2 steps to run quickly.
+POLICIES = {
+    "act": ["--policy.chunk_size=4", "--policy.n_action_steps=4"],
+    "diffusion": ["--policy.horizon=8", "--policy.n_action_steps=4",
+                  "--policy.drop_n_last_frames=0", "--policy.crop_shape=[40,56]",
+                  "--policy.num_inference_steps=2"],
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module", params=list(POLICIES))
+def trained(request: pytest.FixtureRequest, demos: Path) -> tuple[Path, Path]:
+    """A tiny ACT or diffusion policy trained offline for 2 steps by lerobot-train on the
+    pyarrow export (no downloads: `--policy.pretrained_backbone_weights=null`)."""
+    kind = request.param
+    root = demos.parent / "ds_train"
+    if not root.exists():
+        export_lerobot(demos, root, repo_id="me/pick", writer="pyarrow")
+    out = demos.parent / kind
+    env = {**os.environ, "HF_HUB_OFFLINE": "1", "WANDB_MODE": "disabled"}
+    r = subprocess.run(
+        [sys.executable, "-m", "lerobot.scripts.lerobot_train", "--dataset.repo_id=me/pick",
+         f"--dataset.root={root}", "--dataset.video_backend=pyav", f"--policy.type={kind}",
+         "--policy.device=cpu", "--policy.pretrained_backbone_weights=null",
+         "--policy.push_to_hub=false", *POLICIES[kind],
+         "--steps=2", "--batch_size=2", "--save_freq=2", "--num_workers=0",
+         "--wandb.enable=false", f"--output_dir={out}"],
+        capture_output=True, text=True, env=env, timeout=900,
+    )  # fmt: skip
+    assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
+    return root, out / "checkpoints" / "last" / "pretrained_model"
+
+
+@NO_LEROBOT
+def test_a_lerobot_policy_acts_with_the_exports_observations(
+    demos: Path, trained: tuple[Path, Path]
+) -> None:
+    from lerobot.datasets import lerobot_dataset
+
+    from mjkdl.demos import make_env
+    from mjkdl.demos.lerobot_policy import LeRobotPolicy
+
+    root, model = trained
+    env = make_env(PICK, {**CAMERA, "max_episode_steps": 7})
+    policy = LeRobotPolicy(model, env)
+    ds = lerobot_dataset.LeRobotDataset("me/pick", root=root, video_backend="pyav")
+    with DemoFile(demos) as f:
+        demo = f.demo(0)
+    for t in (0, 6):  # the batch from the env's observation is the dataset's item
+        obs = {k: v[t] for k, v in demo.obs.items()}
+        batch, item = policy.batch(obs), ds[t]
+        assert np.array_equal(batch["observation.state"][0].numpy(), item["observation.state"])
+        ours = batch["observation.images.front"][0].numpy().transpose(1, 2, 0)
+        theirs = item["observation.images.front"].numpy().transpose(1, 2, 0)
+        assert psnr(np.round(ours * 255), np.round(theirs * 255)) >= 35.0
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    action = policy(obs)
+    assert action.shape == (7,) and np.isfinite(action).all()
+    env.close()
+
+
+@NO_LEROBOT
+def test_evaluate_runs_a_lerobot_policy(trained: tuple[Path, Path]) -> None:
+    _, model = trained
+    kwargs = json.dumps({**CAMERA, "max_episode_steps": 6})
+    r = cli("evaluate", PICK, "--policy", f"lerobot:{model}", "--episodes", "2",
+            "--env-kwargs", kwargs)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stdout.splitlines() if ln.startswith(("seed ", "success: "))]
+    assert lines[0].startswith("seed 0: success=") and lines[0].endswith("length=6")
+    assert lines[1].startswith("seed 1: success=") and lines[1].endswith("length=6")
+    assert lines[2].startswith("success: ") and "/2)" in lines[2]
+    r = cli("evaluate", PICK, "--policy", f"lerobot:{model}", "--episodes", "1")  # no camera
+    assert r.returncode == 2
+    assert "looks at observation.images.front; this env has no front_rgb observation" in r.stderr
+    r = cli("evaluate", PICK, "--policy", f"lerobot:{model}", "--episodes", "1", "--env-kwargs",
+            kwargs, "--state-keys", "cube_pose")  # fmt: skip
+    assert r.returncode == 2 and "takes an observation.state of 28 numbers; cube_pose give 7" in (
+        r.stderr
+    )

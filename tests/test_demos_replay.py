@@ -4,6 +4,7 @@ replay renders the recorded camera frames again; another model or version is rep
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import h5py
@@ -13,7 +14,7 @@ from conftest import menagerie
 from demo_envs import CAMERA
 from test_demos_hdf5 import PICK, cli
 
-from mjkdl.demos import DemoFile, ReplayWarning, collect, replay
+from mjkdl.demos import DemoFile, ReplayWarning, collect, make_env, replay, replay_all
 
 
 @pytest.fixture(autouse=True)
@@ -56,6 +57,21 @@ def test_replay_in_python_and_a_video(twenty: Path, tmp_path: Path) -> None:
     meta = next(reader)
     assert meta["size"] == (160, 120)
     assert sum(1 for _ in reader) == result.steps + 1  # the start and every step
+
+
+def test_replaying_all_demos_builds_one_env(twenty: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    replay_module = sys.modules["mjkdl.demos.replay"]
+    built = []
+
+    def counting(env_id: str, kwargs: dict) -> object:
+        built.append(env_id)
+        return make_env(env_id, kwargs)
+
+    monkeypatch.setattr(replay_module, "make_env", counting)
+    results = list(replay_all(twenty, [0, 5, "demo_7"]))
+    assert [r.demo for r in results] == ["demo_0", "demo_5", "demo_7"]
+    assert all(r.max_state_error == 0.0 for r in results)
+    assert built == [PICK]
 
 
 def test_a_changed_action_is_found_at_its_step(twenty: Path, tmp_path: Path) -> None:

@@ -19,7 +19,7 @@ from .hdf5 import (
 )
 from .lerobot import ExportError, LeRobotExport, export_lerobot
 from .policy import Policy, PolicyError, PolicySource, make_policy
-from .replay import ReplayResult, ReplayWarning, replay
+from .replay import ReplayResult, ReplayWarning, replay, replay_all
 
 __all__ = [
     "CollectResult",
@@ -45,6 +45,7 @@ __all__ = [
     "make_env",
     "make_policy",
     "replay",
+    "replay_all",
     "run_episode",
     "run_seeds",
     "wilson_interval",

@@ -1,11 +1,14 @@
-"""`python -m mjkdl.demos collect | replay | teleop | evaluate | export-lerobot`."""
+"""`python -m mjkdl.demos collect | replay | teleop | evaluate | convert | merge | filter |
+export-lerobot`."""
 
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 from ..errors import MjkdlError
 from .policy import PolicySource
@@ -18,7 +21,8 @@ def _policy_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--policy",
         metavar="MODULE:FN",
-        help="fn(env) returns a policy(obs) -> action (with an optional reset())",
+        help="MODULE:FN, fn(env) returns a policy(obs) -> action (with an optional reset()); "
+        "or lerobot:PATH, a policy lerobot-train saved",
     )
 
 
@@ -34,7 +38,12 @@ def _run_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("env_id", metavar="ENV_ID", help="a Gymnasium id, e.g. mjkdl/PandaPickCube-v0")
     _policy_flags(p)
     p.add_argument("--episodes", type=int, required=True, help="episodes to run")
-    p.add_argument("--seed", type=int, default=0, help="first seed (then seed+1, ...)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="first seed (then seed+1, ...); default 0, or after the last one with --append",
+    )
     p.add_argument("--env-kwargs", default="", metavar="JSON", help="gymnasium.make keywords")
     p.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
 
@@ -72,7 +81,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("env_id", metavar="ENV_ID")
     p.add_argument("--device", default="keyboard", help="keyboard (default) or spacemouse")
     p.add_argument("--out", required=True, help="HDF5 file (appended to when it exists)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    p.add_argument(
+        "--seed", type=int, default=None, help="first seed (default: after the file's last)"
+    )
     p.add_argument("--env-kwargs", default="", metavar="JSON")
     p.add_argument("--speed", type=float, default=1.0, help="fraction of full speed (0-1]")
     p.add_argument("--deadzone", type=float, default=0.1, help="SpaceMouse dead zone [0-1)")
@@ -80,8 +91,46 @@ def parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="success rate of a policy over many seeds")
     _run_flags(p)
+    p.add_argument(
+        "--state-keys",
+        default=None,
+        metavar="K1,K2",
+        help="with --policy lerobot:PATH: the observation.state keys the export used",
+    )
     p.add_argument("--video", default=None, metavar="DIR", help="MP4s of the first episodes")
     p.add_argument("--videos", type=int, default=3, help="how many episodes to film")
+
+    p = sub.add_parser(
+        "convert", help="regenerate observations for other env keywords (cameras, sizes, keys)"
+    )
+    p.add_argument("file", metavar="IN")
+    p.add_argument("out", metavar="OUT")
+    p.add_argument(
+        "--env-kwargs", default="", metavar="JSON", help="keywords updating the recorded ones"
+    )
+    p.add_argument(
+        "--mode",
+        choices=("actions", "states"),
+        default="actions",
+        help="replay the actions exactly (default) or set the recorded states",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+
+    p = sub.add_parser("merge", help="one file of several files' demos (same env, new masks)")
+    p.add_argument("files", metavar="IN", nargs="+")
+    p.add_argument("--out", required=True)
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+
+    p = sub.add_parser("filter", help="the demos that pass tests, in a new file (new masks)")
+    p.add_argument("file", metavar="IN")
+    p.add_argument("out", metavar="OUT")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--success", action="store_true", help="successful demos only")
+    g.add_argument("--failures", action="store_true", help="unsuccessful demos only")
+    p.add_argument("--min-length", type=int, default=None, help="at least this many steps")
+    p.add_argument("--max-length", type=int, default=None, help="at most this many steps")
+    p.add_argument("--seeds", default=None, help="seeds to keep, e.g. 1,4,10-19")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
 
     p = sub.add_parser("export-lerobot", help="write a LeRobot v3.0 dataset")
     p.add_argument("file", metavar="FILE")
@@ -93,6 +142,13 @@ def parser() -> argparse.ArgumentParser:
         choices=("auto", "lerobot", "pyarrow"),
         default="auto",
         help="lerobot's own LeRobotDataset, or pyarrow + ffmpeg (auto: lerobot where it imports)",
+    )
+    p.add_argument(
+        "--state-keys",
+        default=None,
+        metavar="K1,K2",
+        help="observations in observation.state (default: the robot's proprioception; "
+        "privileged ones such as cube_pose only when named)",
     )
     return top
 
@@ -116,7 +172,44 @@ def _dispatch(args: argparse.Namespace) -> int:
         "teleop": _teleop,
         "evaluate": _evaluate,
         "export-lerobot": _export,
+        "convert": _convert,
+        "merge": _merge,
+        "filter": _filter,
     }[args.command](args)
+
+
+def _convert(args: argparse.Namespace) -> int:
+    from .convert import convert
+    from .episodes import parse_env_kwargs
+
+    kwargs = parse_env_kwargs(args.env_kwargs)
+    w = convert(args.file, args.out, kwargs, mode=args.mode, overwrite=args.overwrite)
+    print(f"{w.path}: {w.demos} demos, observations by {args.mode}")
+    return 0
+
+
+def _merge(args: argparse.Namespace) -> int:
+    from .convert import merge
+
+    w = merge(args.files, args.out, overwrite=args.overwrite)
+    print(f"{w.path}: {w.demos} demos from {len(args.files)} files")
+    return 0
+
+
+def _filter(args: argparse.Namespace) -> int:
+    from .convert import filter_demos, parse_seeds
+
+    w = filter_demos(
+        args.file,
+        args.out,
+        success=True if args.success else False if args.failures else None,
+        min_length=args.min_length,
+        max_length=args.max_length,
+        seeds=None if args.seeds is None else parse_seeds(args.seeds),
+        overwrite=args.overwrite,
+    )
+    print(f"{w.path}: {w.demos} demos kept")
+    return 0
 
 
 def _collect(args: argparse.Namespace) -> int:
@@ -140,20 +233,16 @@ def _collect(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from .hdf5 import DemoFile
-    from .replay import replay
+    from .episodes import Video
+    from .replay import replay_all
 
-    if args.demo == "all":
-        with DemoFile(args.file) as f:
-            demos: list[int | str] = list(f.names)
-    else:
-        demos = [int(args.demo) if args.demo.isdigit() else args.demo]
-    if args.video and len(demos) > 1:
+    demos = None if args.demo == "all" else [int(args.demo) if args.demo.isdigit() else args.demo]
+    if args.video and demos is None:
         print("error: --video films one demo: add --demo i", file=sys.stderr)
         return 2
+    video = Video(Path(args.video)) if args.video else None
     worst = 0.0
-    for d in demos:
-        r = replay(args.file, d, mode=args.mode, video=args.video)
+    for r in replay_all(args.file, demos, mode=args.mode, video=video):
         if r.mode == "actions":
             at = "" if r.first_mismatch < 0 else f", first at step {r.first_mismatch}"
             print(f"{r.demo}: {r.steps} steps, max state error {r.max_state_error:g}{at}")
@@ -186,11 +275,17 @@ def _evaluate(args: argparse.Namespace) -> int:
     from .episodes import parse_env_kwargs
     from .evaluate import evaluate
 
+    source = _source(args)
+    if args.state_keys is not None and isinstance(source, str) and source.startswith("lerobot:"):
+        from .lerobot_policy import lerobot_policy
+
+        keys = [k for k in args.state_keys.split(",") if k]
+        source = functools.partial(lerobot_policy, source, state_keys=keys)
     ev = evaluate(
         args.env_id,
-        _source(args),
+        source,
         episodes=args.episodes,
-        seed=args.seed,
+        seed=0 if args.seed is None else args.seed,
         env_kwargs=parse_env_kwargs(args.env_kwargs),
         video_dir=args.video,
         videos=args.videos,
@@ -205,8 +300,14 @@ def _evaluate(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     from .lerobot import export_lerobot
 
+    keys = None if args.state_keys is None else [k for k in args.state_keys.split(",") if k]
     out = export_lerobot(
-        args.file, args.root, repo_id=args.repo_id, task=args.task, writer=args.writer
+        args.file,
+        args.root,
+        repo_id=args.repo_id,
+        task=args.task,
+        writer=args.writer,
+        state_keys=keys,
     )
     print(f"{out.root}: {out.episodes} episodes, {out.frames} frames (written by {out.writer})")
     return 0

@@ -12,7 +12,7 @@ from tqdm import tqdm
 
 from ..task._check import integer
 from .episodes import run_seeds
-from .hdf5 import EpisodeWriter
+from .hdf5 import DemoFile, DemoFileError, EpisodeWriter
 from .policy import PolicySource
 
 
@@ -32,7 +32,7 @@ def collect(
     out: str | os.PathLike[str],
     *,
     episodes: int,
-    seed: int = 0,
+    seed: int | None = None,
     env_kwargs: Mapping[str, Any] | None = None,
     workers: int = 1,
     keep_failures: bool = False,
@@ -42,11 +42,19 @@ def collect(
 ) -> CollectResult:
     """Run `episodes` episodes (seeds `seed`, `seed + 1`, ...) and write the successful ones
     (all with `keep_failures`) to `out`, each flushed as it is written. An existing `out` is
-    refused unless `append` (add to it) or `overwrite` (replace it)."""
+    refused unless `append` (add to it) or `overwrite` (replace it). `seed` defaults to 0, or
+    when appending to the seed after the file's last; a seed the file holds is refused."""
     episodes = integer(episodes, "--episodes")
-    seed = integer(seed, "--seed", least=0)
+    held = _held_seeds(out) if append else []
+    seed = 1 + max(held, default=-1) if seed is None else integer(seed, "--seed", least=0)
     kwargs = dict(env_kwargs or {})
     seeds = range(seed, seed + episodes)
+    again = sorted(set(held).intersection(seeds))
+    if again:
+        raise DemoFileError(
+            f"{out} already holds seeds {again[:5]}{' ...' if len(again) > 5 else ''}: the same "
+            f"seed twice is the same demo twice; leave out --seed to continue at {max(held) + 1}"
+        )
     results = run_seeds(env_id, kwargs, policy, seeds, record=True, workers=workers)
     kept = successes = 0
     with (
@@ -58,7 +66,16 @@ def collect(
             if (result.success or keep_failures) and result.data is not None:
                 writer.write(result.data)
                 kept += 1
+            elif result.data is not None:
+                writer.add_model(result.data)  # later episodes of its worker come without it
             bar.update()
             bar.set_postfix(kept=kept)
         path = writer.path
     return CollectResult(path, episodes, kept, successes)
+
+
+def _held_seeds(out: str | os.PathLike[str]) -> list[int]:
+    if not Path(out).exists():
+        return []
+    with DemoFile(out) as f:
+        return f.seeds

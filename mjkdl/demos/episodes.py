@@ -8,6 +8,7 @@ for any number of workers.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import multiprocessing
 import os
@@ -111,7 +112,7 @@ def run_episode(
             obs, reward, terminated, truncated, info = env.step(action)
             done = bool(terminated or truncated)
             if buffer is not None:
-                buffer.after_step(action, float(reward), done)
+                buffer.after_step(action, float(reward), done, obs)
             if recorder is not None:
                 recorder.record_frame()
             total += float(reward)
@@ -134,6 +135,13 @@ def scene_of(env: gym.Env) -> Scene:
             "data): recording states and filming need one; evaluate it without --video"
         )
     return scene
+
+
+def observe(env: gym.Env) -> dict[str, np.ndarray]:
+    """The observation of the state the env's scene holds now (one just set), as `step`
+    returns it: the task's sensors read again."""
+    unwrapped: Any = env.unwrapped
+    return dict(unwrapped._shown_part(unwrapped._observe()))
 
 
 def video_recorder(env: gym.Env, video: Video) -> VideoRecorder:
@@ -176,7 +184,13 @@ def _init(env_id: str, env_kwargs: dict[str, Any], source: PolicySource) -> None
 
 def _run(seed: int, record: bool, video: Video | None) -> EpisodeResult:
     w = _WORKER
-    return run_episode(w["env"], w["policy"], seed, record=record, video=video, source=w["source"])
+    r = run_episode(w["env"], w["policy"], seed, record=record, video=video, source=w["source"])
+    sent = w.setdefault("models", set())
+    if r.data is not None and r.data.model_hash in sent:  # the writer has it: spare the pipe
+        r = dataclasses.replace(r, data=dataclasses.replace(r.data, model_mjb=b""))
+    elif r.data is not None:
+        sent.add(r.data.model_hash)
+    return r
 
 
 def run_seeds(

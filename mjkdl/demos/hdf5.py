@@ -3,10 +3,13 @@ one reader that checks the file is one.
 
 Layout (what robomimic, robosuite, MimicGen and LIBERO read)::
 
-    data.attrs: env_args (JSON: env_name, env_kwargs, mjkdl_version, mujoco_version), total
+    data.attrs: env_args (JSON: env_name, type, env_kwargs, mjkdl_version, mujoco_version), total
     data/demo_<i>/actions (T×A), rewards (T), dones (T), states (T×S), obs/<key> (T×...)
+    data/demo_<i>/next_obs/<key>: obs/<key> one step on (camera frames: a virtual dataset
+        over rows 1.. of obs/<key> and final_obs/<key>, the frame after the last action)
     data/demo_<i>.attrs: num_samples, seed, model_file (MJCF), model_hash, success
     mask/train, mask/valid: demo names, 90/10
+    models/<model_hash>: the compiled model as MJB bytes (zlib), one per distinct model
 
 `states[t]` is MuJoCo's `mjSTATE_INTEGRATION` state *before* `actions[t]`, `obs/<key>[t]` the
 observation the policy saw then.
@@ -17,8 +20,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 import warnings
 import weakref
+import zlib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +33,11 @@ import h5py
 import mujoco
 import numpy as np
 
+try:
+    import resource  # Unix: the process's file-size limit
+except ImportError:  # pragma: no cover (Windows)
+    resource = None  # type: ignore[assignment]
+
 from .. import __version__ as mjkdl_version
 from ..closable import Closable
 from ..compile import build_mjspec
@@ -35,6 +45,9 @@ from ..errors import MjkdlError, unknown_name
 from ..scene import Scene, mujoco_version
 
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+ENV_TYPE = 100
+"""robomimic's `EnvType` of mjkdl files (robomimic's own are 1-3); `mjkdl.demos.robomimic`
+makes robomimic's `env_utils` build an mjkdl env for it."""
 _IMAGE_COMPRESSION = {"compression": "gzip", "compression_opts": 4}
 
 
@@ -59,6 +72,8 @@ class EpisodeData:
     success: bool
     model_file: str = ""
     model_hash: str = ""
+    final_obs: dict[str, np.ndarray] = field(default_factory=dict)
+    model_mjb: bytes = field(default=b"", repr=False)
 
     @property
     def num_samples(self) -> int:
@@ -76,6 +91,7 @@ class EpisodeBuffer:
     rewards: list[float] = field(default_factory=list)
     dones: list[bool] = field(default_factory=list)
     obs: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    final_obs: dict[str, np.ndarray] = field(default_factory=dict)
 
     def before_step(self, obs: Mapping[str, np.ndarray]) -> None:
         """Keep the state and observation the next action starts from."""
@@ -86,16 +102,19 @@ class EpisodeBuffer:
         for key, value in obs.items():
             self.obs.setdefault(key, []).append(value)
 
-    def after_step(self, action: np.ndarray, reward: float, done: bool) -> None:
-        """Keep what the step did (`action` is copied)."""
+    def after_step(
+        self, action: np.ndarray, reward: float, done: bool, obs: Mapping[str, np.ndarray]
+    ) -> None:
+        """Keep what the step did (`action` is copied) and the observation it led to."""
         self.actions.append(np.array(action, copy=True))
         self.rewards.append(float(reward))
         self.dones.append(bool(done))
+        self.final_obs = dict(obs)
 
     def finish(self, seed: int, success: bool) -> EpisodeData:
         """The episode as arrays, with the scene's model for `model_file`/`model_hash`."""
         n = len(self.actions)
-        xml, fingerprint = scene_model(self.scene)
+        xml, fingerprint, mjb = scene_model(self.scene)
         return EpisodeData(
             seed=seed,
             actions=np.stack(self.actions),
@@ -106,25 +125,37 @@ class EpisodeBuffer:
             success=success,
             model_file=xml,
             model_hash=fingerprint,
+            final_obs=dict(self.final_obs),
+            model_mjb=mjb,
         )
 
 
-def scene_model(scene: Scene) -> tuple[str, str]:
-    """The scene's compiled MJCF (robomimic's `model_file`) and `model_hash`, from its spec
-    compiled afresh: a Robot rewrites actuator parameters of the live model for its control
-    mode, which must not change the fingerprint. Cached per scene."""
+def scene_model(scene: Scene) -> tuple[str, str, bytes]:
+    """The scene's compiled MJCF (robomimic's `model_file`), `model_hash` and MJB bytes, from
+    its spec compiled afresh: a Robot rewrites actuator parameters of the live model for its
+    control mode, which must not change the fingerprint. Cached per scene."""
     known = _SCENE_MODELS.get(scene)
     if known is None:
         with warnings.catch_warnings():  # MuJoCo's attach notes, already shown at build time
             warnings.simplefilter("ignore")
             spec = build_mjspec(scene.spec)
             model = spec.compile()
-            known = (str(spec.to_xml()), model_hash(model))
+            known = (str(spec.to_xml()), model_hash(model), model_binary(model))
         _SCENE_MODELS[scene] = known
     return known
 
 
-_SCENE_MODELS: weakref.WeakKeyDictionary[Scene, tuple[str, str]] = weakref.WeakKeyDictionary()
+_SCENE_MODELS: weakref.WeakKeyDictionary[Scene, tuple[str, str, bytes]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def model_binary(model: mujoco.MjModel) -> bytes:
+    """`model` as MuJoCo's MJB bytes: meshes and textures included, so it loads on a machine
+    without the asset files (by the same MuJoCo version)."""
+    buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return buffer.tobytes()
 
 
 def model_hash(model: mujoco.MjModel) -> str:
@@ -150,8 +181,9 @@ def env_args(env_name: str, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
     """robomimic's `env_args` record, with the versions that made the file."""
     return {
         "env_name": env_name,
+        "type": ENV_TYPE,
         "env_kwargs": dict(env_kwargs),
-        "env_type": "mjkdl",
+        "env_version": mjkdl_version,  # robomimic compares it with EnvMjkdl.version
         "mjkdl_version": mjkdl_version,
         "mujoco_version": mujoco_version(),
     }
@@ -205,8 +237,11 @@ class EpisodeWriter(Closable):
             f.create_group("mask")
             f.flush()
             self._file = f
-        self._demos = sorted(_finished(self._file["data"]), key=_demo_index)
-        self._next = 1 + max((_demo_index(n) for n in self._file["data"]), default=-1)
+        data = self._file["data"]
+        self._demos = sorted(_finished(data), key=_demo_index)
+        self._next = 1 + max((_demo_index(n) for n in data), default=-1)
+        self._seeds = {int(data[n].attrs["seed"]): n for n in self._demos}
+        self._packed: dict[str, bytes] = {}
 
     @staticmethod
     def _open(path: Path, mode: str) -> h5py.File:
@@ -226,23 +261,43 @@ class EpisodeWriter(Closable):
         return len(self._demos)
 
     @property
+    def seeds(self) -> list[int]:
+        """The seeds of the finished demos, in the file's order."""
+        return list(self._seeds)
+
+    @property
+    def next_seed(self) -> int:
+        """The seed after the file's last one (0 for an empty file)."""
+        return 1 + max(self._seeds, default=-1)
+
+    @property
     def closed(self) -> bool:
         return self._file is None
 
     def write(self, episode: EpisodeData) -> str:
-        """Add `episode` as the next `demo_<i>`, flush the file; the demo's name."""
+        """Add `episode` as the next `demo_<i>`, flush the file; the demo's name. A seed the
+        file already holds is refused: the same seed twice is the same demo twice."""
         self._check_open()
         f = self._file
         assert f is not None
         if episode.num_samples == 0:
             raise DemoFileError("an episode of 0 steps has nothing to record")
+        if episode.seed in self._seeds:
+            raise DemoFileError(
+                f"{self._path} already holds seed {episode.seed} ({self._seeds[episode.seed]}); "
+                "continue after its last seed (collect --append without --seed) or pick unused "
+                "seeds"
+            )
         name = f"demo_{self._next}"
+        self._check_room(name, episode)
         try:
+            self.add_model(episode)
             self._write_group(f["data"], name, episode)
             self._demos.append(name)
             f["data"].attrs["total"] = int(f["data"].attrs["total"]) + episode.num_samples
             _add_to_mask(f, name)
             f.flush()
+            self._seeds[episode.seed] = name
         except (OSError, RuntimeError) as err:
             self._demos = [d for d in self._demos if d != name]
             kept = len(self._demos)
@@ -260,6 +315,68 @@ class EpisodeWriter(Closable):
         self._next += 1
         return name
 
+    def _check_room(self, name: str, ep: EpisodeData) -> None:
+        """Refuse a demo the disk (or the process's file-size limit) cannot hold, before HDF5
+        writes any of it: HDF5 fails mid-write inconsistently, up to a crash at the next
+        flush. The need is counted uncompressed (the model: as stored), erring towards
+        refusing."""
+        arrays = [ep.actions, ep.rewards, ep.dones, ep.states, *ep.obs.values()]
+        need = sum(a.nbytes for a in arrays) + sum(
+            v.nbytes for v in ep.obs.values() if not _is_frames(v)
+        )  # next_obs copies the low-dim rows
+        packed = self._packed_model(ep)
+        need += len(packed or b"") + 64 * 1024  # the groups, attributes and masks
+        room, why = self._room()
+        if need > room:
+            raise DemoWriteError(
+                f"could not write {name} to {self._path} ({why}: it needs about {need} bytes, "
+                f"{max(room, 0)} are left); the file keeps its {len(self._demos)} finished demos"
+            )
+
+    def _room(self) -> tuple[int, str]:
+        """Bytes the file may still grow by, and what limits it."""
+        size = self._path.stat().st_size
+        room, why = shutil.disk_usage(self._path.parent).free, "No space left on device"
+        limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0] if resource else -1
+        if limit != getattr(resource, "RLIM_INFINITY", -1) and limit - size < room:
+            room, why = limit - size, "File too large"
+        return room, why
+
+    def _packed_model(self, ep: EpisodeData) -> bytes | None:
+        """The episode's model as stored (zlib level 1: the Panda's 35.6 MB of MJB -> 15 MB
+        in 1.3 s; its size must be known before writing), or None when nothing is to store."""
+        f = self._file
+        assert f is not None
+        if not ep.model_mjb or not ep.model_hash or ep.model_hash in f.get("models", {}):
+            return None
+        packed = self._packed.get(ep.model_hash)
+        if packed is None:
+            packed = self._packed[ep.model_hash] = zlib.compress(ep.model_mjb, 1)
+        return packed
+
+    def add_model(self, episode: EpisodeData) -> None:
+        """Store the episode's compiled model (`models/<model_hash>`) unless the file has it:
+        `write` does this; call it for an episode that is not written so that the model of
+        the ones that follow (which may come without `model_mjb`) is kept."""
+        self._check_open()
+        f = self._file
+        assert f is not None
+        packed = self._packed_model(episode)
+        if packed is None:
+            return
+        room, why = self._room()
+        if len(packed) + 4096 > room:
+            raise DemoWriteError(
+                f"could not store the model of {self._path}'s demos ({why}: it needs "
+                f"{len(packed)} bytes, {max(room, 0)} are left)"
+            )
+        stored = f.require_group("models").create_dataset(
+            episode.model_hash, data=np.frombuffer(packed, dtype=np.uint8)
+        )
+        stored.attrs["compression"] = "zlib"
+        stored.attrs["mujoco_version"] = mujoco_version()
+        self._packed.pop(episode.model_hash, None)
+
     @staticmethod
     def _write_group(data: h5py.Group, name: str, ep: EpisodeData) -> None:
         g = data.create_group(name)
@@ -269,12 +386,16 @@ class EpisodeWriter(Closable):
         g.create_dataset("states", data=ep.states)
         obs = g.create_group("obs")
         for key, value in ep.obs.items():
-            if value.dtype == np.uint8 and value.ndim >= 3:  # camera frames, one chunk each
-                obs.create_dataset(
-                    key, data=value, chunks=(1, *value.shape[1:]), **_IMAGE_COMPRESSION
-                )
-            else:
-                obs.create_dataset(key, data=value)
+            _obs_dataset(obs, key, value)
+        if ep.obs and ep.final_obs.keys() >= ep.obs.keys():
+            nxt = g.create_group("next_obs")
+            for key, rows in ep.obs.items():
+                last = np.asarray(ep.final_obs[key])[None]
+                if _is_frames(rows):  # a virtual dataset: no second copy of the frames
+                    final = _obs_dataset(g.require_group("final_obs"), key, last)
+                    _next_obs(nxt, key, obs[key], final)
+                else:  # a copy: cheaper to write than a virtual dataset (0.1 ms against 1 ms)
+                    nxt.create_dataset(key, data=np.concatenate([rows[1:], last]))
         g.attrs["seed"] = ep.seed
         g.attrs["model_file"] = ep.model_file
         g.attrs["model_hash"] = ep.model_hash
@@ -288,6 +409,28 @@ class EpisodeWriter(Closable):
                 self._file.close()
             finally:
                 self._file = None
+
+
+def _is_frames(value: np.ndarray) -> bool:
+    return bool(value.dtype == np.uint8 and value.ndim >= 3)
+
+
+def _obs_dataset(group: h5py.Group, key: str, value: np.ndarray) -> h5py.Dataset:
+    if _is_frames(value):  # camera frames, one chunk each
+        return group.create_dataset(
+            key, data=value, chunks=(1, *value.shape[1:]), **_IMAGE_COMPRESSION
+        )
+    return group.create_dataset(key, data=value)
+
+
+def _next_obs(nxt: h5py.Group, key: str, obs: h5py.Dataset, last: h5py.Dataset) -> None:
+    """`next_obs/<key>` as a virtual dataset over `obs/<key>` rows 1.. and the final row."""
+    n = obs.shape[0]
+    layout = h5py.VirtualLayout(shape=obs.shape, dtype=obs.dtype)
+    if n > 1:
+        layout[: n - 1] = h5py.VirtualSource(obs)[1:]
+    layout[n - 1 :] = h5py.VirtualSource(last)
+    nxt.create_virtual_dataset(key, layout)
 
 
 def _demo_index(name: str) -> int:
@@ -354,6 +497,7 @@ class DemoFile(Closable):
             raise
         data = self._file["data"]
         self._names = sorted(_finished(data), key=_demo_index)
+        self._models: dict[str, bytes] = {}
 
     def _read_args(self) -> dict[str, Any]:
         f = self._file
@@ -429,9 +573,66 @@ class DemoFile(Closable):
                 success=bool(g.attrs.get("success", False)),
                 model_file=str(g.attrs.get("model_file", "")),
                 model_hash=str(g.attrs.get("model_hash", "")),
+                final_obs={k: v[-1] for k, v in g["next_obs"].items()} if "next_obs" in g else {},
             )
         except (KeyError, OSError) as err:
             raise DemoFileError(f"{self._path}: {name} is incomplete or damaged: {err}") from None
+
+    @property
+    def seeds(self) -> list[int]:
+        """Each finished demo's seed, in order."""
+        self._check_open()
+        assert self._file is not None
+        data = self._file["data"]
+        return [int(data[n].attrs["seed"]) for n in self._names]
+
+    def model_bytes(self, key: int | str = 0) -> bytes:
+        """The MJB bytes of demo `key`'s model (b"" when the file has none)."""
+        return self._model_bytes(str(self._group(key).attrs.get("model_hash", "")))
+
+    def _group(self, key: int | str) -> h5py.Group:
+        self._check_open()
+        assert self._file is not None
+        name = f"demo_{key}" if isinstance(key, (int, np.integer)) else str(key)
+        if name not in self._names:
+            raise unknown_name("demo", name, self._names, str(self._path))
+        return self._file["data"][name]
+
+    def _model_bytes(self, fingerprint: str) -> bytes:
+        assert self._file is not None
+        models = self._file.get("models")
+        if not fingerprint or models is None or fingerprint not in models:
+            return b""
+        known = self._models.get(fingerprint)
+        if known is None:
+            stored = models[fingerprint]
+            known = stored[()].tobytes()
+            if stored.attrs.get("compression") == "zlib":
+                known = zlib.decompress(known)
+            self._models[fingerprint] = known
+        return known
+
+    def model(self, key: int | str = 0) -> mujoco.MjModel:
+        """The compiled model demo `key` was recorded with, from the MJB bytes the file
+        stores: no asset files needed (the same MuJoCo version is)."""
+        g = self._group(key)
+        name = g.name.rsplit("/", 1)[1]
+        fingerprint = str(g.attrs.get("model_hash", ""))
+        raw = self._model_bytes(fingerprint)
+        if not raw:
+            raise DemoFileError(
+                f"{self._path}: {name} has no stored model (models/{fingerprint or '?'}); files "
+                "written before mjkdl stored models hold only model_file, which names asset files"
+            )
+        assert self._file is not None
+        version = self._file["models"][fingerprint].attrs.get("mujoco_version", "")
+        try:
+            return mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": raw})
+        except ValueError as err:
+            raise DemoFileError(
+                f"{self._path}: models/{fingerprint} (MJB of MuJoCo {version}) does not load in "
+                f"MuJoCo {mujoco_version()}: {err}; rebuild the env by name instead"
+            ) from None
 
     def close(self) -> None:
         """Close the file (again: nothing)."""

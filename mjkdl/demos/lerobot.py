@@ -12,8 +12,12 @@ Written by lerobot's own `LeRobotDataset` (`create`, `add_frame`, `save_episode`
     data/chunk-000/file-000.parquet        one row per frame
     videos/observation.images.<camera>/chunk-000/file-000.mp4   every episode, one frame a row
 
-`observation.state` concatenates the demo's non-image observations (`time` and camera
-intrinsics left out) in the file's key order; `action` is the demo's action.
+`observation.state` concatenates the `state_keys` observations in alphabetical order: by
+default the robot's proprioception (the observations of the task's arms, `{arm}_...`: joint
+positions and velocities, TCP pose and twist, gripper); the others (the objects' poses and
+contacts, e.g. `cube_pose`, `cube_rel`, `cube_contacts`) are privileged, which a real robot does
+not observe, and go in only when named. `action` is the demo's action. Camera frames are H.264
+in full-resolution colour (yuv444p): chroma subsampling alone caps small renders near 35 dB.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import json
 import os
 import shutil
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,7 +45,7 @@ DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 # H.264 near-lossless for rendered images; a keyframe every 2 frames, as lerobot encodes, so
 # a loader can seek to any frame cheaply.
-_X264 = ["-preset", "veryfast", "-crf", "16", "-g", "2", "-bf", "0"]
+_X264 = ["-preset", "veryfast", "-crf", "16", "-g", "2", "-bf", "0", "-pix_fmt", "yuv444p"]
 _SKIPPED = ("time",)
 WRITERS = ("auto", "lerobot", "pyarrow")
 
@@ -95,15 +99,21 @@ def _lerobot_dataset(writer: str) -> Any:
     return LeRobotDataset
 
 
-def _split(demo: Demo) -> tuple[list[str], list[str]]:
-    """State keys (1-D or scalar per step) and camera keys (`<camera>_rgb`, uint8 H×W×3)."""
+def observation_keys(obs: Mapping[str, np.ndarray], leading: int) -> tuple[list[str], list[str]]:
+    """Sorted vector keys (1-D or scalar per step) and camera keys (`<camera>_rgb`, uint8
+    H×W×3) of `obs`, whose arrays have `leading` extra dimensions (1 for a demo's rows)."""
     state, cams = [], []
-    for key, value in demo.obs.items():
-        if key.endswith("_rgb") and value.dtype == np.uint8 and value.ndim == 4:
+    for key, value in obs.items():
+        value = np.asarray(value)
+        if key.endswith("_rgb") and value.dtype == np.uint8 and value.ndim == 3 + leading:
             cams.append(key)
-        elif key not in _SKIPPED and not key.endswith("_intrinsics") and value.ndim <= 2:
+        elif key not in _SKIPPED and not key.endswith("_intrinsics") and value.ndim <= 1 + leading:
             state.append(key)
-    return state, cams
+    return sorted(state), sorted(cams)
+
+
+def _split(demo: Demo) -> tuple[list[str], list[str]]:
+    return observation_keys(demo.obs, leading=1)
 
 
 def _state_matrix(demo: Demo, keys: list[str]) -> np.ndarray:
@@ -158,16 +168,41 @@ def _names(demo: Demo, keys: list[str]) -> list[str]:
     return out
 
 
-def _fps(env_name: str, env_kwargs: dict[str, Any]) -> float:
+def _env_facts(env_name: str, env_kwargs: dict[str, Any]) -> tuple[float, list[str]]:
+    """The env's frames per second (1 / control period) and its arms' observation prefixes."""
     env = make_env(env_name, env_kwargs)
     try:
         period = getattr(env.unwrapped, "control_timestep", None)
         fps = 1.0 / float(period) if period else float(env.metadata.get("render_fps", 0))
+        spec = getattr(env.unwrapped, "task_spec", None)
+        arms = [f"{a.name}_" for a in getattr(spec, "arms", [])]
     finally:
         env.close()
     if not fps > 0:
         raise ExportError(f"{env_name} gives no control period (control_timestep or render_fps)")
-    return round(fps) if abs(fps - round(fps)) < 1e-9 else fps
+    return (round(fps) if abs(fps - round(fps)) < 1e-9 else fps), arms
+
+
+def proprioception(candidates: list[str], arm_prefixes: list[str]) -> list[str]:
+    """The keys of `candidates` the arms observe of themselves (`{arm}_...`)."""
+    return [k for k in candidates if any(k.startswith(p) for p in arm_prefixes)]
+
+
+def _chosen_state_keys(
+    first: Demo, arms: list[str], state_keys: Sequence[str] | None, path: Path
+) -> list[str]:
+    candidates = _split(first)[0]
+    if state_keys is None:
+        return proprioception(candidates, arms)
+    keys = list(state_keys)
+    for k in keys:
+        if k not in candidates:
+            raise ExportError(
+                f"--state-keys: {path} has no vector observation {k!r}; it has "
+                f"{', '.join(candidates)}"
+            )
+    # alphabetical, whatever order they were named in (as the policy evaluator takes them)
+    return [k for k in candidates if k in keys]
 
 
 def _tasks_table(pa: Any, tasks: list[str]) -> Any:
@@ -212,11 +247,13 @@ def export_lerobot(
     task: str = "",
     overwrite: bool = False,
     writer: str = "auto",
+    state_keys: Sequence[str] | None = None,
 ) -> LeRobotExport:
     """Write the demos of `path` as a LeRobot v3.0 dataset in the new folder `root`.
 
     `writer`: "lerobot" (its own `LeRobotDataset`), "pyarrow", or "auto" (lerobot where it
-    imports)."""
+    imports). `state_keys`: the observations `observation.state` concatenates (default: the
+    robot's proprioception; privileged keys such as `cube_pose` only when named)."""
     dataset_cls = _lerobot_dataset(writer)
     if dataset_cls is None:
         _need_pyarrow()
@@ -228,28 +265,31 @@ def export_lerobot(
     with DemoFile(path) as demos:
         if len(demos) == 0:
             raise ExportError(f"{demos.path} holds no finished demos to export")
-        fps = _fps(demos.env_name, demos.env_kwargs)
+        fps, arms = _env_facts(demos.env_name, demos.env_kwargs)
         task = task or demos.env_name
         first = demos.demo(demos.names[0])
+        keys = _chosen_state_keys(first, arms, state_keys, demos.path)
         try:
             if dataset_cls is not None:
-                return _write_with_lerobot(dataset_cls, demos, out, fps, task, repo_id, first)
-            return _write(demos, out, fps, task, repo_id, first)
+                return _write_with_lerobot(dataset_cls, demos, out, fps, task, repo_id, first, keys)
+            return _write(demos, out, fps, task, repo_id, first, keys)
         except BaseException:
             shutil.rmtree(out, ignore_errors=True)  # no half-written dataset
             raise
 
 
-def _episodes(demos: DemoFile, first: Demo) -> Iterator[tuple[Demo, np.ndarray, np.ndarray]]:
+def _episodes(
+    demos: DemoFile, first: Demo, state_keys: list[str]
+) -> Iterator[tuple[Demo, np.ndarray, np.ndarray]]:
     """Each demo with its `observation.state` and `action` rows; every demo must have the
     first one's observations."""
-    state_keys, cam_keys = _split(first)
+    every, cam_keys = _split(first)
     for demo in demos:
         keys, cams = _split(demo)
-        if (keys, cams) != (state_keys, cam_keys):
+        if (keys, cams) != (every, cam_keys):
             raise ExportError(
                 f"{demos.path}: {demo.name} has observations {keys + cams}, "
-                f"the first demo {state_keys + cam_keys}"
+                f"the first demo {every + cam_keys}"
             )
         n = demo.num_samples
         yield demo, _state_matrix(demo, state_keys), demo.actions.astype(np.float32).reshape(n, -1)
@@ -268,6 +308,7 @@ def _write_with_lerobot(
     task: str,
     repo_id: str,
     first: Demo,
+    state_keys: list[str],
 ) -> LeRobotExport:
     """The dataset written frame by frame by lerobot's own `LeRobotDataset`."""
     if fps != int(fps):
@@ -275,7 +316,7 @@ def _write_with_lerobot(
             f"lerobot's writer takes a whole number of frames per second; {demos.env_name}'s "
             f"control period gives {fps:g}: pass writer='pyarrow'"
         )
-    state_keys, cam_keys = _split(first)
+    cam_keys = _split(first)[1]
     video_key = _video_keys(cam_keys)
     names = _names(first, state_keys)
     features: dict[str, Any] = {
@@ -305,7 +346,7 @@ def _write_with_lerobot(
     )  # lerobot's own video settings: AV1 (SVT-AV1) at CRF 30
     frames = 0
     try:
-        for demo, state, action in _episodes(demos, first):
+        for demo, state, action in _episodes(demos, first, state_keys):
             reward = demo.rewards.astype(np.float32).reshape(-1, 1)
             done = demo.dones.astype(bool).reshape(-1, 1)
             for t in range(demo.num_samples):
@@ -328,13 +369,19 @@ def _write_with_lerobot(
 
 
 def _write(
-    demos: DemoFile, out: Path, fps: float, task: str, repo_id: str, first: Demo
+    demos: DemoFile,
+    out: Path,
+    fps: float,
+    task: str,
+    repo_id: str,
+    first: Demo,
+    state_keys: list[str],
 ) -> LeRobotExport:
     """The dataset written column by column with pyarrow, its videos with ffmpeg."""
     pa = _need_pyarrow()
     import pyarrow.parquet as pq
 
-    state_keys, cam_keys = _split(first)
+    cam_keys = _split(first)[1]
     videos: dict[str, _Video] = {}
     video_key = _video_keys(cam_keys)
     for k in cam_keys:
@@ -360,7 +407,7 @@ def _write(
     image_samples: dict[str, list[np.ndarray]] = {k: [] for k in cam_keys}
     index = 0
     try:
-        for ep, (demo, state, action) in enumerate(_episodes(demos, first)):
+        for ep, (demo, state, action) in enumerate(_episodes(demos, first, state_keys)):
             n = demo.num_samples
             all_state.append(state)
             all_action.append(action)

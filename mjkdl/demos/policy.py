@@ -1,4 +1,5 @@
-"""Where actions come from: a scripted expert, random actions, or `module:fn`.
+"""Where actions come from: a scripted expert, random actions, `module:fn`, or a saved LeRobot
+policy (`lerobot:PATH`, see `mjkdl.demos.lerobot_policy`).
 
 The `module:fn` convention: `fn(env)` is called once per env (in each worker process) and
 returns the policy, a callable `policy(obs) -> action`; when it also has `reset()`, that is
@@ -53,6 +54,10 @@ def make_policy(source: PolicySource, env: gym.Env) -> Policy:
         return _Random(env)
     if source == "expert":
         return _expert(env)
+    if isinstance(source, str) and source.startswith("lerobot:"):
+        from .lerobot_policy import lerobot_policy  # needs lerobot: imported on use
+
+        return lerobot_policy(source, env)
     if isinstance(source, str):
         factory = load_factory(source)
     elif callable(source):

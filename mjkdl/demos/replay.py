@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -72,16 +73,35 @@ def replay(
     """Replay one demo of the file at `path` in a fresh `gymnasium.make(env_name,
     **env_kwargs)`; warns (`ReplayWarning`) first when the file was made with another model
     or version. `video`: an MP4 of the env's render camera, `video_size` (width, height)."""
+    v = None if video is None else Video(Path(video), *video_size)
+    return next(replay_all(path, [demo], mode=mode, video=v))
+
+
+def replay_all(
+    path: str | os.PathLike[str],
+    demos: Sequence[int | str] | None = None,
+    *,
+    mode: str = "actions",
+    video: Video | None = None,
+) -> Iterator[ReplayResult]:
+    """Replay `demos` (default: all) one after another in one env, built once: a result per
+    demo as it finishes. `video` films the first."""
     if mode not in MODES:
         raise SpecError(f"--mode must be one of {', '.join(MODES)}, got {mode!r}")
-    with DemoFile(path) as demos:
-        d = demos.demo(demo)
-        env = make_env(demos.env_name, demos.env_kwargs)
+    with DemoFile(path) as file:
+        names = file.names if demos is None else [file.demo(d).name for d in demos]
+        env = make_env(file.env_name, file.env_kwargs)
         try:
-            for message in mismatches(demos, d, env):
-                warnings.warn(message, ReplayWarning, stacklevel=2)
-            run = _replay_actions if mode == "actions" else _replay_states
-            return run(env, d, None if video is None else Video(Path(video), *video_size))
+            checked: set[str] = set()
+            for name in names:
+                d = file.demo(name)
+                for message in mismatches(file, d, env):
+                    if message not in checked:
+                        warnings.warn(message, ReplayWarning, stacklevel=2)
+                        checked.add(message)
+                run = _replay_actions if mode == "actions" else _replay_states
+                yield run(env, d, video)
+                video = None
         finally:
             env.close()
 

@@ -81,7 +81,11 @@ class Teleop:
         return a
 
     def start(self) -> None:
-        """Reset to the current seed with a fresh buffer and the gripper open."""
+        """Reset to the current seed (the next one the file does not hold) with a fresh
+        buffer and the gripper open."""
+        held = set(self.writer.seeds)
+        while self.seed in held:
+            self.seed += 1
         self._obs, _ = self.env.reset(seed=self.seed)
         self._buffer = EpisodeBuffer(self._scene)
         self._closed_gripper = self._last_success = False
@@ -113,7 +117,7 @@ class Teleop:
         self._buffer.before_step(self._obs)
         self._obs, reward, terminated, truncated, info = self.env.step(action)
         done = bool(terminated or truncated)
-        self._buffer.after_step(action, float(reward), done)
+        self._buffer.after_step(action, float(reward), done, self._obs)
         self._last_success = success_of(info)
         if done:
             if self._last_success:
@@ -144,15 +148,17 @@ def teleop(
     out: str | os.PathLike[str],
     *,
     device: str = "keyboard",
-    seed: int = 0,
+    seed: int | None = None,
     env_kwargs: Mapping[str, Any] | None = None,
     speed: float = 1.0,
     deadzone: float = 0.1,
     demos: int | None = None,
 ) -> int:
     """Open the viewer on `env_id` and record what the device does until the window is
-    closed (or `demos` demos are saved); the number of demos saved."""
-    seed = integer(seed, "--seed", least=0)
+    closed (or `demos` demos are saved); the number of demos saved. Episodes start at `seed`
+    (default: after the file's last seed) and skip the seeds the file holds."""
+    if seed is not None:
+        seed = integer(seed, "--seed", least=0)
     if demos is not None:
         demos = integer(demos, "--demos")
     kwargs = dict(env_kwargs or {})
@@ -160,7 +166,8 @@ def teleop(
     env = make_env(env_id, kwargs)
     try:
         with EpisodeWriter(out, env_id, kwargs, append=True) as writer:
-            session = Teleop(env, dev, writer, seed=seed, speed=speed)
+            first = writer.next_seed if seed is None else seed
+            session = Teleop(env, dev, writer, seed=first, speed=speed)
             session.start()
             scene = session.scene
             window = Window.launch(scene.model, scene.data, dev.on_key)

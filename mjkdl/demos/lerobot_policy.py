@@ -1,0 +1,114 @@
+"""A policy trained with LeRobot (ACT, diffusion, ...) acting in an mjkdl task: `--policy
+lerobot:PATH` (PATH: a `pretrained_model` folder that `lerobot-train` saved).
+
+The observation reaches the policy as the export wrote it (`mjkdl.demos.lerobot`):
+`observation.state` the same keys in the same order (the robot's proprioception unless
+`state_keys` names others), `observation.images.<camera>` each `<camera>_rgb` frame as a
+channel-first float image in [0, 1], what LeRobot's loader gives for a video frame. The policy's
+own saved pre- and post-processors (normalisation) run around it, as in `lerobot-eval`."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from .lerobot import observation_keys, proprioception
+from .policy import PolicyError
+
+PREFIX = "lerobot:"
+
+
+class LeRobotPolicy:
+    """`policy(obs) -> action` of a saved LeRobot policy; `reset()` clears its action queue."""
+
+    def __init__(
+        self, path: str | Path, env: gym.Env, state_keys: Sequence[str] | None = None
+    ) -> None:
+        try:
+            import torch
+            from lerobot.configs.policies import PreTrainedConfig
+            from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+        except Exception as err:  # absent, or beside a torch it was not built for
+            raise PolicyError(
+                f"--policy lerobot:{path} needs lerobot 0.4 (pip install 'mjkdl[lerobot]', in "
+                f"an environment of its own: it pins torch < 2.11): {err}"
+            ) from None
+        folder = Path(path)
+        if not (folder / "config.json").is_file():
+            raise PolicyError(
+                f"--policy lerobot:{path}: no config.json there; give the pretrained_model "
+                "folder lerobot-train saved (outputs/.../checkpoints/last/pretrained_model)"
+            )
+        self._torch = torch
+        config = PreTrainedConfig.from_pretrained(folder)
+        config.device = "cpu" if not torch.cuda.is_available() else config.device
+        self._policy = get_policy_class(config.type).from_pretrained(folder, config=config)
+        self._policy.eval()
+        self._pre, self._post = make_pre_post_processors(
+            policy_cfg=config,
+            pretrained_path=str(folder),
+            preprocessor_overrides={"device_processor": {"device": str(config.device)}},
+        )
+        features = config.input_features
+        obs, _ = env.reset()
+        every, cams = observation_keys(obs, leading=0)
+        if state_keys is None:
+            spec = getattr(env.unwrapped, "task_spec", None)
+            arms = [f"{a.name}_" for a in getattr(spec, "arms", [])]
+            self._state = proprioception(every, arms)
+        else:
+            missing = [k for k in state_keys if k not in every]
+            if missing:
+                raise PolicyError(f"--state-keys {missing} are not observations of this env")
+            self._state = [k for k in every if k in state_keys]
+        self._cams = {}
+        for key in features:
+            if key.startswith("observation.images."):
+                cam = key.removeprefix("observation.images.") + "_rgb"
+                if cam not in cams:
+                    raise PolicyError(
+                        f"lerobot:{path} looks at {key}; this env has no {cam} observation "
+                        f"(it has {', '.join(cams) or 'no cameras'}): build it with "
+                        "--env-kwargs '{\"camera_names\": [...]}' as the demos were recorded"
+                    )
+                self._cams[key] = cam
+        if "observation.state" in features:
+            want = int(features["observation.state"].shape[0])
+            have = sum(int(np.prod(obs[k].shape)) for k in self._state)
+            if want != have:
+                raise PolicyError(
+                    f"lerobot:{path} takes an observation.state of {want} numbers; "
+                    f"{', '.join(self._state)} give {have}: pass the --state-keys the "
+                    "export used"
+                )
+        else:
+            self._state = []
+
+    def batch(self, obs: Mapping[str, np.ndarray]) -> dict[str, Any]:
+        """The observation as LeRobot's batch of one (before the policy's preprocessor)."""
+        torch = self._torch
+        out: dict[str, Any] = {}
+        if self._state:
+            vec = np.concatenate([np.asarray(obs[k], np.float32).ravel() for k in self._state])
+            out["observation.state"] = torch.from_numpy(vec)[None]
+        for key, cam in self._cams.items():
+            img = torch.from_numpy(np.ascontiguousarray(obs[cam])).permute(2, 0, 1)
+            out[key] = (img.float() / 255.0)[None]
+        return out
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        with self._torch.inference_mode():
+            action = self._policy.select_action(self._pre(self.batch(obs)))
+        return np.asarray(self._post(action).cpu().numpy()[0], dtype=np.float32)
+
+    def reset(self) -> None:
+        self._policy.reset()
+
+
+def lerobot_policy(source: str, env: gym.Env, state_keys: Sequence[str] | None = None) -> Any:
+    """The `LeRobotPolicy` that `lerobot:PATH` names."""
+    return LeRobotPolicy(source.removeprefix(PREFIX), env, state_keys)

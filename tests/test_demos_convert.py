@@ -1,0 +1,138 @@
+"""convert, merge, filter: observations regenerated for other cameras by exact replay or from
+the states, files merged and filtered with their seeds, models and masks rebuilt."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import menagerie
+from test_demos_hdf5 import PICK, REACH, cli
+
+from mjkdl.demos import DemoFile, DemoFileError, collect
+from mjkdl.demos.convert import convert, filter_demos, merge, parse_seeds
+
+WRIST = {"camera_names": ["wrist"], "camera_size": [32, 40]}
+
+
+@pytest.fixture(autouse=True)
+def _panda() -> None:
+    menagerie("franka_emika_panda")
+
+
+@pytest.fixture(scope="module")
+def picks(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two short PickCube demos without cameras."""
+    menagerie("franka_emika_panda")
+    out = tmp_path_factory.mktemp("convert") / "picks.hdf5"
+    collect(PICK, "demo_envs:approach", out, episodes=2, seed=3, keep_failures=True,
+            env_kwargs={"max_episode_steps": 8}, progress=False)  # fmt: skip
+    return out
+
+
+def test_convert_adds_a_camera_by_exact_replay(picks: Path, tmp_path: Path) -> None:
+    out = tmp_path / "wrist.hdf5"
+    r = cli("convert", str(picks), str(out), "--env-kwargs", '{"camera_names": ["wrist"], '
+            '"camera_size": [32, 40]}')  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == f"{out}: 2 demos, observations by actions"
+    with DemoFile(picks) as a, DemoFile(out) as b:
+        assert b.env_kwargs == {"max_episode_steps": 8, **WRIST}
+        assert b.seeds == a.seeds == [3, 4]
+        for da, db in zip(a, b, strict=True):
+            assert db.obs["wrist_rgb"].shape == (8, 32, 40, 3) and db.obs["wrist_rgb"].std() > 0
+            assert np.array_equal(da.states, db.states) and np.array_equal(da.actions, db.actions)
+            for key, rows in da.obs.items():  # the old keys, as recorded
+                assert np.array_equal(rows, db.obs[key]), key
+            assert db.success == da.success and np.array_equal(db.rewards, da.rewards)
+            assert b.model(db.name).ncam == a.model(da.name).ncam  # a model of its own, stored
+    with h5py.File(out, "r") as f:  # the frames' next_obs: a view, not a second copy
+        g = f["data/demo_1"]
+        assert g["next_obs/wrist_rgb"].is_virtual and g["next_obs/wrist_rgb"].shape == (
+            8,
+            32,
+            40,
+            3,
+        )
+        assert np.array_equal(g["next_obs/wrist_rgb"][:7], g["obs/wrist_rgb"][1:])
+        assert np.array_equal(g["next_obs/wrist_rgb"][7], g["final_obs/wrist_rgb"][0])
+
+
+def test_convert_from_states(picks: Path, tmp_path: Path) -> None:
+    out = convert(picks, tmp_path / "s.hdf5", WRIST, mode="states").path
+    with DemoFile(picks) as a, DemoFile(out) as b:
+        for da, db in zip(a, b, strict=True):
+            for key in ("panda_joint_pos", "panda_tcp_pos", "cube_pose"):
+                np.testing.assert_allclose(db.obs[key], da.obs[key], rtol=0, atol=1e-12)
+            assert db.obs["wrist_rgb"].shape == (8, 32, 40, 3)
+
+
+def test_frames_from_states_are_the_frames_of_replay(picks: Path, tmp_path: Path) -> None:
+    """A camera observes the state it is recorded with (#30 item 1: needs TaskEnv to update
+    the cameras' poses after each step)."""
+    by_actions = convert(picks, tmp_path / "a.hdf5", WRIST).path
+    by_states = convert(picks, tmp_path / "s.hdf5", WRIST, mode="states").path
+    with DemoFile(by_actions) as a, DemoFile(by_states) as s:
+        for da, ds in zip(a, s, strict=True):
+            assert np.array_equal(da.obs["wrist_rgb"], ds.obs["wrist_rgb"])
+
+
+def test_convert_refuses_what_it_cannot_do(picks: Path, tmp_path: Path) -> None:
+    edited = tmp_path / "edited.hdf5"
+    edited.write_bytes(picks.read_bytes())
+    with h5py.File(edited, "r+") as f:
+        f["data/demo_1/actions"][3, 0] += 0.05
+    with pytest.raises(
+        DemoFileError,
+        match=r"edited\.hdf5:demo_1 does not replay in "
+        r"mjkdl/PandaPickCube-v0 .* at step 4\): convert it with --mode states",
+    ):
+        convert(edited, tmp_path / "x.hdf5", WRIST)  # fmt: skip
+    with pytest.raises(DemoFileError, match=r"picks\.hdf5 is an input too"):
+        convert(picks, picks, WRIST, overwrite=True)
+    with pytest.raises(ValueError, match="--mode must be one of actions, states, got 'obs'"):
+        convert(picks, tmp_path / "y.hdf5", mode="obs")
+    r = cli("convert", str(picks), str(tmp_path / "z.hdf5"), "--env-kwargs", '{"camera_names": 3}')
+    assert r.returncode == 2 and "error: camera_names" in r.stderr
+
+
+def test_merge_and_filter(tmp_path: Path) -> None:
+    kw = {"max_episode_steps": 3}
+    a = collect(REACH, "random", tmp_path / "a.hdf5", episodes=3, seed=0, env_kwargs=kw,
+                keep_failures=True, progress=False).path  # fmt: skip
+    b = collect(REACH, "random", tmp_path / "b.hdf5", episodes=8, seed=3, env_kwargs=kw,
+                keep_failures=True, progress=False).path  # fmt: skip
+    assert merge([a, b], tmp_path / "ab.hdf5").demos == 11
+    with DemoFile(tmp_path / "ab.hdf5") as f, DemoFile(b) as fb:
+        assert f.seeds == list(range(11)) and f.names == [f"demo_{i}" for i in range(11)]
+        assert np.array_equal(f.demo(5).actions, fb.demo(2).actions)
+        assert f.model(10).nq == fb.model(0).nq
+    with h5py.File(tmp_path / "ab.hdf5", "r") as f:  # masks of the new numbering
+        assert [n.decode() for n in f["mask/valid"][()]] == ["demo_9"]
+        assert len(f["mask/train"]) == 10 and len(f["models"]) == 1
+    r = cli("merge", str(a), str(a), "--out", str(tmp_path / "aa.hdf5"))
+    assert r.returncode == 2 and r"already holds seed 0 (demo_0)" in r.stderr
+    other = collect(REACH, "random", tmp_path / "o.hdf5", episodes=1, seed=50,
+                    env_kwargs={"max_episode_steps": 2}, keep_failures=True,
+                    progress=False).path  # fmt: skip
+    with pytest.raises(
+        DemoFileError,
+        match=r"o\.hdf5 holds demos of mjkdl/PandaReach-v0 with "
+        r"\{'max_episode_steps': 2\}.*merge files of one env",
+    ):
+        merge([a, other], tmp_path / "ao.hdf5")  # fmt: skip
+
+    r = cli("filter", str(tmp_path / "ab.hdf5"), str(tmp_path / "f.hdf5"), "--seeds", "1,4-6,9")
+    assert r.returncode == 0 and r.stdout.strip() == f"{tmp_path / 'f.hdf5'}: 5 demos kept"
+    with DemoFile(tmp_path / "f.hdf5") as f:
+        assert f.seeds == [1, 4, 5, 6, 9] and f.names == [f"demo_{i}" for i in range(5)]
+    assert filter_demos(a, tmp_path / "s.hdf5", success=True).demos == 0  # random: none succeed
+    assert filter_demos(a, tmp_path / "l.hdf5", min_length=4).demos == 0
+    assert filter_demos(a, tmp_path / "m.hdf5", success=False, max_length=3).demos == 3
+    assert parse_seeds("2, 7-9") == [2, 7, 8, 9]
+    with pytest.raises(ValueError, match="--seeds takes integers and ranges like 1,4,10-19"):
+        parse_seeds("1,x")
+    with pytest.raises(ValueError, match="--seeds range 9-7 runs backwards"):
+        parse_seeds("9-7")
