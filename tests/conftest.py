@@ -290,16 +290,29 @@ def franka_sim(*args: str, host: str = "") -> Iterator[tuple[str, subprocess.Pop
         proc.wait(timeout=30)
 
 
-def run_franka_example(path: Path, *args: str, stdin: str = "", timeout: float = 120) -> str:
-    """An unmodified client example in its own process; its stdout. libfranka refuses a kernel
+def run_franka_example(
+    path: Path, *args: str, stdin: str = "", timeout: float = 120, stop: bool = False
+) -> str:
+    """An unmodified client example in its own process; its output. libfranka refuses a kernel
     without PREEMPT_RT unless told to ignore it: tests/franka_nonrt.py says so, then runs the
-    example as `__main__`."""
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "tests" / "franka_nonrt.py"), str(path), *args],
-        input=stdin,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        cwd=path.parent,
-    )
+    example as `__main__`. `stop`: the example runs until stopped, after `timeout` seconds."""
+    try:
+        done = subprocess.run(
+            [sys.executable, str(ROOT / "tests" / "franka_nonrt.py"), str(path), *args],
+            input=stdin,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            cwd=path.parent,
+        )
+    except subprocess.TimeoutExpired as expired:
+        if not stop:
+            raise
+        return _text(expired.stdout) + _text(expired.stderr)
     return done.stdout + done.stderr
+
+
+def _text(output: bytes | str | None) -> str:
+    if isinstance(output, bytes):
+        return output.decode(errors="replace")
+    return output or ""

@@ -4,20 +4,52 @@ lockstep (deterministic: every state waits for its command, whatever the machine
 
 from __future__ import annotations
 
+import json
+import re
 import subprocess
 import sys
 import textwrap
 from collections.abc import Iterator
 
+import mujoco
 import numpy as np
+import pinocchio as pin
 import pytest
 from conftest import FRANKA_EXAMPLES, franka_sim, run_franka_example
 
-from mjkdl.hw.franka_sim.scene import START_Q
+from mjkdl.hw.franka_sim.arm import SimulatedArm
+from mjkdl.hw.franka_sim.limits import PANDA
+from mjkdl.hw.franka_sim.scene import CUBE_AT, START_Q, franka_scene
 
 pytest.importorskip("pylibfranka")
 
 PYLIBFRANKA = FRANKA_EXAMPLES / "pylibfranka"
+FRANKY = FRANKA_EXAMPLES / "franky"
+
+# A pylibfranka joint motion: cosine from the measured q to `goal` in `seconds`.
+MOVE_TO = """
+def move_to(goal, seconds):
+    ctrl = robot.start_joint_position_control(plf.ControllerMode.JointImpedance)
+    state, _ = ctrl.readOnce()
+    q0, goal, t = np.array(state.q_d), np.array(goal), 0.0
+    while True:
+        state, period = ctrl.readOnce()
+        t += period.to_sec()
+        s = 0.5 * (1.0 - np.cos(np.pi * min(t / seconds, 1.0)))
+        cmd = plf.JointPositions(list(q0 + s * (goal - q0)))
+        cmd.motion_finished = t >= seconds
+        ctrl.writeOnce(cmd)
+        if t >= seconds:
+            return
+"""
+
+
+@pytest.fixture(scope="module")
+def sim_arm() -> Iterator[SimulatedArm]:
+    """The server's arm, in this process: what the clients' numbers are checked against."""
+    arm = SimulatedArm(franka_scene(), PANDA)
+    yield arm
+    arm.env.close()
 
 
 @pytest.fixture(scope="module")
@@ -26,11 +58,16 @@ def server() -> Iterator[str]:
         yield host
 
 
+def mjk_se3(rotation: np.ndarray, translation: np.ndarray) -> pin.SE3:
+    return pin.SE3(rotation, np.asarray(translation, dtype=float))
+
+
 def client(host: str, body: str, timeout: float = 120) -> str:
-    """A pylibfranka program in its own process: `robot` connected to `host`; its stdout."""
+    """A pylibfranka program in its own process: `robot` connected to `host`, `move_to`
+    defined; its stdout."""
     code = "import numpy as np, pylibfranka as plf\n"
     code += f"robot = plf.Robot({host!r}, plf.RealtimeConfig.kIgnore)\n"
-    code += textwrap.dedent(body)
+    code += MOVE_TO + textwrap.dedent(body)
     done = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout
     )
@@ -47,7 +84,11 @@ def test_print_robot_state_example_reads_the_start_pose(server):
     out = run_franka_example(PYLIBFRANKA / "print_robot_state.py", "--ip", server)
     assert "Robot Mode: Idle" in out, out
     # the example rounds to 4 decimals
-    assert f"{START_Q[3]:.4f}" in out and "Position: [0.3069, 0.0, 0.4869]" in out, out
+    q = re.search(r"Joint Positions \(q\): (\[.*\])", out)
+    position = re.search(r"Position: (\[.*\])", out)
+    assert q is not None and position is not None, out
+    np.testing.assert_allclose(json.loads(q.group(1)), START_Q, atol=1e-4)
+    np.testing.assert_allclose(json.loads(position.group(1)), [0.3069, 0.0, 0.4869], atol=1e-4)
 
 
 def test_joint_position_example_moves_and_returns(server):
@@ -58,7 +99,89 @@ def test_joint_position_example_moves_and_returns(server):
     np.testing.assert_allclose(state_q(server), q0, atol=1e-3)
 
 
-def test_move_gripper_example_grasps_the_cube(server):
+def test_move_gripper_example_finds_nothing_to_grasp_in_the_air(server):
+    # at the start pose the hand is in the air: the fingers close past 4 cm ± 5 mm
+    out = run_franka_example(PYLIBFRANKA / "move_gripper.py", "--ip", server, "--width", "0.04")
+    assert "Gripper width: 0.08" in out, out
+    assert "Failed to grasp object." in out, out
+
+
+def test_torque_control_holds_gravity_and_the_model_is_mujocos(server, sim_arm):
+    """pylibfranka's model (its Pinocchio, from the URDF and hand the server reports) against
+    MuJoCo's on the same compiled model; zero torques for 1 s: the robot holds gravity."""
+    out = client(
+        server,
+        """
+        import json
+        move_to(START, 2.0)
+        state = robot.read_once()
+        model = robot.load_model()
+        ctrl = robot.start_torque_control()
+        for i in range(1000):
+            ctrl.readOnce()
+            tau = plf.Torques([0.0] * 7)
+            tau.motion_finished = i == 999
+            ctrl.writeOnce(tau)
+        after = robot.read_once()
+        print(json.dumps(dict(q=list(state.q), mass=list(model.mass(state)),
+            gravity=list(model.gravity(state)), jac=list(model.zero_jacobian(state)),
+            q_after=list(after.q), dq_after=list(after.dq))))
+        """.replace("START", repr(START_Q.tolist())),
+    )
+    got = json.loads(out)
+    q = np.array(got["q"], dtype=float)
+    np.testing.assert_allclose(q, START_Q, atol=2e-4)
+    sim_arm.robot.set_joint_pos(q)
+    m, d = sim_arm.env.model, sim_arm.env.data
+    full = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, full)
+    dofs = sim_arm._dofs
+    # MuJoCo adds the rotors' armature; libfranka's rigid-body model has none
+    mass = full[np.ix_(dofs, dofs)] - np.diag(m.dof_armature[dofs])
+    np.testing.assert_allclose(np.reshape(got["mass"], (7, 7), order="F"), mass, atol=1e-6)
+    np.testing.assert_allclose(got["gravity"], d.qfrc_bias[dofs], atol=1e-5)
+    jac = np.reshape(got["jac"], (6, 7), order="F")
+    np.testing.assert_allclose(jac, sim_arm._ee_jacobian(q), atol=1e-6)
+    # float32 on the wire: 1e-7 rad is its resolution here
+    np.testing.assert_allclose(got["q_after"], q, atol=1e-6)
+    np.testing.assert_allclose(got["dq_after"], 0.0, atol=1e-6)
+
+
+def test_pick_the_cube_through_the_protocol(server, sim_arm):
+    """Move above the cube and down (pylibfranka), grasp with the unmodified gripper example,
+    lift: the fingers stay on the 4 cm cube."""
+    down = np.diag([1.0, -1.0, -1.0])
+    grasp = sim_arm.robot.ik(mjk_se3(down, CUBE_AT + np.array([0.0, 0.0, 0.005])), q0=START_Q)
+    above = sim_arm.robot.ik(mjk_se3(down, CUBE_AT + np.array([0.0, 0.0, 0.15])), q0=START_Q)
+    assert grasp.success and above.success
+    client(server, f"move_to({above.q.tolist()}, 2.0)\nmove_to({grasp.q.tolist()}, 1.5)\n")
     out = run_franka_example(PYLIBFRANKA / "move_gripper.py", "--ip", server, "--width", "0.04")
     assert "Gripper width: 0.08" in out, out
     assert "Grasped object, will release it now." in out, out
+    lifted = client(
+        server,
+        f"""
+        gripper = plf.Gripper({server!r})
+        print(gripper.grasp(0.04, 0.1, 40.0))
+        move_to({above.q.tolist()}, 1.5)
+        state = gripper.read_once()
+        print(state.is_grasped, round(state.width, 4))
+        """,
+    )
+    grasped, still_grasped, width = lifted.split()
+    assert grasped == still_grasped == "True", lifted
+    assert abs(float(width) - 0.04) < 0.003, lifted  # the fingers press 1 mm into it
+
+
+def test_franky_read_example(server):
+    # the example prints the state every 50 ms until stopped
+    out = run_franka_example(FRANKY / "read.py", "--host", server, timeout=8, stop=True)
+    assert "Joints:" in out and "Elbow:" in out, out
+    assert "FlipDirection.Negative" in out, out  # joint 4 is negative on both arms
+
+
+def test_franky_linear_example_ends_where_it_began_its_line(server):
+    out = run_franka_example(FRANKY / "linear.py", "--host", server)
+    assert "Error" not in out and "Exception" not in out, out
+    # JointMotion to its start, 20 cm along y and back: the arm ends at that start
+    np.testing.assert_allclose(state_q(server), [0.0, 0.0, 0.0, -2.2, 0.0, 2.2, 0.7], atol=2e-3)

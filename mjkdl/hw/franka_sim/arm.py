@@ -271,14 +271,15 @@ class SimulatedArm:
         if np.any(q_c < lim.q_min) or np.any(q_c > lim.q_max):
             self.reflex(f"{prefix}_position_limits_violation")
             return False
-        if np.any(np.abs(dq_c) > lim.dq_max * SLACK):
-            self.reflex(f"{prefix}_velocity_limits_violation")
-            return False
+        # A step in the signal breaks every derivative: the robot names the discontinuity.
         if np.any(np.abs(ddq_c) > lim.ddq_max * SLACK):
             self.reflex(f"{prefix}_velocity_discontinuity")
             return False
         if np.any(np.abs(dddq_c) > lim.dddq_max * SLACK):
             self.reflex(f"{prefix}_acceleration_discontinuity")
+            return False
+        if np.any(np.abs(dq_c) > lim.dq_max * SLACK):
+            self.reflex(f"{prefix}_velocity_limits_violation")
             return False
         self.q_d, self.dq_d, self.ddq_d = q_c, dq_c, ddq_c
         self._dq_c_prev, self._ddq_c_prev = dq_c, ddq_c

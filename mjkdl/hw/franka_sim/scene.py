@@ -1,5 +1,5 @@
 """The simulated arm's world: an ordinary mjkdl scene (Menagerie's Panda with its hand, a table,
-a cube under the hand), and what the robot itself tells a client about it: the arm's URDF (from
+a cube on it), and what the robot itself tells a client about it: the arm's URDF (from
 which libfranka >= 0.18 builds its dynamics model) and the hand's mass properties."""
 
 from __future__ import annotations
@@ -20,15 +20,13 @@ START_Q = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi 
 FLANGE_OFFSET = 0.107  # link7 origin to the flange along link7's z (Panda, FR3)
 HAND_TCP = 0.1034  # flange to the Franka Hand's TCP, between the fingertips
 CUBE_HALF = 0.02
-# The start pose's TCP (computed from the model at start): the cube sits on the table between
-# the open fingers there, so the gripper examples grasp it without moving the arm.
-TCP_AT_START = np.array([0.30702, 0.0, 0.48688])
+TABLE_TOP = 0.15  # m: below the poses libfranka's and franky's examples move through
+CUBE_AT = np.array([0.5, 0.0, TABLE_TOP + CUBE_HALF])
 
 
 def franka_scene() -> SceneSpec:
-    """Panda (1 kHz, the robot's control rate) at the origin, a table under its hand, a 4 cm
-    cube on the table between the open fingers at the start pose."""
-    table_top = TCP_AT_START[2] - 0.015
+    """Panda (1 kHz, the robot's control rate) at the origin, a table in front of it, a 4 cm
+    cube on the table (`CUBE_AT`)."""
     return SceneSpec(
         timestep=0.001,
         add_floor=True,
@@ -38,8 +36,8 @@ def franka_scene() -> SceneSpec:
             SceneObject(
                 name="table",
                 shape=Shape.BOX,
-                size=[0.15, 0.25, table_top / 2],
-                pos=[TCP_AT_START[0] + 0.1, 0.0, table_top / 2],
+                size=[0.15, 0.25, TABLE_TOP / 2],
+                pos=[CUBE_AT[0], 0.0, TABLE_TOP / 2],
                 rgba=[0.6, 0.45, 0.3, 1.0],
                 fixed=True,
             ),
@@ -47,7 +45,7 @@ def franka_scene() -> SceneSpec:
                 name="cube",
                 shape=Shape.BOX,
                 size=[CUBE_HALF] * 3,
-                pos=[TCP_AT_START[0], 0.0, table_top + CUBE_HALF],
+                pos=list(CUBE_AT),
                 rgba=[0.1, 0.4, 1.0, 1.0],
                 mass=0.05,
                 condim=Condim.Torsional,
