@@ -6,8 +6,10 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -269,9 +271,18 @@ def _franka_host() -> str:
     return f"127.{os.getpid() % 250 + 1}.{next(_franka_hosts)}.1"
 
 
+@dataclass
+class FrankaSim:
+    """A running simulator: its address, process and log (stderr lines, read as they come)."""
+
+    host: str
+    proc: subprocess.Popen
+    log: list[str]
+
+
 @contextmanager
-def franka_sim(*args: str, host: str = "") -> Iterator[tuple[str, subprocess.Popen]]:
-    """`python -m mjkdl.hw.franka_sim` in another process (stderr to a pipe); stopped after."""
+def franka_sim(*args: str, host: str = "") -> Iterator[FrankaSim]:
+    """`python -m mjkdl.hw.franka_sim` in another process, its log collected; stopped after."""
     host = host or _franka_host()
     proc = subprocess.Popen(
         [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", host, *args],
@@ -284,7 +295,10 @@ def franka_sim(*args: str, host: str = "") -> Iterator[tuple[str, subprocess.Pop
         assert proc.stderr is not None
         line = proc.stderr.readline()  # the first line says it listens (or why it cannot)
         assert "franka_sim: panda on" in line or "franka_sim: fr3 on" in line, line
-        yield host, proc
+        sim = FrankaSim(host, proc, [line])
+        reader = threading.Thread(target=sim.log.extend, args=(proc.stderr,), daemon=True)
+        reader.start()
+        yield sim
     finally:
         proc.terminate()
         proc.wait(timeout=30)

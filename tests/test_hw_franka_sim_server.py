@@ -5,7 +5,10 @@ lockstep (deterministic: every state waits for its command, whatever the machine
 from __future__ import annotations
 
 import json
+import os
 import re
+import socket
+import struct
 import subprocess
 import sys
 import textwrap
@@ -15,8 +18,9 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import FRANKA_EXAMPLES, franka_sim, run_franka_example
+from conftest import FRANKA_EXAMPLES, FrankaSim, franka_sim, run_franka_example
 
+from mjkdl.hw.franka_sim import wire
 from mjkdl.hw.franka_sim.arm import SimulatedArm
 from mjkdl.hw.franka_sim.limits import PANDA
 from mjkdl.hw.franka_sim.scene import CUBE_AT, START_Q, franka_scene
@@ -53,9 +57,14 @@ def sim_arm() -> Iterator[SimulatedArm]:
 
 
 @pytest.fixture(scope="module")
-def server() -> Iterator[str]:
-    with franka_sim("--lockstep") as (host, _proc):
-        yield host
+def sim() -> Iterator[FrankaSim]:
+    with franka_sim("--lockstep", "--command-timeout", "10") as running:
+        yield running
+
+
+@pytest.fixture
+def server(sim: FrankaSim) -> str:
+    return sim.host
 
 
 def mjk_se3(rotation: np.ndarray, translation: np.ndarray) -> pin.SE3:
@@ -73,6 +82,17 @@ def client(host: str, body: str, timeout: float = 120) -> str:
     )
     assert done.returncode == 0, done.stdout + done.stderr
     return done.stdout
+
+
+def client_raises(host: str) -> str:
+    """What a pylibfranka client connecting to `host` raises: 'Type message'."""
+    code = (
+        "import pylibfranka as plf\n"
+        f"try:\n    plf.Robot({host!r}, plf.RealtimeConfig.kIgnore)\n"
+        "except Exception as e:\n    print(type(e).__name__, e)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    return done.stdout.strip()
 
 
 def state_q(host: str) -> np.ndarray:
@@ -185,3 +205,128 @@ def test_franky_linear_example_ends_where_it_began_its_line(server):
     assert "Error" not in out and "Exception" not in out, out
     # JointMotion to its start, 20 cm along y and back: the arm ends at that start
     np.testing.assert_allclose(state_q(server), [0.0, 0.0, 0.0, -2.2, 0.0, 2.2, 0.7], atol=2e-3)
+
+
+# ---------------------------------------------------------------------- faults
+
+
+def test_a_step_in_the_command_is_the_robots_reflex_and_recovery_clears_it(sim):
+    out = client(
+        sim.host,
+        """
+        ctrl = robot.start_joint_position_control(plf.ControllerMode.JointImpedance)
+        state, _ = ctrl.readOnce()
+        jump = list(state.q_d)
+        jump[0] += 0.05  # 50 rad/s for one cycle
+        try:
+            for _ in range(5):
+                ctrl.writeOnce(plf.JointPositions(jump))
+                ctrl.readOnce()
+        except plf.ControlException as e:
+            print("ControlException", e)
+        print(robot.read_once().robot_mode)
+        robot.automatic_error_recovery()
+        print(robot.read_once().robot_mode)
+        """,
+    )
+    assert "ControlException" in out and "joint_motion_generator_velocity_discontinuity" in out
+    assert out.strip().splitlines()[-2:] == ["RobotMode.Reflex", "RobotMode.Idle"], out
+    assert any("reflex, the arm stopped" in line for line in sim.log)
+
+
+def test_a_second_client_is_refused_and_the_log_says_why(sim):
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            f"import time, pylibfranka as plf\n"
+            f"robot = plf.Robot({sim.host!r}, plf.RealtimeConfig.kIgnore)\n"
+            "print('connected', flush=True)\ntime.sleep(30)\n",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == "connected\n"
+        out = client_raises(sim.host)
+    finally:
+        holder.kill()
+        holder.wait()
+    assert out == "NetworkException libfranka: TCP connection got interrupted.", out
+    assert any("refused a second client" in line for line in sim.log), sim.log[-3:]
+
+
+def test_a_client_killed_mid_motion_leaves_the_arm_still(sim):
+    mover = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            f"import pylibfranka as plf\n"
+            f"robot = plf.Robot({sim.host!r}, plf.RealtimeConfig.kIgnore)\n"
+            "ctrl = robot.start_joint_velocity_control(plf.ControllerMode.JointImpedance)\n"
+            "for i in range(100000):\n"
+            "    ctrl.readOnce()\n"
+            "    ctrl.writeOnce(plf.JointVelocities([0.0] * 6 + [min(i * 1e-3, 0.3)]))\n"
+            "    if i == 500: print('moving', flush=True)\n",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert mover.stdout is not None and mover.stdout.readline() == "moving\n"
+    mover.kill()
+    mover.wait()
+    out = client(
+        sim.host,
+        """
+        import time
+        first = robot.read_once()
+        time.sleep(0.2)
+        later = robot.read_once()
+        print(first.robot_mode, max(abs(v) for v in later.dq), later.q[6] - first.q[6])
+        """,
+    )
+    mode, speed, moved = out.split()
+    assert mode == "RobotMode.Idle", out
+    assert float(speed) < 1e-4 and abs(float(moved)) < 1e-4, out
+    assert any("mid-motion: the arm stops" in line for line in sim.log), sim.log[-3:]
+    client(sim.host, f"move_to({START_Q.tolist()}, 1.0)")
+
+
+def test_a_client_of_another_protocol_version_is_told_both(sim):
+    with socket.create_connection((sim.host, wire.ROBOT_PORT), timeout=10) as sock:
+        sock.sendall(wire.message(0, 1, struct.pack("<HH", 9, 50000)))
+        reply = sock.recv(64)
+    command, command_id, size = wire.HEADER.unpack_from(reply)
+    status, version = struct.unpack_from("<BH", reply, wire.HEADER.size)
+    # libfranka turns this into IncompatibleVersionException(server 10, library 9)
+    assert (command, command_id, size, status, version) == (0, 1, 15, 1, 10)
+    refusal = [line for line in sim.log if "speaks robot protocol 9" in line]
+    assert refusal and "speaks 10" in refusal[0] and "and 5" in refusal[0], sim.log[-3:]
+
+
+def test_nothing_listening_is_the_clients_network_exception():
+    out = client_raises(f"127.{os.getpid() % 250 + 1}.250.1")
+    assert out.startswith("NetworkException libfranka: Connection to FCI refused"), out
+
+
+def test_lost_commands_lower_the_success_rate_in_realtime():
+    with franka_sim("--realtime") as rt:
+        out = client(
+            rt.host,
+            """
+            ctrl = robot.start_joint_position_control(plf.ControllerMode.JointImpedance)
+            state, _ = ctrl.readOnce()
+            hold = plf.JointPositions(list(state.q_d))
+            rates = []
+            for i in range(400):
+                state, _ = ctrl.readOnce()
+                rates.append(state.control_command_success_rate)
+                if i % 2 == 0:  # every other cycle goes unanswered
+                    ctrl.writeOnce(hold)
+            hold.motion_finished = True
+            ctrl.writeOnce(hold)
+            print(min(rates[200:]), max(rates[200:]))
+            """,
+        )
+    low, high = (float(v) for v in out.split())
+    assert low > 0.0 and high <= 0.75, out

@@ -303,6 +303,12 @@ class FrankaSimServer:
             self._pending.remove(peer)
         peer.sock.close()
 
+    def _reset(self, peer: _Peer) -> None:
+        """Refuse a connection with a reset: Connect has no status for "busy", and libfranka
+        waits on a connection merely closed; a reset it reports as an interrupted connection."""
+        peer.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        self._drop(peer, "refused")
+
     def _send(self, peer: _Peer, data: bytes) -> None:
         try:
             peer.sock.sendall(data)
@@ -389,7 +395,7 @@ class FrankaSimServer:
                 *peer.address,
                 *self.robot.address,
             )
-            self._drop(peer, "refused")
+            self._reset(peer)
             return
         if protocol is None:
             log.error(
@@ -463,7 +469,7 @@ class FrankaSimServer:
             version, udp_port = struct.unpack_from("<HH", payload)
             if self.gripper is not None:
                 log.error("franka_sim: refused a second hand client from %s:%d", *peer.address)
-                self._drop(peer, "refused")
+                self._reset(peer)
                 return
             ok = version == wire.GRIPPER_VERSION
             if not ok:
