@@ -34,4 +34,5 @@ else:
     pylibfranka.Robot = _PylibfrankaRobot
 
 sys.argv = sys.argv[1:]
+sys.path.insert(0, str(Path(sys.argv[0]).parent))  # as `python EXAMPLE.py` would: its helpers
 runpy.run_path(sys.argv[0], run_name="__main__")

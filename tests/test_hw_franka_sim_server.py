@@ -111,7 +111,29 @@ def test_print_robot_state_example_reads_the_start_pose(server):
     np.testing.assert_allclose(json.loads(position.group(1)), [0.3069, 0.0, 0.4869], atol=1e-4)
 
 
+def ee_position(host: str, sim_arm: SimulatedArm) -> np.ndarray:
+    """The hand's position the robot reports (O_T_EE), checked against mjkdl's kinematics."""
+    got = json.loads(client(host, "s = robot.read_once()\nprint([list(s.q), list(s.O_T_EE)])"))
+    pose = np.reshape(got[1], (4, 4), order="F")
+    np.testing.assert_allclose(pose, sim_arm._ee_pose(np.array(got[0])), atol=1e-5)
+    return pose[:3, 3]
+
+
+def homed_width(out: str) -> float:
+    """The width the gripper example prints after homing."""
+    found = re.search(r"Gripper width: ([0-9.e-]+)", out)
+    assert found is not None, out
+    return float(found.group(1))
+
+
+def home(host: str) -> None:
+    """Back to the start pose (out of a reflex an earlier test may have left): the examples'
+    motions are relative to where the arm is."""
+    client(host, f"robot.automatic_error_recovery()\nmove_to({START_Q.tolist()}, 2.0)")
+
+
 def test_joint_position_example_moves_and_returns(server):
+    home(server)
     q0 = state_q(server)
     out = run_franka_example(PYLIBFRANKA / "joint_position_example.py", "--ip", server, stdin="\n")
     assert "Finished motion" in out and "Error" not in out, out
@@ -122,7 +144,7 @@ def test_joint_position_example_moves_and_returns(server):
 def test_move_gripper_example_finds_nothing_to_grasp_in_the_air(server):
     # at the start pose the hand is in the air: the fingers close past 4 cm ± 5 mm
     out = run_franka_example(PYLIBFRANKA / "move_gripper.py", "--ip", server, "--width", "0.04")
-    assert "Gripper width: 0.08" in out, out
+    assert homed_width(out) > 0.0799, out
     assert "Failed to grasp object." in out, out
 
 
@@ -168,15 +190,19 @@ def test_torque_control_holds_gravity_and_the_model_is_mujocos(server, sim_arm):
 
 
 def test_pick_the_cube_through_the_protocol(server, sim_arm):
-    """Move above the cube and down (pylibfranka), grasp with the unmodified gripper example,
-    lift: the fingers stay on the 4 cm cube."""
+    """Open the hand, move above the cube and down (pylibfranka), grasp with the unmodified
+    gripper example, lift: the fingers stay on the 4 cm cube."""
     down = np.diag([1.0, -1.0, -1.0])
     grasp = sim_arm.robot.ik(mjk_se3(down, CUBE_AT + np.array([0.0, 0.0, 0.005])), q0=START_Q)
     above = sim_arm.robot.ik(mjk_se3(down, CUBE_AT + np.array([0.0, 0.0, 0.15])), q0=START_Q)
     assert grasp.success and above.success
-    client(server, f"move_to({above.q.tolist()}, 2.0)\nmove_to({grasp.q.tolist()}, 1.5)\n")
+    client(
+        server,
+        f"robot.automatic_error_recovery()\nplf.Gripper({server!r}).move(0.08, 0.1)\n"
+        f"move_to({above.q.tolist()}, 2.0)\nmove_to({grasp.q.tolist()}, 1.5)\n",
+    )
     out = run_franka_example(PYLIBFRANKA / "move_gripper.py", "--ip", server, "--width", "0.04")
-    assert "Gripper width: 0.08" in out, out
+    assert homed_width(out) > 0.0799, out
     assert "Grasped object, will release it now." in out, out
     lifted = client(
         server,
@@ -330,3 +356,22 @@ def test_lost_commands_lower_the_success_rate_in_realtime():
         )
     low, high = (float(v) for v in out.split())
     assert low > 0.0 and high <= 0.75, out
+
+
+def test_cartesian_pose_example_draws_its_arc(server, sim_arm):
+    home(server)
+    out = run_franka_example(PYLIBFRANKA / "cartesian_pose_example.py", "--ip", server, stdin="\n")
+    assert "Finished motion" in out and "Error" not in out, out
+    # a quarter circle of 0.3 m in x-z in 5 s: the hand ends 0.3 m forward, 0.3 m down
+    moved = ee_position(server, sim_arm) - sim_arm._ee_pose(START_Q)[:3, 3]
+    np.testing.assert_allclose(moved, [0.3, 0.0, -0.3], atol=2e-3)
+
+
+def test_franky_velocity_control_example(server, sim_arm):
+    out = run_franka_example(FRANKY / "velocity_control.py", "--host", server)
+    assert "Cartesian velocity control stopped." in out and "Exception" not in out, out
+    # last: from its start pose, a twist of 0.03 m/s along x, y and z alike for 3 s (franky
+    # ramps in and out): the hand moved the same along all three
+    start = sim_arm._ee_pose(np.array([0.0, 0.0, 0.0, -2.2, 0.0, 2.2, 0.7]))[:3, 3]
+    moved = ee_position(server, sim_arm) - start
+    assert moved.min() > 0.03 and moved.max() - moved.min() < 0.005, moved

@@ -210,6 +210,8 @@ class SimulatedArm:
                 self.missed_total += 1
                 if self.lost_in_a_row >= LOST_CYCLES_LIMIT:
                     self.reflex("communication_constraints_violation")
+                else:
+                    self._extrapolate()
             else:
                 self.lost_in_a_row = 0
                 self._command(cmd, q)
@@ -254,6 +256,21 @@ class SimulatedArm:
         if finished:
             self.q_d = self.q_d.copy()
             self._end_motion_hold()
+
+    def _extrapolate(self) -> None:
+        """A lost cycle: the robot carries the motion on at its last velocity, so the next
+        command is judged against where the motion would be, not where it paused."""
+        if self.generator in (wire.MotionGenerator.IDLE, wire.MotionGenerator.NONE):
+            return
+        self.q_d = self.q_d + self.dq_d * DT
+        if self.generator in (
+            wire.MotionGenerator.CARTESIAN_POSITION,
+            wire.MotionGenerator.CARTESIAN_VELOCITY,
+        ):
+            pose = self.O_T_EE_d.copy()
+            pose[:3, 3] += self.O_dP_EE_d[:3] * DT
+            pose[:3, :3] = pin.exp3(self.O_dP_EE_d[3:] * DT) @ pose[:3, :3]
+            self.O_T_EE_d = pose
 
     def _end_motion_hold(self) -> None:
         """A finished motion: the generator's last setpoint stays the hold target."""

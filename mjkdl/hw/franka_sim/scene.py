@@ -20,8 +20,8 @@ START_Q = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi 
 FLANGE_OFFSET = 0.107  # link7 origin to the flange along link7's z (Panda, FR3)
 HAND_TCP = 0.1034  # flange to the Franka Hand's TCP, between the fingertips
 CUBE_HALF = 0.02
-TABLE_TOP = 0.15  # m: below the poses libfranka's and franky's examples move through
-CUBE_AT = np.array([0.5, 0.0, TABLE_TOP + CUBE_HALF])
+TABLE_TOP = 0.15  # m
+CUBE_AT = np.array([0.45, 0.45, TABLE_TOP + CUBE_HALF])  # beside the examples' x-z plane
 
 
 def franka_scene() -> SceneSpec:
@@ -36,8 +36,8 @@ def franka_scene() -> SceneSpec:
             SceneObject(
                 name="table",
                 shape=Shape.BOX,
-                size=[0.15, 0.25, TABLE_TOP / 2],
-                pos=[CUBE_AT[0], 0.0, TABLE_TOP / 2],
+                size=[0.15, 0.15, TABLE_TOP / 2],
+                pos=[CUBE_AT[0], CUBE_AT[1] + 0.05, TABLE_TOP / 2],
                 rgba=[0.6, 0.45, 0.3, 1.0],
                 fixed=True,
             ),
