@@ -4,6 +4,7 @@ lockstep (deterministic: every state waits for its command, whatever the machine
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import re
@@ -25,7 +26,17 @@ from mjkdl.hw.franka_sim.arm import SimulatedArm
 from mjkdl.hw.franka_sim.limits import PANDA
 from mjkdl.hw.franka_sim.scene import CUBE_AT, START_Q, franka_scene
 
-pytest.importorskip("pylibfranka")
+# pylibfranka and franky both bind a `Duration`: only one of them loads per process, so the
+# test process loads neither; the clients run in their own.
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("pylibfranka") is None, reason="pip install mjkdl[franka]"
+)
+needs_franky = pytest.mark.skipif(
+    importlib.util.find_spec("franky") is None, reason="pip install mjkdl[franka]"
+)
+needs_panda_py = pytest.mark.skipif(
+    importlib.util.find_spec("panda_py") is None, reason="pip install mjkdl[franka]"
+)
 
 PYLIBFRANKA = FRANKA_EXAMPLES / "pylibfranka"
 FRANKY = FRANKA_EXAMPLES / "franky"
@@ -219,6 +230,7 @@ def test_pick_the_cube_through_the_protocol(server, sim_arm):
     assert abs(float(width) - 0.04) < 0.003, lifted  # the fingers press 1 mm into it
 
 
+@needs_franky
 def test_franky_read_example(server):
     # the example prints the state every 50 ms until stopped
     out = run_franka_example(FRANKY / "read.py", "--host", server, timeout=8, stop=True)
@@ -226,6 +238,7 @@ def test_franky_read_example(server):
     assert "FlipDirection.Negative" in out, out  # joint 4 is negative on both arms
 
 
+@needs_franky
 def test_franky_linear_example_ends_where_it_began_its_line(server):
     out = run_franka_example(FRANKY / "linear.py", "--host", server)
     assert "Error" not in out and "Exception" not in out, out
@@ -341,12 +354,11 @@ def test_lost_commands_lower_the_success_rate_in_realtime():
             rt.host,
             """
             ctrl = robot.start_joint_position_control(plf.ControllerMode.JointImpedance)
-            state, _ = ctrl.readOnce()
-            hold = plf.JointPositions(list(state.q_d))
             rates = []
             for i in range(400):
                 state, _ = ctrl.readOnce()
                 rates.append(state.control_command_success_rate)
+                hold = plf.JointPositions(list(state.q_d))  # where the robot's generator is
                 if i % 2 == 0:  # every other cycle goes unanswered
                     ctrl.writeOnce(hold)
             hold.motion_finished = True
@@ -367,6 +379,7 @@ def test_cartesian_pose_example_draws_its_arc(server, sim_arm):
     np.testing.assert_allclose(moved, [0.3, 0.0, -0.3], atol=2e-3)
 
 
+@needs_franky
 def test_franky_velocity_control_example(server, sim_arm):
     out = run_franka_example(FRANKY / "velocity_control.py", "--host", server)
     assert "Cartesian velocity control stopped." in out and "Exception" not in out, out
@@ -375,3 +388,20 @@ def test_franky_velocity_control_example(server, sim_arm):
     start = sim_arm._ee_pose(np.array([0.0, 0.0, 0.0, -2.2, 0.0, 2.2, 0.7]))[:3, 3]
     moved = ee_position(server, sim_arm) - start
     assert moved.min() > 0.03 and moved.max() - moved.min() < 0.005, moved
+
+
+@needs_panda_py
+def test_panda_py_connects_on_protocol_5_but_gets_no_model_library(sim):
+    """panda-py (libfranka 0.9.2) loads Franka's binary model library at connection, which
+    only a robot can serve: the client fails with libfranka's own error, the log says why."""
+    code = (
+        "import panda_py\n"
+        f"try:\n    panda_py.Panda({sim.host!r})\n"
+        "except Exception as e:\n    print(type(e).__name__, e)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.stdout.strip() == (
+        "RuntimeError libfranka: Server reports error when loading model library."
+    ), done.stdout + done.stderr
+    assert any("robot protocol 5" in line for line in sim.log)
+    assert any("cannot produce one" in line for line in sim.log)

@@ -112,8 +112,8 @@ class SimulatedArm:
         self.elbow_c = np.zeros(2)
         self._received = np.zeros(SUCCESS_WINDOW, dtype=bool)
         self.lost_in_a_row = 0
-        self.cycles = 0
-        self.missed_total = 0
+        self.motion_cycles = 0  # cycles of the current (or last) motion
+        self.motion_missed = 0  # of which without a command
 
     # -- measured --------------------------------------------------------------------------
     @property
@@ -165,6 +165,7 @@ class SimulatedArm:
         self.last_motion_errors[:] = 0
         self._received[:] = True
         self.lost_in_a_row = 0
+        self.motion_cycles = self.motion_missed = 0
         return ""
 
     def stop_motion(self) -> None:
@@ -200,14 +201,14 @@ class SimulatedArm:
         """Run the robot's controllers on `cmd` (None: no command arrived this cycle) for 1 ms;
         `count_lost`: a missing command counts against the communication limits."""
         self.event = ""
-        self.cycles += 1
         q, dq = self.q, self.dq
         if self.moving and (count_lost or cmd is not None):
             self._received = np.roll(self._received, 1)
             self._received[0] = cmd is not None
+            self.motion_cycles += 1
             if cmd is None:
                 self.lost_in_a_row += 1
-                self.missed_total += 1
+                self.motion_missed += 1
                 if self.lost_in_a_row >= LOST_CYCLES_LIMIT:
                     self.reflex("communication_constraints_violation")
                 else:

@@ -160,6 +160,12 @@ class FrankaSimServer:
                 log.warning("franka_sim: reflex, the arm stopped: %s", ", ".join(names))
             self._move_reply(self._motion_id, status)
             self._motion_id = None
+            log.info(
+                "franka_sim: motion %s after %d cycles, %d without a command",
+                self.arm.event,
+                self.arm.motion_cycles,
+                self.arm.motion_missed,
+            )
         self.message_id += 1
         if self.robot is not None and self.robot.udp is not None:
             self.arm.write_state(self._state, self.message_id)
