@@ -21,7 +21,8 @@ import pinocchio as pin
 import pytest
 from conftest import FRANKA_EXAMPLES, FrankaSim, franka_sim, run_franka_example
 
-from mjkdl.hw.franka_sim import wire
+from mjkdl.errors import SpecError
+from mjkdl.hw.franka_sim import AddressInUseError, FrankaSimServer, wire
 from mjkdl.hw.franka_sim.arm import SimulatedArm
 from mjkdl.hw.franka_sim.limits import PANDA
 from mjkdl.hw.franka_sim.scene import CUBE_AT, START_Q, franka_scene
@@ -405,3 +406,17 @@ def test_panda_py_connects_on_protocol_5_but_gets_no_model_library(sim):
     ), done.stdout + done.stderr
     assert any("robot protocol 5" in line for line in sim.log)
     assert any("cannot produce one" in line for line in sim.log)
+
+
+def test_an_unknown_model_names_the_ones_there_are():
+    with pytest.raises(SpecError, match=r"model 'ur5': the simulator knows \['fr3', 'panda'\]"):
+        FrankaSimServer("127.0.0.1", model="ur5")
+
+
+def test_a_taken_address_says_so_before_building_anything():
+    host = f"127.{os.getpid() % 250 + 1}.251.1"
+    with socket.socket() as taken:
+        taken.bind((host, wire.ROBOT_PORT))
+        taken.listen()
+        with pytest.raises(AddressInUseError, match=r"cannot listen on .*:1337.*--host"):
+            FrankaSimServer(host)

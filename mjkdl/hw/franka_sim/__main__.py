@@ -7,6 +7,8 @@ import logging
 import signal
 import sys
 
+from mjkdl.errors import MjkdlError
+
 from .server import FrankaSimServer
 
 
@@ -53,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
             viewer=args.viewer,
             command_timeout=args.command_timeout,
         )
-    except (OSError, ValueError) as err:
+    except MjkdlError as err:
         print(f"franka_sim: {err}", file=sys.stderr)
         return 2
     signal.signal(signal.SIGTERM, lambda *_: server.stop())

@@ -327,14 +327,14 @@ class SimulatedArm:
         j = (a - self._a_prev) / DT
         names = "cartesian_motion_generator"
         for part, sl in ((0, slice(0, 3)), (1, slice(3, 6))):
-            if np.linalg.norm(v[sl]) > lim.v_max[part] * SLACK:
-                self.reflex(f"{names}_velocity_limits_violation")
-                return False
             if np.linalg.norm(a[sl]) > lim.a_max[part] * SLACK:
                 self.reflex(f"{names}_velocity_discontinuity")
                 return False
             if np.linalg.norm(j[sl]) > lim.j_max[part] * SLACK:
                 self.reflex(f"{names}_acceleration_discontinuity")
+                return False
+            if np.linalg.norm(v[sl]) > lim.v_max[part] * SLACK:
+                self.reflex(f"{names}_velocity_limits_violation")
                 return False
         jac = self._ee_jacobian(self.q_d)
         here = self._ee_pose(self.q_d)

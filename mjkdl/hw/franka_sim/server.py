@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from mjkdl.errors import MjkdlError, SpecError
+
 from . import wire
 from .arm import DT, LOST_CYCLES_LIMIT, SimulatedArm
 from .gripper import SimulatedHand
@@ -32,6 +34,10 @@ log = logging.getLogger("mjkdl.hw.franka_sim")
 CONNECT_REPLY = struct.Struct("<BH")  # status, server version
 GRIPPER_CONNECT_REPLY = struct.Struct("<HH")
 GRIPPER_STATE_EVERY = 10  # cycles: the hand streams its state at 100 Hz
+
+
+class AddressInUseError(MjkdlError, OSError):
+    """The robot's ports at the address asked for cannot be served."""
 
 
 @dataclass
@@ -58,14 +64,19 @@ class FrankaSimServer:
         gripper_port: int = wire.GRIPPER_PORT,
     ) -> None:
         if model not in MODELS:
-            raise ValueError(f"model {model!r}: the simulator knows {sorted(MODELS)}")
+            raise SpecError(f"model {model!r}: the simulator knows {sorted(MODELS)}")
         self.host = host
         self.lockstep = lockstep
         self.command_timeout = command_timeout
+        # the ports first: a taken address fails before the scene is built
+        self._robot_listener = self._listen(robot_port)
+        try:
+            self._gripper_listener = self._listen(gripper_port)
+        except AddressInUseError:
+            self._robot_listener.close()
+            raise
         self.arm = SimulatedArm(franka_scene(), MODELS[model])
         self.hand = SimulatedHand(self.arm.env)
-        self._robot_listener = self._listen(robot_port)
-        self._gripper_listener = self._listen(gripper_port)
         self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._udp.bind((host, 0))
         self._udp.setblocking(False)
@@ -89,10 +100,11 @@ class FrankaSimServer:
             sock.bind((self.host, port))
         except OSError as err:
             sock.close()
-            raise OSError(
+            raise AddressInUseError(
                 err.errno,
                 f"cannot listen on {self.host}:{port} ({err.strerror}): another simulator or "
-                "robot driver holds it; stop it or give another --host (any 127.x.y.z works)",
+                "robot driver holds it, or the address is not this machine's; stop the other or "
+                "give another --host (any 127.x.y.z works)",
             ) from err
         sock.listen(4)
         sock.setblocking(False)
