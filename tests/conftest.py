@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -253,3 +257,76 @@ def shelf_objects() -> list[mjk.SceneObject]:
         board("shelf_b", [0.12, 0.12, 0.01], [0.45, -0.35, SHELF_TOP - 0.01]),
         board("wall", [0.25, 0.01, 0.35], [0.55, 0.0, 0.35]),
     ]
+
+
+# ---------------------------------------------------------------------- simulated Franka (mjkdl.hw)
+
+FRANKA_EXAMPLES = Path(__file__).resolve().parent / "data" / "franka_examples"
+_franka_hosts = iter(range(1, 250))
+
+
+def _franka_host() -> str:
+    """A loopback address of this test process's own (the robot's ports are fixed: 1337,
+    1338), so parallel runs and other servers on 127.0.0.1 do not collide."""
+    return f"127.{os.getpid() % 250 + 1}.{next(_franka_hosts)}.1"
+
+
+@dataclass
+class FrankaSim:
+    """A running simulator: its address, process and log (stderr lines, read as they come)."""
+
+    host: str
+    proc: subprocess.Popen
+    log: list[str]
+
+
+@contextmanager
+def franka_sim(*args: str, host: str = "") -> Iterator[FrankaSim]:
+    """`python -m mjkdl.hw.franka_sim` in another process, its log collected; stopped after."""
+    host = host or _franka_host()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", host, *args],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        assert proc.stderr is not None
+        line = proc.stderr.readline()  # the first line says it listens (or why it cannot)
+        assert "franka_sim: panda on" in line or "franka_sim: fr3 on" in line, line
+        sim = FrankaSim(host, proc, [line])
+        reader = threading.Thread(target=sim.log.extend, args=(proc.stderr,), daemon=True)
+        reader.start()
+        yield sim
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+def run_franka_example(
+    path: Path, *args: str, stdin: str = "", timeout: float = 120, stop: bool = False
+) -> str:
+    """An unmodified client example in its own process; its output. libfranka refuses a kernel
+    without PREEMPT_RT unless told to ignore it: tests/franka_nonrt.py says so, then runs the
+    example as `__main__`. `stop`: the example runs until stopped, after `timeout` seconds."""
+    try:
+        done = subprocess.run(
+            [sys.executable, str(ROOT / "tests" / "franka_nonrt.py"), str(path), *args],
+            input=stdin,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            cwd=path.parent,
+        )
+    except subprocess.TimeoutExpired as expired:
+        if not stop:
+            raise
+        return _text(expired.stdout) + _text(expired.stderr)
+    return done.stdout + done.stderr
+
+
+def _text(output: bytes | str | None) -> str:
+    if isinstance(output, bytes):
+        return output.decode(errors="replace")
+    return output or ""
