@@ -1,0 +1,426 @@
+"""One connection to a Franka arm, its 1 kHz control loop in a process of its own.
+
+The vendor client (pylibfranka) runs in a child process that does nothing but the control
+loop: read the state, rate-limit the latest command, write it, publish the state. The user's
+process exchanges commands and states with it through shared memory (a sequence lock: the
+writer makes the counter odd while it writes, readers retry until they see an even,
+unchanged counter), so no lock is ever held across processes and no Python work in the
+user's loop, which holds that process's GIL, can delay a tick: the GIL of the control
+process is its own. The loop keeps the safety defaults: every command rate-limited to the
+arm's limits (`rate_limit`), a watchdog that brings the arm to rest and finishes the motion
+when no new command came for `watchdog` seconds of wall-clock time, and the same when the
+user's process asks it to stop or dies.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import signal
+import time
+import warnings
+import weakref
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from types import FrameType
+from typing import Any
+
+import numpy as np
+
+from ..errors import SpecError
+from .faults import ArmConnectionError, HardwareError, WatchdogWarning, translate
+from .rate_limit import RateLimiter, limits_for
+
+POSITION, VELOCITY, TORQUE = 0, 1, 2
+# The command block: [seq, mode, stop, gravity_included, cmd x7]
+_C_SEQ, _C_MODE, _C_STOP, _C_GRAV, _C_CMD = 0, 1, 2, 3, 4
+_C_LEN = _C_CMD + 7
+# The state block: [seq, time, status, success_rate, ticks, q, dq, tau_J, tau_ext, F_ext(6)]
+_S_SEQ, _S_TIME, _S_STATUS, _S_RATE, _S_TICKS = 0, 1, 2, 3, 4
+_S_Q, _S_DQ, _S_TAU, _S_EXT, _S_F = 5, 12, 19, 26, 33
+_S_LEN = _S_F + 6
+IDLE, MOVING, STOPPING, CLOSED = 0.0, 1.0, 2.0, 3.0
+_REST_SPEED = 0.01  # rad/s: the arm counts as at rest below this joint speed
+_DAMPING = 10.0  # Nm s/rad: how a stopping torque motion brakes the arm
+
+
+@dataclass
+class ArmState:
+    """A snapshot of the arm's measured state (copies, the caller's to keep)."""
+
+    time: float  # the arm's clock (s)
+    q: np.ndarray
+    dq: np.ndarray
+    tau_J: np.ndarray  # measured link-side joint torques
+    tau_ext: np.ndarray  # tau_ext_hat_filtered: external torques the arm estimates
+    f_ext: np.ndarray  # O_F_ext_hat_K: external wrench at the end effector, base frame
+    success_rate: float  # control_command_success_rate of the last tick
+    moving: bool  # a motion is running
+
+
+class ArmConnection:
+    """A connection to the arm at `address`, with its control loop in a child process."""
+
+    _announced = False  # the limits are printed by the first connection of the process
+
+    def __init__(
+        self,
+        address: str,
+        model: str = "fr3",
+        *,
+        watchdog: float = 0.2,
+        realtime: bool = False,
+        connect_timeout: float = 20.0,
+    ) -> None:
+        if not isinstance(address, str) or not address:
+            raise SpecError(f"robot_ip must be a host name or IP address, got {address!r}")
+        if not (isinstance(watchdog, (int, float)) and 0.0 < watchdog < 10.0):
+            raise SpecError(f"watchdog must be seconds in (0, 10), got {watchdog!r}")
+        self.address = address
+        self.limits = limits_for(model)
+        self.watchdog = float(watchdog)
+        ctx = mp.get_context("spawn")  # no fork of a process holding MuJoCo or GL state
+        self._cmd = np.frombuffer(ctx.RawArray("d", _C_LEN), dtype=np.float64)
+        self._state = np.frombuffer(ctx.RawArray("d", _S_LEN), dtype=np.float64)
+        self._snap = np.zeros(_S_LEN)
+        self._events, child_end = ctx.Pipe(duplex=False)
+        self._closed = False
+        self._fault: HardwareError | None = None
+        self._proc = ctx.Process(
+            target=_control_process,
+            args=(address, model, self.watchdog, realtime, self._cmd.base, self._state.base),
+            kwargs={"events": child_end, "parent": os.getpid()},
+            name=f"mjkdl-arm-{address}",
+            daemon=True,
+        )
+        self._proc.start()
+        child_end.close()
+        try:
+            self._wait_ready(connect_timeout)
+        except BaseException:
+            self.close()
+            raise
+        _OPEN.add(self)
+        _install_sigint()
+        if not ArmConnection._announced:
+            ArmConnection._announced = True
+            print(self.limits.describe(), flush=True)
+
+    # ------------------------------------------------------------------ events
+
+    def _wait_ready(self, timeout: float) -> None:
+        if not self._events.poll(timeout):
+            raise ArmConnectionError(
+                f"no answer from the arm at {self.address} within {timeout:.0f} s: check that "
+                "the arm (or `python -m mjkdl.hw.franka_sim`) runs at this address"
+            )
+        self._poll()
+        if self._fault is not None:
+            raise self._fault
+
+    def _poll(self) -> None:
+        """Read the child's messages: ("ready",), ("fault", kind, message), ("watchdog", s)."""
+        while self._events.poll():
+            try:
+                msg = self._events.recv()
+            except EOFError:
+                if self._fault is None and not self._closed:
+                    self._fault = ArmConnectionError(
+                        f"the control process of the arm at {self.address} ended "
+                        f"(exit code {self._proc.exitcode}); reconnect"
+                    )
+                return
+            if msg[0] == "fault":
+                self._fault = translate(msg[1], msg[2], self.address)
+            elif msg[0] == "watchdog":
+                warnings.warn(
+                    f"the arm at {self.address} was brought to rest: no command came for "
+                    f"{msg[1]:.3f} s (watchdog={self.watchdog} s); send commands more often "
+                    "or connect with a longer watchdog; the next command starts a new motion",
+                    WatchdogWarning,
+                    stacklevel=4,
+                )
+
+    def check(self) -> None:
+        """Raise the fault the control loop reported, once (the arm is then at rest)."""
+        self._poll()
+        if self._fault is not None:
+            fault, self._fault = self._fault, None
+            raise fault
+
+    # ------------------------------------------------------------------ commands and state
+
+    def send(self, mode: int, command: np.ndarray, gravity_included: bool = False) -> None:
+        """Publish the command the loop sends from its next tick on (rate-limited)."""
+        self._check_open()
+        c = self._cmd
+        seq = c[_C_SEQ] + 1.0
+        c[_C_SEQ] = seq  # odd: being written
+        c[_C_MODE] = mode
+        c[_C_GRAV] = 1.0 if gravity_included else 0.0
+        c[_C_CMD:] = command
+        c[_C_SEQ] = seq + 1.0
+
+    def read(self) -> np.ndarray:
+        """The latest state block, consistent (a copy owned by the connection)."""
+        s, snap = self._state, self._snap
+        while True:
+            seq = s[_S_SEQ]
+            if seq % 2.0 == 0.0:
+                snap[:] = s
+                if s[_S_SEQ] == seq:
+                    return snap
+            time.sleep(0)
+
+    def state(self) -> ArmState:
+        """The latest measured state as an `ArmState` of fresh arrays."""
+        s = self.read()
+        return ArmState(
+            time=float(s[_S_TIME]),
+            q=s[_S_Q : _S_Q + 7].copy(),
+            dq=s[_S_DQ : _S_DQ + 7].copy(),
+            tau_J=s[_S_TAU : _S_TAU + 7].copy(),
+            tau_ext=s[_S_EXT : _S_EXT + 7].copy(),
+            f_ext=s[_S_F : _S_F + 6].copy(),
+            success_rate=float(s[_S_RATE]),
+            moving=s[_S_STATUS] == MOVING,
+        )
+
+    def wait_until(self, arm_time: float, timeout: float = 5.0) -> np.ndarray:
+        """Block until the arm's clock reaches `arm_time`; the state block then."""
+        deadline = time.monotonic() + timeout
+        while True:
+            s = self.read()
+            if s[_S_TIME] >= arm_time - 1e-9:
+                return s
+            self.check()
+            if not self._proc.is_alive():
+                self._poll()
+                self.check()
+                raise ArmConnectionError(f"the connection to the arm at {self.address} ended")
+            if time.monotonic() > deadline:
+                raise ArmConnectionError(
+                    f"the arm at {self.address} sent no state for {timeout} s (its clock stays "
+                    f"at {s[_S_TIME]:.3f} s); check the network and the robot's mode"
+                )
+            time.sleep(0.0002)
+
+    # ------------------------------------------------------------------ closing
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise HardwareError(f"the connection to the arm at {self.address} is closed")
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Bring the arm to rest, finish the motion and close the connection (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        _OPEN.discard(self)
+        self._cmd[_C_STOP] = 1.0
+        self._proc.join(timeout)
+        if self._proc.is_alive():  # the loop did not end: the robot's own timeout stops it
+            self._proc.kill()
+            self._proc.join()
+        self._events.close()
+
+
+_OPEN: weakref.WeakSet[ArmConnection] = weakref.WeakSet()
+_previous_sigint: Any = None
+
+
+def _install_sigint() -> None:
+    """Ctrl+C brings every connected arm to rest and closes it, then acts as before."""
+    global _previous_sigint
+    if _previous_sigint is not None:
+        return
+    try:
+        _previous_sigint = signal.signal(signal.SIGINT, _on_sigint)
+    except ValueError:  # not the main thread: the watchdog still stops the arm
+        return
+
+
+def _on_sigint(signum: int, frame: FrameType | None) -> None:
+    global _previous_sigint
+    for conn in list(_OPEN):
+        conn.close()
+    previous, _previous_sigint = _previous_sigint, None
+    signal.signal(signal.SIGINT, previous)
+    if callable(previous):
+        previous(signum, frame)
+    elif previous == signal.SIG_DFL:
+        raise KeyboardInterrupt
+
+
+# ---------------------------------------------------------------------- the child process
+
+
+def _control_process(
+    address: str,
+    model: str,
+    watchdog: float,
+    realtime: bool,
+    cmd_buf: Any,
+    state_buf: Any,
+    *,
+    events: Connection,
+    parent: int,
+) -> None:
+    """The control loop (runs in the child): one motion per command stream, until stopped."""
+    # Ctrl+C reaches the whole process group: the user's process asks this one to stop (and
+    # this one brings the arm to rest first), so SIGINT here is ignored.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    import pylibfranka as fr
+
+    loop = _Loop(fr, address, model, watchdog, cmd_buf, state_buf, events, parent)
+    try:
+        config = fr.RealtimeConfig.kEnforce if realtime else fr.RealtimeConfig.kIgnore
+        loop.robot = fr.Robot(address, config)
+        loop.publish(loop.robot.read_once(), IDLE)
+        events.send(("ready",))
+        loop.run()
+    except Exception as err:  # every client exception goes to the user's process, named
+        events.send(("fault", type(err).__name__, str(err)))
+    finally:
+        loop.state[_S_STATUS] = CLOSED
+        events.close()
+
+
+class _Loop:
+    """The child's state: the robot, the shared blocks and the rate limiter."""
+
+    def __init__(
+        self,
+        fr: Any,
+        address: str,
+        model: str,
+        watchdog: float,
+        cmd_buf: Any,
+        state_buf: Any,
+        events: Connection,
+        parent: int,
+    ) -> None:
+        self.fr, self.address, self.watchdog = fr, address, watchdog
+        self.cmd = np.frombuffer(cmd_buf, dtype=np.float64)
+        self.state = np.frombuffer(state_buf, dtype=np.float64)
+        self.events, self.parent = events, parent
+        self.limiter = RateLimiter(limits_for(model))
+        self.robot: Any = None
+        self.model: Any = None
+        self.seen = 0.0  # the command sequence number last acted on
+        self.wanted = np.zeros(7)
+        self.mode = POSITION
+        self.gravity_included = False
+        self.ticks = 0
+
+    def publish(self, rs: Any, status: float) -> None:
+        s = self.state
+        seq = s[_S_SEQ] + 1.0
+        s[_S_SEQ] = seq
+        s[_S_TIME] = rs.time.to_sec()
+        s[_S_STATUS] = status
+        s[_S_RATE] = rs.control_command_success_rate
+        s[_S_TICKS] = self.ticks
+        s[_S_Q : _S_Q + 7] = rs.q
+        s[_S_DQ : _S_DQ + 7] = rs.dq
+        s[_S_TAU : _S_TAU + 7] = rs.tau_J
+        s[_S_EXT : _S_EXT + 7] = rs.tau_ext_hat_filtered
+        s[_S_F : _S_F + 6] = rs.O_F_ext_hat_K
+        s[_S_SEQ] = seq + 1.0
+
+    def take_command(self) -> bool:
+        """Copy a new, consistent command into `wanted`; whether one came."""
+        c = self.cmd
+        seq = c[_C_SEQ]
+        if seq == self.seen or seq % 2.0 != 0.0:
+            return False
+        mode, grav = int(c[_C_MODE]), c[_C_GRAV] != 0.0
+        self.wanted[:] = c[_C_CMD:]
+        if c[_C_SEQ] != seq:
+            return False
+        self.seen, self.mode, self.gravity_included = seq, mode, grav
+        return True
+
+    def stop_asked(self) -> bool:
+        return self.cmd[_C_STOP] != 0.0 or os.getppid() != self.parent
+
+    def run(self) -> None:
+        """Idle until a command comes, run its motion, and again, until asked to stop."""
+        while not self.stop_asked():
+            if not self.take_command():
+                self.publish(self.robot.read_once(), IDLE)
+                time.sleep(0.002)
+                continue
+            self.motion()
+
+    def motion(self) -> None:
+        """One motion in the current mode, 1 kHz, until stopped, switched or the watchdog."""
+        fr, robot = self.fr, self.robot
+        mode = self.mode
+        if mode == TORQUE:
+            if self.model is None:
+                self.model = robot.load_model()
+            ctrl = robot.start_torque_control()
+        elif mode == VELOCITY:
+            ctrl = robot.start_joint_velocity_control(fr.ControllerMode.JointImpedance)
+        else:
+            ctrl = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+        limiter = self.limiter
+        rs, _ = ctrl.readOnce()
+        limiter.reset(np.asarray(rs.q_d), np.asarray(rs.dq_d))
+        last_new = time.monotonic()
+        stopping = False
+        watchdog_fired = 0.0
+        while True:
+            self.ticks += 1
+            self.publish(rs, STOPPING if stopping else MOVING)
+            now = time.monotonic()
+            if self.take_command():
+                last_new = now
+                if self.mode != mode:  # a new mode: finish this motion at rest first
+                    stopping = True
+                    self.seen -= 2.0  # act on this command again once stopped
+            if not stopping and self.stop_asked():
+                stopping = True
+            if not stopping and now - last_new > self.watchdog:
+                stopping, watchdog_fired = True, now - last_new
+            finished = False
+            if mode == TORQUE:
+                dq = np.asarray(rs.dq)
+                if stopping:
+                    tau = limiter.torque(-_DAMPING * dq)
+                    finished = float(np.abs(dq).max()) < _REST_SPEED
+                else:
+                    want = self.wanted
+                    if self.gravity_included:  # the robot compensates gravity itself
+                        want = want - np.asarray(self.model.gravity(rs))
+                    tau = limiter.torque(want)
+                out = fr.Torques(tau.tolist())
+            elif mode == VELOCITY:
+                v = limiter.velocity(self.wanted if not stopping else _ZERO)
+                finished = stopping and float(np.abs(v).max()) < 1e-6
+                out = fr.JointVelocities(v.tolist())
+            else:
+                if stopping:
+                    limiter.velocity(_ZERO)
+                    q = limiter.q
+                    finished = float(np.abs(limiter.dq).max()) < 1e-6
+                else:
+                    q = limiter.position(self.wanted)
+                out = fr.JointPositions(q.tolist())
+            if finished:
+                out.motion_finished = True
+                ctrl.writeOnce(out)
+                break
+            ctrl.writeOnce(out)
+            rs, _ = ctrl.readOnce()
+        self.publish(robot.read_once(), IDLE)
+        if watchdog_fired and not self.stop_asked():
+            self.events.send(("watchdog", watchdog_fired))
+
+
+_ZERO = np.zeros(7)
