@@ -19,9 +19,10 @@ pytest.importorskip("pylibfranka")
 NOBODY = "127.0.0.97"  # a loopback address nothing listens on (the tests' servers use others)
 
 
-def test_nothing_listening_names_the_address_and_the_fix() -> None:
+@pytest.mark.parametrize("client", ["pylibfranka", "panda-py"])
+def test_nothing_listening_names_the_address_and_the_fix(client: str) -> None:
     with pytest.raises(ArmConnectionError) as caught:
-        ArmConnection(NOBODY, "panda")
+        ArmConnection(NOBODY, "panda", client=client)
     text = str(caught.value)
     assert NOBODY in text and "python -m mjkdl.hw.franka_sim" in text
     assert isinstance(caught.value, ConnectionError) and isinstance(caught.value, MjkdlError)

@@ -1,15 +1,15 @@
 """One connection to a Franka arm, its 1 kHz control loop in a process of its own.
 
-The vendor client (pylibfranka) runs in a child process that does nothing but the control
-loop: read the state, rate-limit the latest command, write it, publish the state. The user's
-process exchanges commands and states with it through shared memory (a sequence lock: the
-writer makes the counter odd while it writes, readers retry until they see an even,
-unchanged counter), so no lock is ever held across processes and no Python work in the
-user's loop, which holds that process's GIL, can delay a tick: the GIL of the control
-process is its own. The loop keeps the safety defaults: every command rate-limited to the
-arm's limits (`rate_limit`), a watchdog that brings the arm to rest and finishes the motion
-when no new command came for `watchdog` seconds of wall-clock time, and the same when the
-user's process asks it to stop or dies.
+The vendor client (pylibfranka for FR3, panda-py for the Panda) runs in a child process that
+does nothing but the control loop: read the state, rate-limit the latest command, write it,
+publish the state. The user's process exchanges commands and states with it through shared
+memory (a sequence lock: the writer makes the counter odd while it writes, readers retry
+until they see an even, unchanged counter), so no lock is ever held across processes and no
+Python work in the user's loop, which holds that process's GIL, can delay a tick: the GIL
+of the control process is its own. The loop keeps the safety defaults: every command
+rate-limited to the arm's limits (`rate_limit`), a watchdog that brings the arm to rest and
+finishes the motion when no new command came for `watchdog` seconds of wall-clock time, and
+the same when the user's process asks it to stop (`close`, Ctrl+C) or dies.
 """
 
 from __future__ import annotations
@@ -40,6 +40,9 @@ _S_SEQ, _S_TIME, _S_STATUS, _S_RATE, _S_TICKS = 0, 1, 2, 3, 4
 _S_Q, _S_DQ, _S_TAU, _S_EXT, _S_F = 5, 12, 19, 26, 33
 _S_LEN = _S_F + 6
 IDLE, MOVING, STOPPING, CLOSED = 0.0, 1.0, 2.0, 3.0
+# The vendor client each arm is driven through by default: FR3 speaks libfranka >= 0.15
+# (pylibfranka), the Panda libfranka 0.9 (panda-py).
+_CLIENTS = {"fr3": "pylibfranka", "panda": "panda-py"}
 _REST_SPEED = 0.01  # rad/s: the arm counts as at rest below this joint speed
 _DAMPING = 10.0  # Nm s/rad: how a stopping torque motion brakes the arm
 
@@ -68,6 +71,7 @@ class ArmConnection:
         address: str,
         model: str = "fr3",
         *,
+        client: str | None = None,
         watchdog: float = 0.2,
         realtime: bool = False,
         connect_timeout: float = 20.0,
@@ -78,6 +82,10 @@ class ArmConnection:
             raise SpecError(f"watchdog must be seconds in (0, 10), got {watchdog!r}")
         self.address = address
         self.limits = limits_for(model)
+        client = client or _CLIENTS[model]
+        if client not in _CLIENTS.values():
+            raise SpecError(f"client must be 'pylibfranka' or 'panda-py', got {client!r}")
+        self.client = client
         self.watchdog = float(watchdog)
         ctx = mp.get_context("spawn")  # no fork of a process holding MuJoCo or GL state
         self._cmd = np.frombuffer(ctx.RawArray("d", _C_LEN), dtype=np.float64)
@@ -88,8 +96,13 @@ class ArmConnection:
         self._fault: HardwareError | None = None
         self._proc = ctx.Process(
             target=_control_process,
-            args=(address, model, self.watchdog, realtime, self._cmd.base, self._state.base),
-            kwargs={"events": child_end, "parent": os.getpid()},
+            args=(address, model, client, self.watchdog, realtime),
+            kwargs={
+                "cmd_buf": self._cmd.base,
+                "state_buf": self._state.base,
+                "events": child_end,
+                "parent": os.getpid(),
+            },
             name=f"mjkdl-arm-{address}",
             daemon=True,
         )
@@ -262,11 +275,12 @@ def _on_sigint(signum: int, frame: FrameType | None) -> None:
 def _control_process(
     address: str,
     model: str,
+    client: str,
     watchdog: float,
     realtime: bool,
+    *,
     cmd_buf: Any,
     state_buf: Any,
-    *,
     events: Connection,
     parent: int,
 ) -> None:
@@ -274,11 +288,19 @@ def _control_process(
     # Ctrl+C reaches the whole process group: the user's process asks this one to stop (and
     # this one brings the arm to rest first), so SIGINT here is ignored.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    import pylibfranka as fr
-
-    loop = _Loop(fr, address, model, watchdog, cmd_buf, state_buf, events, parent)
+    loop = _Loop(model, watchdog, cmd_buf, state_buf, events, parent)
     try:
-        config = fr.RealtimeConfig.kEnforce if realtime else fr.RealtimeConfig.kIgnore
+        if client == "pylibfranka":
+            import pylibfranka as fr
+
+            loop.fr = fr
+            config = fr.RealtimeConfig.kEnforce if realtime else fr.RealtimeConfig.kIgnore
+        else:
+            from panda_py import libfranka as fr
+
+            loop.fr = fr
+            config = fr.RealtimeConfig.kEnforce if realtime else fr.RealtimeConfig.kIgnore
+        loop.client = client
         loop.robot = fr.Robot(address, config)
         loop.publish(loop.robot.read_once(), IDLE)
         events.send(("ready",))
@@ -291,12 +313,10 @@ def _control_process(
 
 
 class _Loop:
-    """The child's state: the robot, the shared blocks and the rate limiter."""
+    """The child's state: the robot, the shared blocks, the rate limiter and the motion."""
 
     def __init__(
         self,
-        fr: Any,
-        address: str,
         model: str,
         watchdog: float,
         cmd_buf: Any,
@@ -304,11 +324,13 @@ class _Loop:
         events: Connection,
         parent: int,
     ) -> None:
-        self.fr, self.address, self.watchdog = fr, address, watchdog
+        self.watchdog = watchdog
         self.cmd = np.frombuffer(cmd_buf, dtype=np.float64)
         self.state = np.frombuffer(state_buf, dtype=np.float64)
         self.events, self.parent = events, parent
         self.limiter = RateLimiter(limits_for(model))
+        self.fr: Any = None
+        self.client = "pylibfranka"
         self.robot: Any = None
         self.model: Any = None
         self.seen = 0.0  # the command sequence number last acted on
@@ -316,6 +338,12 @@ class _Loop:
         self.mode = POSITION
         self.gravity_included = False
         self.ticks = 0
+        # the motion under way
+        self.motion_mode = POSITION
+        self.started = False
+        self.stopping = False
+        self.last_new = 0.0
+        self.watchdog_fired = 0.0
 
     def publish(self, rs: Any, status: float) -> None:
         s = self.state
@@ -360,67 +388,85 @@ class _Loop:
     def motion(self) -> None:
         """One motion in the current mode, 1 kHz, until stopped, switched or the watchdog."""
         fr, robot = self.fr, self.robot
-        mode = self.mode
-        if mode == TORQUE:
-            if self.model is None:
-                self.model = robot.load_model()
-            ctrl = robot.start_torque_control()
-        elif mode == VELOCITY:
-            ctrl = robot.start_joint_velocity_control(fr.ControllerMode.JointImpedance)
-        else:
-            ctrl = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
-        limiter = self.limiter
-        rs, _ = ctrl.readOnce()
-        limiter.reset(np.asarray(rs.q_d), np.asarray(rs.dq_d))
-        last_new = time.monotonic()
-        stopping = False
-        watchdog_fired = 0.0
-        while True:
-            self.ticks += 1
-            self.publish(rs, STOPPING if stopping else MOVING)
-            now = time.monotonic()
-            if self.take_command():
-                last_new = now
-                if self.mode != mode:  # a new mode: finish this motion at rest first
-                    stopping = True
-                    self.seen -= 2.0  # act on this command again once stopped
-            if not stopping and self.stop_asked():
-                stopping = True
-            if not stopping and now - last_new > self.watchdog:
-                stopping, watchdog_fired = True, now - last_new
-            finished = False
+        mode = self.motion_mode = self.mode
+        self.started, self.stopping, self.watchdog_fired = False, False, 0.0
+        if mode == TORQUE and self.model is None:
+            self.model = robot.load_model()
+        if self.client == "pylibfranka":
             if mode == TORQUE:
-                dq = np.asarray(rs.dq)
-                if stopping:
-                    tau = limiter.torque(-_DAMPING * dq)
-                    finished = float(np.abs(dq).max()) < _REST_SPEED
-                else:
-                    want = self.wanted
-                    if self.gravity_included:  # the robot compensates gravity itself
-                        want = want - np.asarray(self.model.gravity(rs))
-                    tau = limiter.torque(want)
-                out = fr.Torques(tau.tolist())
+                ctrl = robot.start_torque_control()
             elif mode == VELOCITY:
-                v = limiter.velocity(self.wanted if not stopping else _ZERO)
-                finished = stopping and float(np.abs(v).max()) < 1e-6
-                out = fr.JointVelocities(v.tolist())
+                ctrl = robot.start_joint_velocity_control(fr.ControllerMode.JointImpedance)
             else:
-                if stopping:
-                    limiter.velocity(_ZERO)
-                    q = limiter.q
-                    finished = float(np.abs(limiter.dq).max()) < 1e-6
-                else:
-                    q = limiter.position(self.wanted)
-                out = fr.JointPositions(q.tolist())
-            if finished:
-                out.motion_finished = True
-                ctrl.writeOnce(out)
-                break
-            ctrl.writeOnce(out)
+                ctrl = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
             rs, _ = ctrl.readOnce()
+            while True:
+                out = self.tick(rs)
+                ctrl.writeOnce(out)
+                if out.motion_finished:
+                    break
+                rs, _ = ctrl.readOnce()
+        else:  # panda-py: libfranka's own loop calls back once per tick (our rate limiter)
+            tick = self.tick
+            if mode == TORQUE:
+                robot.control(lambda rs, d: tick(rs), limit_rate=False, cutoff_frequency=1000.0)
+            elif mode == VELOCITY:
+                robot.control_joint_velocity(
+                    lambda rs, d: tick(rs), limit_rate=False, cutoff_frequency=1000.0
+                )
+            else:
+                robot.control_joint_position(
+                    lambda rs, d: tick(rs), limit_rate=False, cutoff_frequency=1000.0
+                )
         self.publish(robot.read_once(), IDLE)
-        if watchdog_fired and not self.stop_asked():
-            self.events.send(("watchdog", watchdog_fired))
+        if self.watchdog_fired and not self.stop_asked():
+            self.events.send(("watchdog", self.watchdog_fired))
+
+    def tick(self, rs: Any) -> Any:
+        """The command for this tick of the motion under way, from the state `rs`."""
+        fr, limiter, mode = self.fr, self.limiter, self.motion_mode
+        now = time.monotonic()
+        if not self.started:
+            self.started, self.last_new = True, now
+            limiter.reset(np.asarray(rs.q_d), np.asarray(rs.dq_d))
+        self.ticks += 1
+        self.publish(rs, STOPPING if self.stopping else MOVING)
+        if self.take_command():
+            self.last_new = now
+            if self.mode != mode:  # a new mode: finish this motion at rest first
+                self.stopping = True
+                self.seen -= 2.0  # act on this command again once stopped
+        if not self.stopping and self.stop_asked():
+            self.stopping = True
+        if not self.stopping and now - self.last_new > self.watchdog:
+            self.stopping, self.watchdog_fired = True, now - self.last_new
+        stopping, finished = self.stopping, False
+        if mode == TORQUE:
+            dq = np.asarray(rs.dq)
+            if stopping:
+                tau = limiter.torque(-_DAMPING * dq)
+                finished = float(np.abs(dq).max()) < _REST_SPEED
+            else:
+                want = self.wanted
+                if self.gravity_included:  # the robot compensates gravity itself
+                    want = want - np.asarray(self.model.gravity(rs))
+                tau = limiter.torque(want)
+            out = fr.Torques(tau.tolist())
+        elif mode == VELOCITY:
+            v = limiter.velocity(self.wanted if not stopping else _ZERO)
+            finished = stopping and float(np.abs(v).max()) < 1e-6
+            out = fr.JointVelocities(v.tolist())
+        else:
+            if stopping:
+                limiter.velocity(_ZERO)
+                q = limiter.q
+                finished = float(np.abs(limiter.dq).max()) < 1e-6
+            else:
+                q = limiter.position(self.wanted)
+            out = fr.JointPositions(q.tolist())
+        if finished:
+            out.motion_finished = True
+        return out
 
 
 _ZERO = np.zeros(7)

@@ -45,7 +45,7 @@ def translate(kind: str, message: str, address: str) -> HardwareError:
             "reachable at this address, that FCI is activated in Desk, and that no other "
             "client is connected"
         )
-    if kind == "ControlException":
+    if kind == "ControlException" or "reflex" in message.lower():
         return ReflexError(
             f"{text}: the robot stopped the motion with a reflex; lower the commanded speed "
             "or the contact forces (or raise the collision thresholds); the next command "

@@ -54,7 +54,8 @@ def arm_scene(timestep: float = 0.001) -> SceneSpec:
 class FrankaArm:
     """The `Robot` ports and methods of the Franka arm at `robot_ip` (see the module doc).
 
-    `model` picks the limits the commands are held to ("panda" or "fr3"); `watchdog` is how
+    `model` picks the limits the commands are held to ("panda" or "fr3") and the client it
+    is driven through (`client`: "pylibfranka" for FR3, "panda-py" for Panda); `watchdog` is how
     long (s) the arm keeps executing the last command when no new one comes before the
     watchdog brings it to rest; `realtime=True` asks libfranka for real-time scheduling (a
     PREEMPT_RT kernel), as a real arm wants.
@@ -70,6 +71,7 @@ class FrankaArm:
         model: str = "panda",
         *,
         tool: ToolFrameSpec | None = None,
+        client: str | None = None,
         watchdog: float = 0.2,
         realtime: bool = False,
     ) -> None:
@@ -79,7 +81,13 @@ class FrankaArm:
         try:
             robot = scene.create_robot("link0", "hand", tool=tool)
             link = ArmLink(
-                scene, robot, robot_ip, model=model, watchdog=watchdog, realtime=realtime
+                scene,
+                robot,
+                robot_ip,
+                model=model,
+                client=client,
+                watchdog=watchdog,
+                realtime=realtime,
             )
         except BaseException:
             scene.close()

@@ -54,6 +54,7 @@ class ArmLink:
         robot_ip: str,
         *,
         model: str = "panda",
+        client: str | None = None,
         haptic: bool = False,
         haptic_gain: float = 0.1,
         haptic_damping: float = 2.0,
@@ -74,7 +75,9 @@ class ArmLink:
         self.scene, self.robot = scene, robot
         self.haptic = bool(haptic)
         self.haptic_gain, self.haptic_damping = float(haptic_gain), float(haptic_damping)
-        self.connection = ArmConnection(robot_ip, model, watchdog=watchdog, realtime=realtime)
+        self.connection = ArmConnection(
+            robot_ip, model, client=client, watchdog=watchdog, realtime=realtime
+        )
         self._torque = np.zeros(7)
         s = self.connection.read()
         self._arm_time = float(s[_S_TIME])
