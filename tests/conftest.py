@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -253,3 +254,54 @@ def shelf_objects() -> list[mjk.SceneObject]:
         board("shelf_b", [0.12, 0.12, 0.01], [0.45, -0.35, SHELF_TOP - 0.01]),
         board("wall", [0.25, 0.01, 0.35], [0.55, 0.0, 0.35]),
     ]
+
+
+# ---------------------------------------------------------------------- a simulated Franka arm
+
+_SERVERS = [0]
+
+
+def start_franka_sim(*args: str) -> tuple[str, subprocess.Popen[bytes]]:
+    """`python -m mjkdl.hw.franka_sim` in lockstep on a loopback address of its own (no two
+    test runs on this machine share one); (address, process) once it accepts connections."""
+    import socket
+    import sys
+    import time
+
+    pytest.importorskip("pylibfranka")
+    _SERVERS[0] += 1
+    address = f"127.{os.getpid() % 200 + 20}.{_SERVERS[0] % 250}.{os.getpid() // 200 % 250 + 1}"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", address, "--lockstep", *args],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    deadline = time.monotonic() + 60.0
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"franka_sim ended: {proc.stderr.read().decode()}")  # type: ignore[union-attr]
+        try:
+            socket.create_connection((address, 1337), timeout=0.2).close()
+            return address, proc
+        except OSError:
+            time.sleep(0.1)
+    stop_franka_sim(proc)
+    raise TimeoutError("franka_sim did not listen within 60 s")
+
+
+def stop_franka_sim(proc: subprocess.Popen[bytes]) -> None:
+    """Stop a server started by `start_franka_sim` (nothing left listening)."""
+    proc.terminate()
+    try:
+        proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+@pytest.fixture(scope="module")
+def franka_sim() -> Iterator[str]:
+    """The address of a lockstep simulated Franka arm, for one test module."""
+    address, proc = start_franka_sim("--command-timeout", "10")
+    yield address
+    stop_franka_sim(proc)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mjkdl.errors import MjkdlError
-from mjkdl.hw.rate_limit import DT, LIMITS, RateLimiter, limits_for
+from mjkdl.hw.rate_limit import DT, LIMITS, START_SHARE, START_TICKS, RateLimiter, limits_for
 
 
 def _run(limiter: RateLimiter, target: np.ndarray, ticks: int) -> np.ndarray:
@@ -37,14 +37,21 @@ def test_a_position_jump_becomes_a_motion_within_every_limit(model: str) -> None
 
 def test_the_first_tick_is_limitRate_s_jerk_step() -> None:
     # From rest, a far target: the jerk is clipped to j_max, so a = j_max dt, v = a dt,
-    # q = q0 + v dt (libfranka's limitRate, position overload).
+    # q = q0 + v dt (libfranka's limitRate, position overload); the first ticks of a motion
+    # at START_SHARE of the limits (the float32 q_d a motion starts from).
     limits = LIMITS["panda"]
     limiter = RateLimiter(limits)
     limiter.reset(np.zeros(7))
     q = limiter.position(np.full(7, 1.0))
-    np.testing.assert_allclose(limiter.ddq, limits.max_jerk * DT)
-    np.testing.assert_allclose(limiter.dq, limits.max_jerk * DT * DT)
-    np.testing.assert_allclose(q, limits.max_jerk * DT**3)
+    jerk = limits.max_jerk * START_SHARE
+    np.testing.assert_allclose(limiter.ddq, jerk * DT)
+    np.testing.assert_allclose(limiter.dq, jerk * DT * DT)
+    np.testing.assert_allclose(q, jerk * DT**3)
+    for _ in range(START_TICKS - 1):
+        limiter.position(np.full(7, 1.0))
+    np.testing.assert_allclose(limiter.ddq, limits.max_acceleration * START_SHARE)
+    limiter.position(np.full(7, 1.0))  # past the start: the full acceleration
+    np.testing.assert_allclose(limiter.ddq, limits.max_acceleration)
     assert limits.max_jerk[0] == 7500.0 - 1e-3  # libfranka 0.9.2's kMaxJointJerk, less kLimitEps
 
 

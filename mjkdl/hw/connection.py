@@ -32,17 +32,22 @@ from .faults import ArmConnectionError, HardwareError, WatchdogWarning, translat
 from .rate_limit import RateLimiter, limits_for
 
 POSITION, VELOCITY, TORQUE = 0, 1, 2
-# The command block: [seq, mode, stop, gravity_included, cmd x7]
-_C_SEQ, _C_MODE, _C_STOP, _C_GRAV, _C_CMD = 0, 1, 2, 3, 4
+# The command block: [seq, mode, stop, cmd x7]
+_C_SEQ, _C_MODE, _C_STOP, _C_CMD = 0, 1, 2, 3
 _C_LEN = _C_CMD + 7
-# The state block: [seq, time, status, success_rate, ticks, q, dq, tau_J, tau_ext, F_ext(6)]
-_S_SEQ, _S_TIME, _S_STATUS, _S_RATE, _S_TICKS = 0, 1, 2, 3, 4
-_S_Q, _S_DQ, _S_TAU, _S_EXT, _S_F = 5, 12, 19, 26, 33
+# The state block: [seq, time, status, success_rate, ticks, late, q, dq, tau_J, tau_ext,
+# F_ext(6)]; late counts the ticks that came more than one robot cycle after the previous one.
+_S_SEQ, _S_TIME, _S_STATUS, _S_RATE, _S_TICKS, _S_LATE = 0, 1, 2, 3, 4, 5
+_S_Q, _S_DQ, _S_TAU, _S_EXT, _S_F = 6, 13, 20, 27, 34
 _S_LEN = _S_F + 6
 IDLE, MOVING, STOPPING, CLOSED = 0.0, 1.0, 2.0, 3.0
 # The vendor client each arm is driven through by default: FR3 speaks libfranka >= 0.15
 # (pylibfranka), the Panda libfranka 0.9 (panda-py).
 _CLIENTS = {"fr3": "pylibfranka", "panda": "panda-py"}
+# A motion's first ticks stand still: until the robot answers each command in turn (its first
+# states come before it waits for ours), a command can miss its cycle, and one missed while
+# moving is a velocity step the robot's discontinuity reflex catches.
+_HOLD_TICKS = 20
 _REST_SPEED = 0.01  # rad/s: the arm counts as at rest below this joint speed
 _DAMPING = 10.0  # Nm s/rad: how a stopping torque motion brakes the arm
 
@@ -59,6 +64,8 @@ class ArmState:
     f_ext: np.ndarray  # O_F_ext_hat_K: external wrench at the end effector, base frame
     success_rate: float  # control_command_success_rate of the last tick
     moving: bool  # a motion is running
+    ticks: int  # control ticks this connection ran
+    late: int  # of which came more than one robot cycle after the previous one
 
 
 class ArmConnection:
@@ -163,14 +170,13 @@ class ArmConnection:
 
     # ------------------------------------------------------------------ commands and state
 
-    def send(self, mode: int, command: np.ndarray, gravity_included: bool = False) -> None:
+    def send(self, mode: int, command: np.ndarray) -> None:
         """Publish the command the loop sends from its next tick on (rate-limited)."""
         self._check_open()
         c = self._cmd
         seq = c[_C_SEQ] + 1.0
         c[_C_SEQ] = seq  # odd: being written
         c[_C_MODE] = mode
-        c[_C_GRAV] = 1.0 if gravity_included else 0.0
         c[_C_CMD:] = command
         c[_C_SEQ] = seq + 1.0
 
@@ -196,7 +202,9 @@ class ArmConnection:
             tau_ext=s[_S_EXT : _S_EXT + 7].copy(),
             f_ext=s[_S_F : _S_F + 6].copy(),
             success_rate=float(s[_S_RATE]),
-            moving=s[_S_STATUS] == MOVING,
+            moving=bool(s[_S_STATUS] == MOVING),
+            ticks=int(s[_S_TICKS]),
+            late=int(s[_S_LATE]),
         )
 
     def wait_until(self, arm_time: float, timeout: float = 5.0) -> np.ndarray:
@@ -332,15 +340,15 @@ class _Loop:
         self.fr: Any = None
         self.client = "pylibfranka"
         self.robot: Any = None
-        self.model: Any = None
         self.seen = 0.0  # the command sequence number last acted on
         self.wanted = np.zeros(7)
         self.mode = POSITION
-        self.gravity_included = False
         self.ticks = 0
+        self.late = 0
         # the motion under way
         self.motion_mode = POSITION
         self.started = False
+        self.hold = 0
         self.stopping = False
         self.last_new = 0.0
         self.watchdog_fired = 0.0
@@ -353,6 +361,7 @@ class _Loop:
         s[_S_STATUS] = status
         s[_S_RATE] = rs.control_command_success_rate
         s[_S_TICKS] = self.ticks
+        s[_S_LATE] = self.late
         s[_S_Q : _S_Q + 7] = rs.q
         s[_S_DQ : _S_DQ + 7] = rs.dq
         s[_S_TAU : _S_TAU + 7] = rs.tau_J
@@ -366,11 +375,11 @@ class _Loop:
         seq = c[_C_SEQ]
         if seq == self.seen or seq % 2.0 != 0.0:
             return False
-        mode, grav = int(c[_C_MODE]), c[_C_GRAV] != 0.0
+        mode = int(c[_C_MODE])
         self.wanted[:] = c[_C_CMD:]
         if c[_C_SEQ] != seq:
             return False
-        self.seen, self.mode, self.gravity_included = seq, mode, grav
+        self.seen, self.mode = seq, mode
         return True
 
     def stop_asked(self) -> bool:
@@ -390,8 +399,6 @@ class _Loop:
         fr, robot = self.fr, self.robot
         mode = self.motion_mode = self.mode
         self.started, self.stopping, self.watchdog_fired = False, False, 0.0
-        if mode == TORQUE and self.model is None:
-            self.model = robot.load_model()
         if self.client == "pylibfranka":
             if mode == TORQUE:
                 ctrl = robot.start_torque_control()
@@ -399,37 +406,36 @@ class _Loop:
                 ctrl = robot.start_joint_velocity_control(fr.ControllerMode.JointImpedance)
             else:
                 ctrl = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
-            rs, _ = ctrl.readOnce()
+            rs, period = ctrl.readOnce()
             while True:
-                out = self.tick(rs)
+                out = self.tick(rs, period)
                 ctrl.writeOnce(out)
                 if out.motion_finished:
                     break
-                rs, _ = ctrl.readOnce()
+                rs, period = ctrl.readOnce()
         else:  # panda-py: libfranka's own loop calls back once per tick (our rate limiter)
             tick = self.tick
             if mode == TORQUE:
-                robot.control(lambda rs, d: tick(rs), limit_rate=False, cutoff_frequency=1000.0)
+                robot.control(tick, limit_rate=False, cutoff_frequency=1000.0)
             elif mode == VELOCITY:
-                robot.control_joint_velocity(
-                    lambda rs, d: tick(rs), limit_rate=False, cutoff_frequency=1000.0
-                )
+                robot.control_joint_velocity(tick, limit_rate=False, cutoff_frequency=1000.0)
             else:
-                robot.control_joint_position(
-                    lambda rs, d: tick(rs), limit_rate=False, cutoff_frequency=1000.0
-                )
+                robot.control_joint_position(tick, limit_rate=False, cutoff_frequency=1000.0)
         self.publish(robot.read_once(), IDLE)
         if self.watchdog_fired and not self.stop_asked():
             self.events.send(("watchdog", self.watchdog_fired))
 
-    def tick(self, rs: Any) -> Any:
-        """The command for this tick of the motion under way, from the state `rs`."""
+    def tick(self, rs: Any, period: Any) -> Any:
+        """The command for this tick of the motion under way, from the state `rs` that came
+        `period` after the previous one."""
         fr, limiter, mode = self.fr, self.limiter, self.motion_mode
         now = time.monotonic()
         if not self.started:
-            self.started, self.last_new = True, now
+            self.started, self.last_new, self.hold = True, now, _HOLD_TICKS
             limiter.reset(np.asarray(rs.q_d), np.asarray(rs.dq_d))
         self.ticks += 1
+        if period.to_sec() > 0.0015:  # a cycle (or more) went by without a command of ours
+            self.late += 1
         self.publish(rs, STOPPING if self.stopping else MOVING)
         if self.take_command():
             self.last_new = now
@@ -441,16 +447,20 @@ class _Loop:
         if not self.stopping and now - self.last_new > self.watchdog:
             self.stopping, self.watchdog_fired = True, now - self.last_new
         stopping, finished = self.stopping, False
+        if self.hold:  # the motion's first ticks stand still at its start
+            self.hold -= 1
+            if mode == TORQUE:
+                return fr.Torques(limiter.tau.tolist())
+            if mode == VELOCITY:
+                return fr.JointVelocities(_ZERO.tolist())
+            return fr.JointPositions(limiter.q.tolist())
         if mode == TORQUE:
             dq = np.asarray(rs.dq)
             if stopping:
                 tau = limiter.torque(-_DAMPING * dq)
                 finished = float(np.abs(dq).max()) < _REST_SPEED
             else:
-                want = self.wanted
-                if self.gravity_included:  # the robot compensates gravity itself
-                    want = want - np.asarray(self.model.gravity(rs))
-                tau = limiter.torque(want)
+                tau = limiter.torque(self.wanted)
             out = fr.Torques(tau.tolist())
         elif mode == VELOCITY:
             v = limiter.velocity(self.wanted if not stopping else _ZERO)

@@ -109,8 +109,11 @@ class ArmLink:
             conn.send(POSITION, robot.jnt_pos_cmd)
         elif mode is CtrlMode.VELOCITY:
             conn.send(VELOCITY, robot.jnt_vel_cmd)
-        else:  # the arm compensates gravity itself: a command that includes it says so
-            conn.send(TORQUE, robot.jnt_trq_cmd, gravity_included=not robot.gravity_compensation)
+        elif robot.gravity_compensation:  # the arm compensates gravity itself
+            conn.send(TORQUE, robot.jnt_trq_cmd)
+        else:  # a torque that holds gravity (the Robot's TORQUE semantics): less the gravity
+            np.subtract(robot.jnt_trq_cmd, robot.gravity_torques(), out=self._torque)
+            conn.send(TORQUE, self._torque)
 
     def step(self, n: int) -> None:
         """`n` timesteps: each sends the command, steps MuJoCo, then mirrors the arm's state

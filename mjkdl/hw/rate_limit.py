@@ -21,6 +21,12 @@ from ..errors import SpecError
 DT = 1e-3  # the control interface's tick (s)
 _EPS = 1e-3  # libfranka's kLimitEps: every limit is kept this far inside the robot's own
 APPROACH_GAIN = 20.0  # 1/s: the last stretch to a position target, a 50 ms time constant
+# The state reports q_d in float32 (libfranka >= 0.18), up to 1.2e-7 rad off the robot's own
+# double: a motion that starts from it is off by that step, which the robot's differences turn
+# into up to 240 rad/s^3 of jerk and 0.12 rad/s^2 of acceleration over its first three ticks.
+# Those ticks keep this share of the jerk and acceleration limits.
+START_SHARE = 0.9
+START_TICKS = 5
 
 
 @dataclass(frozen=True)
@@ -122,6 +128,7 @@ class RateLimiter:
         self.ddq = np.zeros(7)  # last commanded acceleration
         self.tau = np.zeros(7)  # last commanded torque
         self._out = np.zeros(7)
+        self._start = 0  # ticks left at START_SHARE of the limits
 
     def reset(
         self, q: np.ndarray, dq: np.ndarray | None = None, tau: np.ndarray | None = None
@@ -131,6 +138,7 @@ class RateLimiter:
         self.dq[:] = 0.0 if dq is None else dq
         self.ddq[:] = 0.0
         self.tau[:] = 0.0 if tau is None else tau
+        self._start = START_TICKS
 
     def velocity(self, dq_cmd: np.ndarray) -> np.ndarray:
         """The joint velocities to send for the wanted `dq_cmd` (also advances `q`)."""
@@ -138,12 +146,16 @@ class RateLimiter:
         # The bounds where this tick ends (FR3's shrink with q): libfranka evaluates them
         # at the last position, which lets a fast joint overrun a shrinking bound by ~1e-3.
         lower, upper = self.limits.velocity_bounds(self.q + self.dq * (2.0 * DT))
+        jerk_max, acc_max = self._jerk_max, self._acc_max
+        if self._start:
+            self._start -= 1
+            jerk_max, acc_max = jerk_max * START_SHARE, acc_max * START_SHARE
         jerk = ((dq_cmd - self.dq) / DT - self.ddq) / DT
-        acc = self.ddq + np.clip(jerk, -self._jerk_max, self._jerk_max) * DT
+        acc = self.ddq + np.clip(jerk, -jerk_max, jerk_max) * DT
         # The acceleration is bounded so that the velocity can still reach its limit at the
         # jerk limit: a_max(v) = (j_max / a_max) * (v_limit - v).
-        acc_hi = np.minimum(self._ratio * (upper - self.dq), self._acc_max)
-        acc_lo = np.maximum(self._ratio * (lower - self.dq), -self._acc_max)
+        acc_hi = np.minimum(self._ratio * (upper - self.dq), acc_max)
+        acc_lo = np.maximum(self._ratio * (lower - self.dq), -acc_max)
         np.clip(acc, acc_lo, acc_hi, out=acc)
         self.ddq[:] = acc
         self.dq += acc * DT
