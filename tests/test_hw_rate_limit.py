@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from mjkdl.errors import MjkdlError
-from mjkdl.hw.rate_limit import DT, LIMITS, START_SHARE, START_TICKS, RateLimiter, limits_for
+from mjkdl.hw.rate_limit import (
+    APPROACH_SHARE,
+    DT,
+    LIMITS,
+    START_SHARE,
+    START_TICKS,
+    RateLimiter,
+    limits_for,
+)
 
 
 def _run(limiter: RateLimiter, target: np.ndarray, ticks: int) -> np.ndarray:
@@ -36,23 +44,30 @@ def test_a_position_jump_becomes_a_motion_within_every_limit(model: str) -> None
 
 
 def test_the_first_tick_is_limitRate_s_jerk_step() -> None:
-    # From rest, a far target: the jerk is clipped to j_max, so a = j_max dt, v = a dt,
-    # q = q0 + v dt (libfranka's limitRate, position overload); the first ticks of a motion
-    # at START_SHARE of the limits (the float32 q_d a motion starts from).
+    # From rest, a far velocity: the jerk is clipped to j_max, so a = j_max dt, v = a dt
+    # (libfranka's limitRate); the first ticks of a motion at START_SHARE of the limits (the
+    # float32 q_d a motion starts from).
     limits = LIMITS["panda"]
     limiter = RateLimiter(limits)
     limiter.reset(np.zeros(7))
-    q = limiter.position(np.full(7, 1.0))
+    v = limiter.velocity(np.full(7, 2.0))
     jerk = limits.max_jerk * START_SHARE
     np.testing.assert_allclose(limiter.ddq, jerk * DT)
-    np.testing.assert_allclose(limiter.dq, jerk * DT * DT)
-    np.testing.assert_allclose(q, jerk * DT**3)
+    np.testing.assert_allclose(v, jerk * DT * DT)
+    np.testing.assert_allclose(limiter.q, jerk * DT**3)
     for _ in range(START_TICKS - 1):
-        limiter.position(np.full(7, 1.0))
+        limiter.velocity(np.full(7, 2.0))
     np.testing.assert_allclose(limiter.ddq, limits.max_acceleration * START_SHARE)
-    limiter.position(np.full(7, 1.0))  # past the start: the full acceleration
+    limiter.velocity(np.full(7, 2.0))  # past the start: the full acceleration
     np.testing.assert_allclose(limiter.ddq, limits.max_acceleration)
     assert limits.max_jerk[0] == 7500.0 - 1e-3  # libfranka 0.9.2's kMaxJointJerk, less kLimitEps
+    # A position target goes at APPROACH_SHARE of the limits, at most.
+    limiter.reset(np.zeros(7))
+    for _ in range(3000):
+        limiter.position(np.full(7, 2.0))
+        assert (np.abs(limiter.ddq) <= APPROACH_SHARE * limits.max_acceleration + 1e-9).all()
+        # (the jerk-limited chain reaches the cap with a few mrad/s of overshoot)
+        assert (limiter.dq <= APPROACH_SHARE * limits.velocity_bounds(limiter.q)[1] + 5e-3).all()
 
 
 def test_fr3_velocity_limits_shrink_near_the_position_limits() -> None:

@@ -14,16 +14,20 @@ the same when the user's process asks it to stop (`close`, Ctrl+C) or dies.
 
 from __future__ import annotations
 
-import multiprocessing as mp
+import json
+import mmap
 import os
+import select
 import signal
+import subprocess
+import sys
+import tempfile
 import time
 import warnings
 import weakref
 from dataclasses import dataclass
-from multiprocessing.connection import Connection
 from types import FrameType
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -48,6 +52,7 @@ _CLIENTS = {"fr3": "pylibfranka", "panda": "panda-py"}
 # states come before it waits for ours), a command can miss its cycle, and one missed while
 # moving is a velocity step the robot's discontinuity reflex catches.
 _HOLD_TICKS = 20
+_REFLEX = 4  # libfranka's RobotMode::kReflex
 _REST_SPEED = 0.01  # rad/s: the arm counts as at rest below this joint speed
 _DAMPING = 10.0  # Nm s/rad: how a stopping torque motion brakes the arm
 
@@ -94,32 +99,29 @@ class ArmConnection:
             raise SpecError(f"client must be 'pylibfranka' or 'panda-py', got {client!r}")
         self.client = client
         self.watchdog = float(watchdog)
-        ctx = mp.get_context("spawn")  # no fork of a process holding MuJoCo or GL state
-        self._cmd = np.frombuffer(ctx.RawArray("d", _C_LEN), dtype=np.float64)
-        self._state = np.frombuffer(ctx.RawArray("d", _S_LEN), dtype=np.float64)
-        self._snap = np.zeros(_S_LEN)
-        self._events, child_end = ctx.Pipe(duplex=False)
         self._closed = False
         self._fault: HardwareError | None = None
-        self._proc = ctx.Process(
-            target=_control_process,
-            args=(address, model, client, self.watchdog, realtime),
-            kwargs={
-                "cmd_buf": self._cmd.base,
-                "state_buf": self._state.base,
-                "events": child_end,
-                "parent": os.getpid(),
-            },
-            name=f"mjkdl-arm-{address}",
-            daemon=True,
+        self._events = _Events()
+        # The blocks live in a memory-mapped file both processes map. The child is a fresh
+        # interpreter (not multiprocessing's spawn, which re-runs an unguarded user script).
+        fd, self._path = tempfile.mkstemp(prefix="mjkdl-arm-", dir=_shm_dir())
+        os.ftruncate(fd, 8 * (_C_LEN + _S_LEN))
+        self._map = mmap.mmap(fd, 8 * (_C_LEN + _S_LEN))
+        os.close(fd)
+        self._cmd, self._state = _blocks(self._map)
+        self._snap = np.zeros(_S_LEN)
+        args = [address, model, client, str(self.watchdog), str(int(realtime)), self._path]
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", __name__, *args, str(os.getpid()), str(self._events.child)],
+            pass_fds=(self._events.child,),
         )
-        self._proc.start()
-        child_end.close()
+        self._events.started()
         try:
             self._wait_ready(connect_timeout)
         except BaseException:
             self.close()
             raise
+        self._unlink()  # both processes map it: nothing is left behind whatever happens
         _OPEN.add(self)
         _install_sigint()
         if not ArmConnection._announced:
@@ -129,7 +131,7 @@ class ArmConnection:
     # ------------------------------------------------------------------ events
 
     def _wait_ready(self, timeout: float) -> None:
-        if not self._events.poll(timeout):
+        if not self._events.wait(timeout):
             raise ArmConnectionError(
                 f"no answer from the arm at {self.address} within {timeout:.0f} s: check that "
                 "the arm (or `python -m mjkdl.hw.franka_sim`) runs at this address"
@@ -139,15 +141,13 @@ class ArmConnection:
             raise self._fault
 
     def _poll(self) -> None:
-        """Read the child's messages: ("ready",), ("fault", kind, message), ("watchdog", s)."""
-        while self._events.poll():
-            try:
-                msg = self._events.recv()
-            except EOFError:
+        """Read the child's messages: ["ready"], ["fault", kind, message], ["watchdog", s]."""
+        for msg in self._events.read():
+            if msg is None:  # the child ended
                 if self._fault is None and not self._closed:
                     self._fault = ArmConnectionError(
                         f"the control process of the arm at {self.address} ended "
-                        f"(exit code {self._proc.exitcode}); reconnect"
+                        f"(exit code {self._proc.poll()}); reconnect"
                     )
                 return
             if msg[0] == "fault":
@@ -215,7 +215,7 @@ class ArmConnection:
             if s[_S_TIME] >= arm_time - 1e-9:
                 return s
             self.check()
-            if not self._proc.is_alive():
+            if self._proc.poll() is not None:
                 self._poll()
                 self.check()
                 raise ArmConnectionError(f"the connection to the arm at {self.address} ended")
@@ -243,11 +243,18 @@ class ArmConnection:
         self._closed = True
         _OPEN.discard(self)
         self._cmd[_C_STOP] = 1.0
-        self._proc.join(timeout)
-        if self._proc.is_alive():  # the loop did not end: the robot's own timeout stops it
+        try:
+            self._proc.wait(timeout)
+        except subprocess.TimeoutExpired:  # the loop did not end: the robot's timeout stops it
             self._proc.kill()
-            self._proc.join()
+            self._proc.wait()
         self._events.close()
+        self._unlink()
+
+    def _unlink(self) -> None:
+        if self._path:
+            os.unlink(self._path)
+            self._path = ""
 
 
 _OPEN: weakref.WeakSet[ArmConnection] = weakref.WeakSet()
@@ -280,43 +287,32 @@ def _on_sigint(signum: int, frame: FrameType | None) -> None:
 # ---------------------------------------------------------------------- the child process
 
 
-def _control_process(
-    address: str,
-    model: str,
-    client: str,
-    watchdog: float,
-    realtime: bool,
-    *,
-    cmd_buf: Any,
-    state_buf: Any,
-    events: Connection,
-    parent: int,
-) -> None:
-    """The control loop (runs in the child): one motion per command stream, until stopped."""
+def _control_process(argv: list[str]) -> None:
+    """The control loop (the child's main): one motion per command stream, until stopped."""
+    address, model, client, watchdog, realtime, path, parent, fd = argv
     # Ctrl+C reaches the whole process group: the user's process asks this one to stop (and
     # this one brings the arm to rest first), so SIGINT here is ignored.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    loop = _Loop(model, watchdog, cmd_buf, state_buf, events, parent)
+    with open(path, "r+b") as f:
+        shared = mmap.mmap(f.fileno(), 8 * (_C_LEN + _S_LEN))
+    cmd, state = _blocks(shared)
+    events = os.fdopen(int(fd), "w", buffering=1)
+    loop = _Loop(model, float(watchdog), cmd, state, events, int(parent))
     try:
         if client == "pylibfranka":
             import pylibfranka as fr
-
-            loop.fr = fr
-            config = fr.RealtimeConfig.kEnforce if realtime else fr.RealtimeConfig.kIgnore
         else:
             from panda_py import libfranka as fr
-
-            loop.fr = fr
-            config = fr.RealtimeConfig.kEnforce if realtime else fr.RealtimeConfig.kIgnore
-        loop.client = client
+        loop.fr, loop.client = fr, client
+        config = fr.RealtimeConfig.kEnforce if realtime == "1" else fr.RealtimeConfig.kIgnore
         loop.robot = fr.Robot(address, config)
         loop.publish(loop.robot.read_once(), IDLE)
-        events.send(("ready",))
+        loop.send("ready")
         loop.run()
     except Exception as err:  # every client exception goes to the user's process, named
-        events.send(("fault", type(err).__name__, str(err)))
+        loop.send("fault", type(err).__name__, str(err))
     finally:
-        loop.state[_S_STATUS] = CLOSED
+        state[_S_STATUS] = CLOSED
         events.close()
 
 
@@ -327,14 +323,13 @@ class _Loop:
         self,
         model: str,
         watchdog: float,
-        cmd_buf: Any,
-        state_buf: Any,
-        events: Connection,
+        cmd: np.ndarray,
+        state: np.ndarray,
+        events: TextIO,
         parent: int,
     ) -> None:
         self.watchdog = watchdog
-        self.cmd = np.frombuffer(cmd_buf, dtype=np.float64)
-        self.state = np.frombuffer(state_buf, dtype=np.float64)
+        self.cmd, self.state = cmd, state
         self.events, self.parent = events, parent
         self.limiter = RateLimiter(limits_for(model))
         self.fr: Any = None
@@ -352,6 +347,10 @@ class _Loop:
         self.stopping = False
         self.last_new = 0.0
         self.watchdog_fired = 0.0
+
+    def send(self, *message: object) -> None:
+        """One message to the user's process (a JSON line)."""
+        self.events.write(json.dumps(message) + "\n")
 
     def publish(self, rs: Any, status: float) -> None:
         s = self.state
@@ -392,11 +391,19 @@ class _Loop:
                 self.publish(self.robot.read_once(), IDLE)
                 time.sleep(0.002)
                 continue
-            self.motion()
+            try:
+                self.motion()
+            except Exception as err:  # a reflex ends the motion, not the connection
+                if type(err).__name__ != "ControlException":
+                    raise
+                self.send("fault", type(err).__name__, str(err))
+                self.publish(self.robot.read_once(), IDLE)
 
     def motion(self) -> None:
         """One motion in the current mode, 1 kHz, until stopped, switched or the watchdog."""
         fr, robot = self.fr, self.robot
+        if int(robot.read_once().robot_mode.value) == _REFLEX:  # a reflex stopped the last one
+            robot.automatic_error_recovery()
         mode = self.motion_mode = self.mode
         self.started, self.stopping, self.watchdog_fired = False, False, 0.0
         if self.client == "pylibfranka":
@@ -423,7 +430,7 @@ class _Loop:
                 robot.control_joint_position(tick, limit_rate=False, cutoff_frequency=1000.0)
         self.publish(robot.read_once(), IDLE)
         if self.watchdog_fired and not self.stop_asked():
-            self.events.send(("watchdog", self.watchdog_fired))
+            self.send("watchdog", self.watchdog_fired)
 
     def tick(self, rs: Any, period: Any) -> Any:
         """The command for this tick of the motion under way, from the state `rs` that came
@@ -480,3 +487,59 @@ class _Loop:
 
 
 _ZERO = np.zeros(7)
+
+
+class _Events:
+    """The child's messages, JSON lines on a pipe, read without blocking."""
+
+    def __init__(self) -> None:
+        self._read, self.child = os.pipe()
+        os.set_blocking(self._read, False)
+        self._buffer = b""
+        self._ended = False
+
+    def started(self) -> None:
+        os.close(self.child)  # the child holds its end: EOF once it ends
+
+    def wait(self, timeout: float) -> bool:
+        """Whether a message (or the end) came within `timeout` seconds."""
+        return bool(self._buffer) or bool(select.select([self._read], [], [], timeout)[0])
+
+    def read(self) -> list[Any]:
+        """The messages that came (None for the child's end)."""
+        out: list[Any] = []
+        if self._ended:
+            return out
+        while True:
+            try:
+                chunk = os.read(self._read, 65536)
+            except BlockingIOError:
+                break
+            if not chunk:
+                self._ended = True
+                break
+            self._buffer += chunk
+        *lines, self._buffer = self._buffer.split(b"\n")
+        out = [json.loads(line) for line in lines if line]
+        if self._ended:
+            out.append(None)
+        return out
+
+    def close(self) -> None:
+        os.close(self._read)
+
+
+def _shm_dir() -> str | None:
+    """Memory-backed files where the system has them."""
+    return "/dev/shm" if os.path.isdir("/dev/shm") else None
+
+
+def _blocks(shared: mmap.mmap) -> tuple[np.ndarray, np.ndarray]:
+    """The command and state blocks of the shared mapping."""
+    cmd = np.ndarray((_C_LEN,), dtype=np.float64, buffer=shared)
+    state = np.ndarray((_S_LEN,), dtype=np.float64, buffer=shared, offset=8 * _C_LEN)
+    return cmd, state
+
+
+if __name__ == "__main__":
+    _control_process(sys.argv[1:])

@@ -21,6 +21,10 @@ from ..errors import SpecError
 DT = 1e-3  # the control interface's tick (s)
 _EPS = 1e-3  # libfranka's kLimitEps: every limit is kept this far inside the robot's own
 APPROACH_GAIN = 20.0  # 1/s: the last stretch to a position target, a 50 ms time constant
+# A position target is approached at up to this share of the velocity, acceleration and jerk
+# limits: at the limits themselves the robot's joint impedance controller overshoots the
+# velocity (joint_velocity_violation) and its torques read as a collision (joint_reflex).
+APPROACH_SHARE = 0.5
 # The state reports q_d in float32 (libfranka >= 0.18), up to 1.2e-7 rad off the robot's own
 # double: a motion that starts from it is off by that step, which the robot's differences turn
 # into up to 240 rad/s^3 of jerk and 0.12 rad/s^2 of acceleration over its first three ticks.
@@ -140,13 +144,14 @@ class RateLimiter:
         self.tau[:] = 0.0 if tau is None else tau
         self._start = START_TICKS
 
-    def velocity(self, dq_cmd: np.ndarray) -> np.ndarray:
-        """The joint velocities to send for the wanted `dq_cmd` (also advances `q`)."""
+    def velocity(self, dq_cmd: np.ndarray, share: float = 1.0) -> np.ndarray:
+        """The joint velocities to send for the wanted `dq_cmd` (also advances `q`), at
+        `share` of the acceleration and jerk limits."""
         _check_finite(dq_cmd, "velocity")
         # The bounds where this tick ends (FR3's shrink with q): libfranka evaluates them
         # at the last position, which lets a fast joint overrun a shrinking bound by ~1e-3.
         lower, upper = self.limits.velocity_bounds(self.q + self.dq * (2.0 * DT))
-        jerk_max, acc_max = self._jerk_max, self._acc_max
+        jerk_max, acc_max = self._jerk_max * share, self._acc_max * share
         if self._start:
             self._start -= 1
             jerk_max, acc_max = jerk_max * START_SHARE, acc_max * START_SHARE
@@ -168,14 +173,17 @@ class RateLimiter:
 
         A position target is approached, not jumped to: the wanted velocity is what stops
         at the target (sqrt(2 a e) at half the acceleration limit, `APPROACH_GAIN` e close
-        to it), and it goes through the velocity chain above, so whatever the targets do,
+        to it), and it goes through the velocity chain above at `APPROACH_SHARE` of the
+        limits, so whatever the targets do,
         the positions sent keep every limit. (libfranka's limitRate on the position itself
         assumes a smooth signal: on a jump it overshoots and rings.)"""
         _check_finite(q_cmd, "position")
         err = q_cmd - self.q
         dist = np.abs(err)
-        speed = np.minimum(APPROACH_GAIN * dist, np.sqrt(self._acc_max * dist))
-        self.velocity(np.copysign(speed, err))
+        lower, upper = self.limits.velocity_bounds(self.q)
+        cap = APPROACH_SHARE * np.where(err > 0.0, upper, -lower)
+        speed = np.minimum(APPROACH_GAIN * dist, np.sqrt(APPROACH_SHARE * self._acc_max * dist))
+        self.velocity(np.copysign(np.minimum(speed, np.maximum(cap, 0.0)), err), APPROACH_SHARE)
         self._out[:] = self.q
         return self._out
 
