@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -256,52 +257,58 @@ def shelf_objects() -> list[mjk.SceneObject]:
     ]
 
 
-# ---------------------------------------------------------------------- a simulated Franka arm
+# ---------------------------------------------------------------------- simulated Franka (mjkdl.hw)
 
-_SERVERS = [0]
+FRANKA_EXAMPLES = Path(__file__).resolve().parent / "data" / "franka_examples"
+_franka_hosts = iter(range(1, 250))
 
 
-def start_franka_sim(*args: str) -> tuple[str, subprocess.Popen[bytes]]:
-    """`python -m mjkdl.hw.franka_sim` in lockstep on a loopback address of its own (no two
-    test runs on this machine share one); (address, process) once it accepts connections."""
-    import socket
-    import sys
-    import time
+def _franka_host() -> str:
+    """A loopback address of this test process's own (the robot's ports are fixed: 1337,
+    1338), so parallel runs and other servers on 127.0.0.1 do not collide."""
+    return f"127.{os.getpid() % 250 + 1}.{next(_franka_hosts)}.1"
 
-    pytest.importorskip("pylibfranka")
-    _SERVERS[0] += 1
-    address = f"127.{os.getpid() % 200 + 20}.{_SERVERS[0] % 250}.{os.getpid() // 200 % 250 + 1}"
+
+@contextmanager
+def franka_sim(*args: str, host: str = "") -> Iterator[tuple[str, subprocess.Popen]]:
+    """`python -m mjkdl.hw.franka_sim` in another process (stderr to a pipe); stopped after."""
+    host = host or _franka_host()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", address, "--lockstep", *args],
+        [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", host, *args],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
     )
-    deadline = time.monotonic() + 60.0
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise RuntimeError(f"franka_sim ended: {proc.stderr.read().decode()}")  # type: ignore[union-attr]
-        try:
-            socket.create_connection((address, 1337), timeout=0.2).close()
-            return address, proc
-        except OSError:
-            time.sleep(0.1)
-    stop_franka_sim(proc)
-    raise TimeoutError("franka_sim did not listen within 60 s")
-
-
-def stop_franka_sim(proc: subprocess.Popen[bytes]) -> None:
-    """Stop a server started by `start_franka_sim` (nothing left listening)."""
-    proc.terminate()
     try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
+        assert proc.stderr is not None
+        line = proc.stderr.readline()  # the first line says it listens (or why it cannot)
+        assert "franka_sim: panda on" in line or "franka_sim: fr3 on" in line, line
+        yield host, proc
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+def run_franka_example(path: Path, *args: str, stdin: str = "", timeout: float = 120) -> str:
+    """An unmodified client example in its own process; its stdout. libfranka refuses a kernel
+    without PREEMPT_RT unless told to ignore it: tests/franka_nonrt.py says so, then runs the
+    example as `__main__`."""
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "tests" / "franka_nonrt.py"), str(path), *args],
+        input=stdin,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=path.parent,
+    )
+    return done.stdout + done.stderr
 
 
 @pytest.fixture(scope="module")
-def franka_sim() -> Iterator[str]:
-    """The address of a lockstep simulated Franka arm, for one test module."""
-    address, proc = start_franka_sim("--command-timeout", "10")
-    yield address
-    stop_franka_sim(proc)
+def franka_server() -> Iterator[str]:
+    """The address of a lockstep simulated Franka arm for one test module (mjkdl's own
+    clients, tests/test_hw_*.py)."""
+    pytest.importorskip("pylibfranka")
+    with franka_sim("--lockstep", "--command-timeout", "10") as (host, _):
+        yield host

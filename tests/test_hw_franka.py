@@ -22,8 +22,8 @@ HOME = np.array([0.0, -0.785398, 0.0, -2.356194, 0.0, 1.570796, 0.785398])  # th
 
 
 @pytest.fixture(scope="class")
-def arm(franka_sim: str) -> Iterator[FrankaArm]:
-    with FrankaArm(franka_sim, client="pylibfranka") as arm:
+def arm(franka_server: str) -> Iterator[FrankaArm]:
+    with FrankaArm(franka_server, client="pylibfranka") as arm:
         yield arm
 
 
@@ -96,10 +96,10 @@ class TestOneConnection:
 
 
 def test_the_watchdog_brings_the_arm_to_rest_when_the_loop_stops(
-    franka_sim: str, capsys: pytest.CaptureFixture[str]
+    franka_server: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     ArmConnection._announced = False  # as in a fresh process
-    with FrankaArm(franka_sim, model="fr3", client="pylibfranka", watchdog=0.1) as arm:
+    with FrankaArm(franka_server, model="fr3", client="pylibfranka", watchdog=0.1) as arm:
         # The first connection of a process says which limits apply.
         out = capsys.readouterr().out
         assert out.count("rate-limited to the fr3 limits") == 1
@@ -117,12 +117,12 @@ def test_the_watchdog_brings_the_arm_to_rest_when_the_loop_stops(
             arm.link.connection.check()
 
 
-def test_ctrl_c_stops_the_arm_and_closes_the_connection(franka_sim: str) -> None:
+def test_ctrl_c_stops_the_arm_and_closes_the_connection(franka_server: str) -> None:
     script = textwrap.dedent(
         f"""
         import numpy as np, mjkdl as mjk
         from mjkdl.hw.franka import FrankaArm
-        arm = FrankaArm({franka_sim!r}, client="pylibfranka", watchdog=5.0)
+        arm = FrankaArm({franka_server!r}, client="pylibfranka", watchdog=5.0)
         arm.ctrl_mode = mjk.CtrlMode.VELOCITY
         arm.jnt_vel_cmd = np.array([0, 0, 0, 0, 0, 0, -0.4])
         for _ in range(200):
@@ -147,6 +147,6 @@ def test_ctrl_c_stops_the_arm_and_closes_the_connection(franka_sim: str) -> None
             proc.wait()
     assert "KeyboardInterrupt" in err
     # The connection is closed (a new client is accepted) and the arm is at rest.
-    with FrankaArm(franka_sim, client="pylibfranka") as after:
+    with FrankaArm(franka_server, client="pylibfranka") as after:
         after.update()
         assert np.abs(after.jnt_vel_msr).max() < 0.01

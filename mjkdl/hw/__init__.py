@@ -1,0 +1,1 @@
+"""Hardware in the loop: real robots' network protocols, served and spoken."""
