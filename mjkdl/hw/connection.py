@@ -86,6 +86,7 @@ class ArmConnection:
         client: str | None = None,
         watchdog: float = 0.2,
         realtime: bool = False,
+        collision_thresholds: tuple[float, float] | None = None,
         connect_timeout: float = 20.0,
     ) -> None:
         if not isinstance(address, str) or not address:
@@ -110,7 +111,17 @@ class ArmConnection:
         os.close(fd)
         self._cmd, self._state = _blocks(self._map)
         self._snap = np.zeros(_S_LEN)
+        if collision_thresholds is not None and not (
+            len(collision_thresholds) == 2 and all(t > 0 for t in collision_thresholds)
+        ):
+            raise SpecError(
+                "collision_thresholds must be (torque N·m, force N), both positive, or None "
+                f"(the robot's own), got {collision_thresholds!r}"
+            )
+        self.collision_thresholds = collision_thresholds
+        thresholds = json.dumps(collision_thresholds)
         args = [address, model, client, str(self.watchdog), str(int(realtime)), self._path]
+        args.append(thresholds)
         self._proc = subprocess.Popen(
             [sys.executable, "-m", __name__, *args, str(os.getpid()), str(self._events.child)],
             pass_fds=(self._events.child,),
@@ -289,7 +300,7 @@ def _on_sigint(signum: int, frame: FrameType | None) -> None:
 
 def _control_process(argv: list[str]) -> None:
     """The control loop (the child's main): one motion per command stream, until stopped."""
-    address, model, client, watchdog, realtime, path, parent, fd = argv
+    address, model, client, watchdog, realtime, path, thresholds, parent, fd = argv
     # Ctrl+C reaches the whole process group: the user's process asks this one to stop (and
     # this one brings the arm to rest first), so SIGINT here is ignored.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -306,6 +317,9 @@ def _control_process(argv: list[str]) -> None:
         loop.fr, loop.client = fr, client
         config = fr.RealtimeConfig.kEnforce if realtime == "1" else fr.RealtimeConfig.kIgnore
         loop.robot = fr.Robot(address, config)
+        if json.loads(thresholds) is not None:  # collision reflexes above these
+            torque, force = json.loads(thresholds)
+            loop.robot.set_collision_behavior([torque] * 7, [torque] * 7, [force] * 6, [force] * 6)
         loop.publish(loop.robot.read_once(), IDLE)
         loop.send("ready")
         loop.run()

@@ -58,7 +58,8 @@ class FrankaArm:
     is driven through (`client`: "pylibfranka" for FR3, "panda-py" for Panda); `watchdog` is how
     long (s) the arm keeps executing the last command when no new one comes before the
     watchdog brings it to rest; `realtime=True` asks libfranka for real-time scheduling (a
-    PREEMPT_RT kernel), as a real arm wants.
+    PREEMPT_RT kernel), as a real arm wants; `collision_thresholds` (torque N·m, force N) set
+    the robot's collision reflexes (None: the robot's own).
     """
 
     robot: Robot
@@ -74,6 +75,7 @@ class FrankaArm:
         client: str | None = None,
         watchdog: float = 0.2,
         realtime: bool = False,
+        collision_thresholds: tuple[float, float] | None = None,
     ) -> None:
         if model not in ("panda", "fr3"):
             raise SpecError(f"model must be 'panda' or 'fr3', got {model!r}")
@@ -88,6 +90,7 @@ class FrankaArm:
                 client=client,
                 watchdog=watchdog,
                 realtime=realtime,
+                collision_thresholds=collision_thresholds,
             )
         except BaseException:
             scene.close()

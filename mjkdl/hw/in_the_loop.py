@@ -8,7 +8,9 @@ measured joint positions and velocities into the simulated arm before and after 
 the simulated arm follows the real one exactly, its contacts push the simulated objects, and
 `robot.jnt_trq_msr` reads the arm's measured joint torques. The arm's clock is the master:
 against a real arm a step takes its timestep of wall-clock time; where the arm runs ahead
-(a slow loop), the simulation mirrors its latest state.
+(a slow loop), the simulation mirrors its latest state. In POSITION mode a `step(n)` leads
+the arm from the last target to the new `jnt_pos_cmd` along its n timesteps (a policy's
+command held for a control period), not in one jump.
 
 HAPTIC (`haptic=True`, as the Panda environment's `Actuation.HAPTIC`): the arm is torque
 controlled with what the simulated contacts do to the simulated arm — the constraint torques
@@ -45,7 +47,11 @@ _RESYNC = 0.05  # s: how far the arm may run ahead before the simulation skips t
 
 
 class ArmLink:
-    """A `Robot` of a scene mirrored from, and commanding, the arm at an address."""
+    """A `Robot` of a scene mirrored from, and commanding, the arm at an address.
+
+    `collision_thresholds` (torque N·m, force N) are the robot's collision reflexes while
+    linked: 100/100 by default, as the Panda environment's hardware in the loop sets them (the
+    simulated contacts are not the robot's to stop); None keeps the robot's own."""
 
     def __init__(
         self,
@@ -60,6 +66,7 @@ class ArmLink:
         haptic_damping: float = 2.0,
         watchdog: float = 0.2,
         realtime: bool = False,
+        collision_thresholds: tuple[float, float] | None = (100.0, 100.0),
     ) -> None:
         if robot.n_joints != 7:
             raise SpecError(
@@ -76,11 +83,19 @@ class ArmLink:
         self.haptic = bool(haptic)
         self.haptic_gain, self.haptic_damping = float(haptic_gain), float(haptic_damping)
         self.connection = ArmConnection(
-            robot_ip, model, client=client, watchdog=watchdog, realtime=realtime
+            robot_ip,
+            model,
+            client=client,
+            watchdog=watchdog,
+            realtime=realtime,
+            collision_thresholds=collision_thresholds,
         )
         self._torque = np.zeros(7)
+        self._target = np.zeros(7)  # the position target sent last
+        self._path = np.zeros(7)  # this step's target, on the way from it to the new one
         s = self.connection.read()
         self._arm_time = float(s[_S_TIME])
+        self._target[:] = s[_S_Q : _S_Q + 7]
         self._mirror(s)
         robot.sync_commands()  # hold where the arm is
         scene._link = self
@@ -95,7 +110,7 @@ class ArmLink:
         d.qvel[self._dadr] = s[_S_DQ : _S_DQ + 7]
         d.qfrc_actuator[self._dadr] = s[_S_TAU : _S_TAU + 7]
 
-    def _send(self) -> None:
+    def _send(self, share: float) -> None:
         robot, conn = self.robot, self.connection
         if self.haptic:
             d = self.scene.data
@@ -106,7 +121,15 @@ class ArmLink:
             return
         mode = robot.ctrl_mode
         if mode is CtrlMode.POSITION:
-            conn.send(POSITION, robot.jnt_pos_cmd)
+            # A new target is reached along the control period, as the sampled command of a
+            # policy means it, not as one jump the arm would take at full acceleration.
+            goal, path = robot.jnt_pos_cmd, self._path
+            np.subtract(goal, self._target, out=path)
+            path *= share
+            path += self._target
+            conn.send(POSITION, path)
+            if share == 1.0:
+                self._target[:] = goal
         elif mode is CtrlMode.VELOCITY:
             conn.send(VELOCITY, robot.jnt_vel_cmd)
         elif robot.gravity_compensation:  # the arm compensates gravity itself
@@ -121,9 +144,9 @@ class ArmLink:
         model, data = self.scene.model, self.scene.data
         dt = model.opt.timestep
         conn = self.connection
-        for _ in range(n):
+        for k in range(n):
             conn.check()
-            self._send()
+            self._send((k + 1) / n)
             mujoco.mj_step(model, data)
             self._arm_time += dt
             s = conn.wait_until(self._arm_time)
@@ -152,6 +175,7 @@ class ArmLink:
                     f"{timeout} s of its clock (still {err:.4f} rad away); check its mode"
                 )
         self._arm_time = float(s[_S_TIME])
+        self._target[:] = target
         self._mirror(s)
         mujoco.mj_forward(self.scene.model, self.scene.data)
         self._mirror(s)  # mj_forward recomputed qfrc_actuator
