@@ -42,7 +42,6 @@ from .connection import (
 )
 from .faults import ArmConnectionError
 
-_MODES = {CtrlMode.POSITION: POSITION, CtrlMode.VELOCITY: VELOCITY, CtrlMode.TORQUE: TORQUE}
 _RESYNC = 0.05  # s: how far the arm may run ahead before the simulation skips to its state
 
 
