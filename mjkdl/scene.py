@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import importlib
 import inspect
 import os
 import tempfile
@@ -47,6 +48,13 @@ class RobotHandle(Protocol):
     def sync_commands(self) -> None: ...
     def _after_reset(self) -> None: ...  # re-read what the model and the reset changed
     def _read_state(self) -> None: ...
+
+
+class ArmLinkHandle(Protocol):
+    """What a Scene needs of a link to a real arm (`mjkdl.hw.in_the_loop.ArmLink`)."""
+
+    def step(self, n: int) -> None: ...  # n timesteps, the arm mirrored into the simulation
+    def close(self) -> None: ...
 
 
 # The Robot class registers itself here, so this module never imports the robot layer above it.
@@ -187,6 +195,7 @@ class Scene(Closable):
         self._model: mujoco.MjModel | None = model
         self._data: mujoco.MjData | None = mujoco.MjData(model)
         self._robots: list[RobotHandle] = []
+        self._link: ArmLinkHandle | None = None  # a real arm mirrored in (robot_ip)
         self._authored_actuators = AuthoredActuators.of(model)
         self._compiled_opt = _compiled_options(model)
         self._faults = _fault_counters(self._data)
@@ -230,6 +239,9 @@ class Scene(Closable):
 
     def close(self) -> None:
         """Release MuJoCo's model and data; later calls on this scene raise RuntimeError."""
+        if self._link is not None:  # bring a linked arm to rest first
+            self._link.close()
+            self._link = None
         for robot in self._robots:
             robot._release()
         self._model = None
@@ -269,7 +281,10 @@ class Scene(Closable):
         if (n.__class__ is not int and not isinstance(n, np.integer)) or n < 0:
             raise SpecError(f"step(n): n must be a non-negative integer, got {n!r}")
         try:
-            mujoco.mj_step(self._model, self._data, n)
+            if self._link is None:
+                mujoco.mj_step(self._model, self._data, n)
+            else:
+                self._link.step(n)
         except mujoco.FatalError as err:
             raise self._fatal(err) from None
         except TypeError:  # the binding takes a C int: n is a checked count, only too large
@@ -447,8 +462,12 @@ class Scene(Closable):
         tip_body: str,
         prefix: str = "",
         tool: ToolFrameSpec | None = None,
+        robot_ip: str | None = None,
     ) -> Robot:
-        """A `Robot` handle on the chain from `base_body` to `tip_body` (names without prefix)."""
+        """A `Robot` handle on the chain from `base_body` to `tip_body` (names without prefix).
+
+        With `robot_ip`, the chain mirrors the real arm at that address and commands it
+        (hardware in the loop, `mjkdl.hw.in_the_loop`; needs the `[franka]` extra)."""
         self._check_open()
         if _robot_factory is None:
             raise RuntimeError("import mjkdl (or mjkdl.robot) to create robots")
@@ -458,6 +477,14 @@ class Scene(Closable):
             tree = tree_for(self._model, self._spec, prefix)
             raise UnknownNameError(f"{err}\nthe names there are:\n{tree}") from None
         self._robots.append(robot)
+        if robot_ip is not None:
+            # The hw layer sits above this one: loaded by name, only when an arm is asked for.
+            hw = importlib.import_module("mjkdl.hw.in_the_loop")
+            try:
+                hw.attach(self, robot, robot_ip)
+            except BaseException:
+                robot.close()  # type: ignore[attr-defined]
+                raise
         return robot  # type: ignore[return-value]
 
     def remove_robot(self, robot: Robot) -> None:

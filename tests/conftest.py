@@ -330,3 +330,12 @@ def _text(output: bytes | str | None) -> str:
     if isinstance(output, bytes):
         return output.decode(errors="replace")
     return output or ""
+
+
+@pytest.fixture(scope="module")
+def franka_server() -> Iterator[str]:
+    """The address of a lockstep simulated Franka arm for one test module (mjkdl's own
+    clients, tests/test_hw_*.py)."""
+    pytest.importorskip("pylibfranka")
+    with franka_sim("--lockstep", "--command-timeout", "10") as (host, _):
+        yield host

@@ -6,7 +6,7 @@ import copy
 import math
 import os
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import gymnasium as gym
 import mujoco
@@ -24,6 +24,9 @@ from ..spec import CtrlMode, SceneSpec
 from ..validate import flag, real, real_array, text, vector
 from ._check import integer, names
 from .rewards import check_positions
+
+if TYPE_CHECKING:
+    from ..hw.in_the_loop import ArmLink
 from .sensors import (
     ArmReader,
     CameraReader,
@@ -191,6 +194,12 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     `render_shadows`; `"human"` opens the viewer. `gymnasium.make` adds `"rgb_array_list"`.
     OpenGL contexts are made in the process that renders, at its first frame, so an env built
     before a `fork` (Gymnasium's async vector envs) renders in the child.
+
+    Hardware in the loop (one arm, `[franka]` extra): with `robot_ip` the arm is the real one
+    at that address (`.hardware`, `mjkdl.hw.in_the_loop`), mirrored into the scene at every
+    physics step while the rest is simulated; each `reset` brings it home; its estimated
+    external torques and wrench are the observations `{arm}_ext_torques`/`{arm}_ext_wrench`.
+    `haptic=True` renders the simulated contacts on it as joint torques instead.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012
@@ -209,6 +218,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         render_width: int = 640,
         render_height: int = 480,
         render_shadows: bool = False,
+        robot_ip: str | None = None,
+        haptic: bool = False,
     ) -> None:
         if not isinstance(spec, TaskSpec):
             raise SpecError(f"TaskEnv takes a TaskSpec, got {type(spec).__name__}")
@@ -236,10 +247,19 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         self._viewer: Any = None
         self._stepper: Callable[[], bool] | None = None
         self._check_spec(self.task_spec)
+        self.hardware: ArmLink | None = None
+        if robot_ip is not None:
+            from ..hw.in_the_loop import ExternalForces, attach  # the [franka] extra's layer
+
+            _check_one_arm(self.task_spec)
+            arm = self.task_spec.arms[0].name
+            self.task_spec.sensors = [*self.task_spec.sensors, ExternalForces(arm)]
         self.scene = Env.build(self.task_spec.scene)
         self._closed = False
         try:
             self._build(render_camera, render_width, render_height)
+            if robot_ip is not None:
+                self.hardware = attach(self.scene, self.robots[arm], robot_ip, haptic=haptic)
         except BaseException:
             self.close()
             raise
@@ -533,6 +553,9 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         scene.reset()
         for eff in self._effectors:
             eff.new_episode(scene)
+        if self.hardware is not None:  # the real arm goes home, the simulated one follows
+            home = self._effectors[0].home
+            self.hardware.move_to(self.hardware.robot.jnt_pos_msr if home is None else home)
         for init in self.task_spec.initializers:
             init(self, self.np_random)
         mujoco.mj_forward(scene.model, scene.data)
@@ -748,6 +771,14 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 # freeing them here can hang (software EGL) or fail, so they are kept until exit.
 _ORPHANED: list[mujoco.Renderer] = []
 _SETTLE_STEPS = 500  # physics steps a gripper gets to open at reset (1 s at 2 ms)
+
+
+def _check_one_arm(spec: TaskSpec) -> None:
+    if len(spec.arms) != 1:
+        raise SpecError(
+            f"robot_ip mirrors one arm; this task has {len(spec.arms)} "
+            f"({', '.join(a.name for a in spec.arms)}): give a task with one arm"
+        )
 
 
 def _settle_tool(scene: Env, tip_body: str) -> None:

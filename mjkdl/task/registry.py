@@ -313,7 +313,9 @@ class _Registered(TaskEnv):
     ) -> None:
         """Apply the parameters every registered task shares (`given`: the constructor's
         arguments by name) to `spec`, then build the env (goal-conditioned with `goal`)."""
-        self._refuse_unknown(given["unknown"])
+        unknown = dict(given["unknown"])
+        hardware = {k: unknown.pop(k) for k in _HARDWARE if k in unknown}  # see TaskEnv
+        self._refuse_unknown(unknown)
         spec.hide = given["hide_observations"]
         spec.time_limit = given["time_limit"]  # None: the registered TimeLimit alone
         spec.control_timestep = given["control_timestep"]
@@ -329,6 +331,7 @@ class _Registered(TaskEnv):
         cams = names(given["camera_names"], "camera_names", "camera")
         spec.sensors = [*spec.sensors, *(CameraSensor(c, width=w, height=h) for c in cams)]
         render = {k: given[k] for k in _RENDER}
+        render.update(hardware)
         if goal is None:
             TaskEnv.__init__(self, spec, given["render_mode"], **render)
         else:
@@ -336,6 +339,7 @@ class _Registered(TaskEnv):
 
 
 _RENDER = ("render_camera", "render_width", "render_height", "render_shadows")
+_HARDWARE = ("robot_ip", "haptic")  # every registered task takes them (TaskEnv's)
 
 
 class PandaReachEnv(_Registered, TaskEnv):

@@ -1,0 +1,559 @@
+"""One connection to a Franka arm, its 1 kHz control loop in a process of its own.
+
+The vendor client (pylibfranka for FR3, panda-py for the Panda) runs in a child process that
+does nothing but the control loop: read the state, rate-limit the latest command, write it,
+publish the state. The user's process exchanges commands and states with it through shared
+memory (a sequence lock: the writer makes the counter odd while it writes, readers retry
+until they see an even, unchanged counter), so no lock is ever held across processes and no
+Python work in the user's loop, which holds that process's GIL, can delay a tick: the GIL
+of the control process is its own. The loop keeps the safety defaults: every command
+rate-limited to the arm's limits (`rate_limit`), a watchdog that brings the arm to rest and
+finishes the motion when no new command came for `watchdog` seconds of wall-clock time, and
+the same when the user's process asks it to stop (`close`, Ctrl+C) or dies.
+"""
+
+from __future__ import annotations
+
+import json
+import mmap
+import os
+import select
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+import weakref
+from dataclasses import dataclass
+from types import FrameType
+from typing import Any, TextIO
+
+import numpy as np
+
+from ..errors import SpecError
+from .faults import ArmConnectionError, HardwareError, WatchdogWarning, translate
+from .rate_limit import RateLimiter, limits_for
+
+POSITION, VELOCITY, TORQUE = 0, 1, 2
+# The command block: [seq, mode, stop, cmd x7]
+_C_SEQ, _C_MODE, _C_STOP, _C_CMD = 0, 1, 2, 3
+_C_LEN = _C_CMD + 7
+# The state block: [seq, time, status, success_rate, ticks, late, q, dq, tau_J, tau_ext,
+# F_ext(6)]; late counts the ticks that came more than one robot cycle after the previous one.
+_S_SEQ, _S_TIME, _S_STATUS, _S_RATE, _S_TICKS, _S_LATE = 0, 1, 2, 3, 4, 5
+_S_Q, _S_DQ, _S_TAU, _S_EXT, _S_F = 6, 13, 20, 27, 34
+_S_LEN = _S_F + 6
+IDLE, MOVING, STOPPING, CLOSED = 0.0, 1.0, 2.0, 3.0
+# The vendor client each arm is driven through by default: FR3 speaks libfranka >= 0.15
+# (pylibfranka), the Panda libfranka 0.9 (panda-py).
+_CLIENTS = {"fr3": "pylibfranka", "panda": "panda-py"}
+# A motion's first ticks stand still: until the robot answers each command in turn (its first
+# states come before it waits for ours), a command can miss its cycle, and one missed while
+# moving is a velocity step the robot's discontinuity reflex catches.
+_HOLD_TICKS = 20
+_REFLEX = 4  # libfranka's RobotMode::kReflex
+_REST_SPEED = 0.01  # rad/s: the arm counts as at rest below this joint speed
+_DAMPING = 10.0  # Nm s/rad: how a stopping torque motion brakes the arm
+
+
+@dataclass
+class ArmState:
+    """A snapshot of the arm's measured state (copies, the caller's to keep)."""
+
+    time: float  # the arm's clock (s)
+    q: np.ndarray
+    dq: np.ndarray
+    tau_J: np.ndarray  # measured link-side joint torques
+    tau_ext: np.ndarray  # tau_ext_hat_filtered: external torques the arm estimates
+    f_ext: np.ndarray  # O_F_ext_hat_K: external wrench at the end effector, base frame
+    success_rate: float  # control_command_success_rate of the last tick
+    moving: bool  # a motion is running
+    ticks: int  # control ticks this connection ran
+    late: int  # of which came more than one robot cycle after the previous one
+
+
+class ArmConnection:
+    """A connection to the arm at `address`, with its control loop in a child process."""
+
+    _announced = False  # the limits are printed by the first connection of the process
+
+    def __init__(
+        self,
+        address: str,
+        model: str = "fr3",
+        *,
+        client: str | None = None,
+        watchdog: float = 0.2,
+        realtime: bool = False,
+        collision_thresholds: tuple[float, float] | None = None,
+        connect_timeout: float = 20.0,
+    ) -> None:
+        if not isinstance(address, str) or not address:
+            raise SpecError(f"robot_ip must be a host name or IP address, got {address!r}")
+        if not (isinstance(watchdog, (int, float)) and 0.0 < watchdog < 10.0):
+            raise SpecError(f"watchdog must be seconds in (0, 10), got {watchdog!r}")
+        self.address = address
+        self.limits = limits_for(model)
+        client = client or _CLIENTS[model]
+        if client not in _CLIENTS.values():
+            raise SpecError(f"client must be 'pylibfranka' or 'panda-py', got {client!r}")
+        self.client = client
+        self.watchdog = float(watchdog)
+        self._closed = False
+        self._fault: HardwareError | None = None
+        self._events = _Events()
+        # The blocks live in a memory-mapped file both processes map. The child is a fresh
+        # interpreter (not multiprocessing's spawn, which re-runs an unguarded user script).
+        fd, self._path = tempfile.mkstemp(prefix="mjkdl-arm-", dir=_shm_dir())
+        os.ftruncate(fd, 8 * (_C_LEN + _S_LEN))
+        self._map = mmap.mmap(fd, 8 * (_C_LEN + _S_LEN))
+        os.close(fd)
+        self._cmd, self._state = _blocks(self._map)
+        self._snap = np.zeros(_S_LEN)
+        if collision_thresholds is not None and not (
+            len(collision_thresholds) == 2 and all(t > 0 for t in collision_thresholds)
+        ):
+            raise SpecError(
+                "collision_thresholds must be (torque N·m, force N), both positive, or None "
+                f"(the robot's own), got {collision_thresholds!r}"
+            )
+        self.collision_thresholds = collision_thresholds
+        thresholds = json.dumps(collision_thresholds)
+        args = [address, model, client, str(self.watchdog), str(int(realtime)), self._path]
+        args.append(thresholds)
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", __name__, *args, str(os.getpid()), str(self._events.child)],
+            pass_fds=(self._events.child,),
+        )
+        self._events.started()
+        try:
+            self._wait_ready(connect_timeout)
+        except BaseException:
+            self.close()
+            raise
+        self._unlink()  # both processes map it: nothing is left behind whatever happens
+        _OPEN.add(self)
+        _install_sigint()
+        if not ArmConnection._announced:
+            ArmConnection._announced = True
+            print(self.limits.describe(), flush=True)
+
+    # ------------------------------------------------------------------ events
+
+    def _wait_ready(self, timeout: float) -> None:
+        if not self._events.wait(timeout):
+            raise ArmConnectionError(
+                f"no answer from the arm at {self.address} within {timeout:.0f} s: check that "
+                "the arm (or `python -m mjkdl.hw.franka_sim`) runs at this address"
+            )
+        self._poll()
+        if self._fault is not None:
+            raise self._fault
+
+    def _poll(self) -> None:
+        """Read the child's messages: ["ready"], ["fault", kind, message], ["watchdog", s]."""
+        for msg in self._events.read():
+            if msg is None:  # the child ended
+                if self._fault is None and not self._closed:
+                    self._fault = ArmConnectionError(
+                        f"the control process of the arm at {self.address} ended "
+                        f"(exit code {self._proc.poll()}); reconnect"
+                    )
+                return
+            if msg[0] == "fault":
+                self._fault = translate(msg[1], msg[2], self.address)
+            elif msg[0] == "watchdog":
+                warnings.warn(
+                    f"the arm at {self.address} was brought to rest: no command came for "
+                    f"{msg[1]:.3f} s (watchdog={self.watchdog} s); send commands more often "
+                    "or connect with a longer watchdog; the next command starts a new motion",
+                    WatchdogWarning,
+                    stacklevel=4,
+                )
+
+    def check(self) -> None:
+        """Raise the fault the control loop reported, once (the arm is then at rest)."""
+        self._poll()
+        if self._fault is not None:
+            fault, self._fault = self._fault, None
+            raise fault
+
+    # ------------------------------------------------------------------ commands and state
+
+    def send(self, mode: int, command: np.ndarray) -> None:
+        """Publish the command the loop sends from its next tick on (rate-limited)."""
+        self._check_open()
+        c = self._cmd
+        seq = c[_C_SEQ] + 1.0
+        c[_C_SEQ] = seq  # odd: being written
+        c[_C_MODE] = mode
+        c[_C_CMD:] = command
+        c[_C_SEQ] = seq + 1.0
+
+    def read(self) -> np.ndarray:
+        """The latest state block, consistent (a copy owned by the connection)."""
+        s, snap = self._state, self._snap
+        while True:
+            seq = s[_S_SEQ]
+            if seq % 2.0 == 0.0:
+                snap[:] = s
+                if s[_S_SEQ] == seq:
+                    return snap
+            time.sleep(0)
+
+    def state(self) -> ArmState:
+        """The latest measured state as an `ArmState` of fresh arrays."""
+        s = self.read()
+        return ArmState(
+            time=float(s[_S_TIME]),
+            q=s[_S_Q : _S_Q + 7].copy(),
+            dq=s[_S_DQ : _S_DQ + 7].copy(),
+            tau_J=s[_S_TAU : _S_TAU + 7].copy(),
+            tau_ext=s[_S_EXT : _S_EXT + 7].copy(),
+            f_ext=s[_S_F : _S_F + 6].copy(),
+            success_rate=float(s[_S_RATE]),
+            moving=bool(s[_S_STATUS] == MOVING),
+            ticks=int(s[_S_TICKS]),
+            late=int(s[_S_LATE]),
+        )
+
+    def wait_until(self, arm_time: float, timeout: float = 5.0) -> np.ndarray:
+        """Block until the arm's clock reaches `arm_time`; the state block then."""
+        deadline = time.monotonic() + timeout
+        while True:
+            s = self.read()
+            if s[_S_TIME] >= arm_time - 1e-9:
+                return s
+            self.check()
+            if self._proc.poll() is not None:
+                self._poll()
+                self.check()
+                raise ArmConnectionError(f"the connection to the arm at {self.address} ended")
+            if time.monotonic() > deadline:
+                raise ArmConnectionError(
+                    f"the arm at {self.address} sent no state for {timeout} s (its clock stays "
+                    f"at {s[_S_TIME]:.3f} s); check the network and the robot's mode"
+                )
+            time.sleep(0.0002)
+
+    # ------------------------------------------------------------------ closing
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise HardwareError(f"the connection to the arm at {self.address} is closed")
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Bring the arm to rest, finish the motion and close the connection (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        _OPEN.discard(self)
+        self._cmd[_C_STOP] = 1.0
+        try:
+            self._proc.wait(timeout)
+        except subprocess.TimeoutExpired:  # the loop did not end: the robot's timeout stops it
+            self._proc.kill()
+            self._proc.wait()
+        self._events.close()
+        self._unlink()
+
+    def _unlink(self) -> None:
+        if self._path:
+            os.unlink(self._path)
+            self._path = ""
+
+
+_OPEN: weakref.WeakSet[ArmConnection] = weakref.WeakSet()
+_previous_sigint: Any = None
+
+
+def _install_sigint() -> None:
+    """Ctrl+C brings every connected arm to rest and closes it, then acts as before."""
+    global _previous_sigint
+    if _previous_sigint is not None:
+        return
+    try:
+        _previous_sigint = signal.signal(signal.SIGINT, _on_sigint)
+    except ValueError:  # not the main thread: the watchdog still stops the arm
+        return
+
+
+def _on_sigint(signum: int, frame: FrameType | None) -> None:
+    global _previous_sigint
+    for conn in list(_OPEN):
+        conn.close()
+    previous, _previous_sigint = _previous_sigint, None
+    signal.signal(signal.SIGINT, previous)
+    if callable(previous):
+        previous(signum, frame)
+    elif previous == signal.SIG_DFL:
+        raise KeyboardInterrupt
+
+
+# ---------------------------------------------------------------------- the child process
+
+
+def _control_process(argv: list[str]) -> None:
+    """The control loop (the child's main): one motion per command stream, until stopped."""
+    address, model, client, watchdog, realtime, path, thresholds, parent, fd = argv
+    # Ctrl+C reaches the whole process group: the user's process asks this one to stop (and
+    # this one brings the arm to rest first), so SIGINT here is ignored.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with open(path, "r+b") as f:
+        shared = mmap.mmap(f.fileno(), 8 * (_C_LEN + _S_LEN))
+    cmd, state = _blocks(shared)
+    events = os.fdopen(int(fd), "w", buffering=1)
+    loop = _Loop(model, float(watchdog), cmd, state, events, int(parent))
+    try:
+        if client == "pylibfranka":
+            import pylibfranka as fr
+        else:
+            from panda_py import libfranka as fr
+        loop.fr, loop.client = fr, client
+        config = fr.RealtimeConfig.kEnforce if realtime == "1" else fr.RealtimeConfig.kIgnore
+        loop.robot = fr.Robot(address, config)
+        if json.loads(thresholds) is not None:  # collision reflexes above these
+            torque, force = json.loads(thresholds)
+            loop.robot.set_collision_behavior([torque] * 7, [torque] * 7, [force] * 6, [force] * 6)
+        loop.publish(loop.robot.read_once(), IDLE)
+        loop.send("ready")
+        loop.run()
+    except Exception as err:  # every client exception goes to the user's process, named
+        loop.send("fault", type(err).__name__, str(err))
+    finally:
+        state[_S_STATUS] = CLOSED
+        events.close()
+
+
+class _Loop:
+    """The child's state: the robot, the shared blocks, the rate limiter and the motion."""
+
+    def __init__(
+        self,
+        model: str,
+        watchdog: float,
+        cmd: np.ndarray,
+        state: np.ndarray,
+        events: TextIO,
+        parent: int,
+    ) -> None:
+        self.watchdog = watchdog
+        self.cmd, self.state = cmd, state
+        self.events, self.parent = events, parent
+        self.limiter = RateLimiter(limits_for(model))
+        self.fr: Any = None
+        self.client = "pylibfranka"
+        self.robot: Any = None
+        self.seen = 0.0  # the command sequence number last acted on
+        self.wanted = np.zeros(7)
+        self.mode = POSITION
+        self.ticks = 0
+        self.late = 0
+        # the motion under way
+        self.motion_mode = POSITION
+        self.started = False
+        self.hold = 0
+        self.stopping = False
+        self.last_new = 0.0
+        self.watchdog_fired = 0.0
+
+    def send(self, *message: object) -> None:
+        """One message to the user's process (a JSON line)."""
+        self.events.write(json.dumps(message) + "\n")
+
+    def publish(self, rs: Any, status: float) -> None:
+        s = self.state
+        seq = s[_S_SEQ] + 1.0
+        s[_S_SEQ] = seq
+        s[_S_TIME] = rs.time.to_sec()
+        s[_S_STATUS] = status
+        s[_S_RATE] = rs.control_command_success_rate
+        s[_S_TICKS] = self.ticks
+        s[_S_LATE] = self.late
+        s[_S_Q : _S_Q + 7] = rs.q
+        s[_S_DQ : _S_DQ + 7] = rs.dq
+        s[_S_TAU : _S_TAU + 7] = rs.tau_J
+        s[_S_EXT : _S_EXT + 7] = rs.tau_ext_hat_filtered
+        s[_S_F : _S_F + 6] = rs.O_F_ext_hat_K
+        s[_S_SEQ] = seq + 1.0
+
+    def take_command(self) -> bool:
+        """Copy a new, consistent command into `wanted`; whether one came."""
+        c = self.cmd
+        seq = c[_C_SEQ]
+        if seq == self.seen or seq % 2.0 != 0.0:
+            return False
+        mode = int(c[_C_MODE])
+        self.wanted[:] = c[_C_CMD:]
+        if c[_C_SEQ] != seq:
+            return False
+        self.seen, self.mode = seq, mode
+        return True
+
+    def stop_asked(self) -> bool:
+        return self.cmd[_C_STOP] != 0.0 or os.getppid() != self.parent
+
+    def run(self) -> None:
+        """Idle until a command comes, run its motion, and again, until asked to stop."""
+        while not self.stop_asked():
+            if not self.take_command():
+                self.publish(self.robot.read_once(), IDLE)
+                time.sleep(0.002)
+                continue
+            try:
+                self.motion()
+            except Exception as err:  # a reflex ends the motion, not the connection
+                if type(err).__name__ != "ControlException":
+                    raise
+                self.send("fault", type(err).__name__, str(err))
+                self.publish(self.robot.read_once(), IDLE)
+
+    def motion(self) -> None:
+        """One motion in the current mode, 1 kHz, until stopped, switched or the watchdog."""
+        fr, robot = self.fr, self.robot
+        if int(robot.read_once().robot_mode.value) == _REFLEX:  # a reflex stopped the last one
+            robot.automatic_error_recovery()
+        mode = self.motion_mode = self.mode
+        self.started, self.stopping, self.watchdog_fired = False, False, 0.0
+        if self.client == "pylibfranka":
+            if mode == TORQUE:
+                ctrl = robot.start_torque_control()
+            elif mode == VELOCITY:
+                ctrl = robot.start_joint_velocity_control(fr.ControllerMode.JointImpedance)
+            else:
+                ctrl = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+            rs, period = ctrl.readOnce()
+            while True:
+                out = self.tick(rs, period)
+                ctrl.writeOnce(out)
+                if out.motion_finished:
+                    break
+                rs, period = ctrl.readOnce()
+        else:  # panda-py: libfranka's own loop calls back once per tick (our rate limiter)
+            tick = self.tick
+            if mode == TORQUE:
+                robot.control(tick, limit_rate=False, cutoff_frequency=1000.0)
+            elif mode == VELOCITY:
+                robot.control_joint_velocity(tick, limit_rate=False, cutoff_frequency=1000.0)
+            else:
+                robot.control_joint_position(tick, limit_rate=False, cutoff_frequency=1000.0)
+        self.publish(robot.read_once(), IDLE)
+        if self.watchdog_fired and not self.stop_asked():
+            self.send("watchdog", self.watchdog_fired)
+
+    def tick(self, rs: Any, period: Any) -> Any:
+        """The command for this tick of the motion under way, from the state `rs` that came
+        `period` after the previous one."""
+        fr, limiter, mode = self.fr, self.limiter, self.motion_mode
+        now = time.monotonic()
+        if not self.started:
+            self.started, self.last_new, self.hold = True, now, _HOLD_TICKS
+            limiter.reset(np.asarray(rs.q_d), np.asarray(rs.dq_d))
+        self.ticks += 1
+        if period.to_sec() > 0.0015:  # a cycle (or more) went by without a command of ours
+            self.late += 1
+        self.publish(rs, STOPPING if self.stopping else MOVING)
+        if self.take_command():
+            self.last_new = now
+            if self.mode != mode:  # a new mode: finish this motion at rest first
+                self.stopping = True
+                self.seen -= 2.0  # act on this command again once stopped
+        if not self.stopping and self.stop_asked():
+            self.stopping = True
+        if not self.stopping and now - self.last_new > self.watchdog:
+            self.stopping, self.watchdog_fired = True, now - self.last_new
+        stopping, finished = self.stopping, False
+        if self.hold:  # the motion's first ticks stand still at its start
+            self.hold -= 1
+            if mode == TORQUE:
+                return fr.Torques(limiter.tau.tolist())
+            if mode == VELOCITY:
+                return fr.JointVelocities(_ZERO.tolist())
+            return fr.JointPositions(limiter.q.tolist())
+        if mode == TORQUE:
+            dq = np.asarray(rs.dq)
+            if stopping:
+                tau = limiter.torque(-_DAMPING * dq)
+                finished = float(np.abs(dq).max()) < _REST_SPEED
+            else:
+                tau = limiter.torque(self.wanted)
+            out = fr.Torques(tau.tolist())
+        elif mode == VELOCITY:
+            v = limiter.velocity(self.wanted if not stopping else _ZERO)
+            finished = stopping and float(np.abs(v).max()) < 1e-6
+            out = fr.JointVelocities(v.tolist())
+        else:
+            if stopping:
+                limiter.velocity(_ZERO)
+                q = limiter.q
+                finished = float(np.abs(limiter.dq).max()) < 1e-6
+            else:
+                q = limiter.position(self.wanted)
+            out = fr.JointPositions(q.tolist())
+        if finished:
+            out.motion_finished = True
+        return out
+
+
+_ZERO = np.zeros(7)
+
+
+class _Events:
+    """The child's messages, JSON lines on a pipe, read without blocking."""
+
+    def __init__(self) -> None:
+        self._read, self.child = os.pipe()
+        os.set_blocking(self._read, False)
+        self._buffer = b""
+        self._ended = False
+
+    def started(self) -> None:
+        os.close(self.child)  # the child holds its end: EOF once it ends
+
+    def wait(self, timeout: float) -> bool:
+        """Whether a message (or the end) came within `timeout` seconds."""
+        return bool(self._buffer) or bool(select.select([self._read], [], [], timeout)[0])
+
+    def read(self) -> list[Any]:
+        """The messages that came (None for the child's end)."""
+        out: list[Any] = []
+        if self._ended:
+            return out
+        while True:
+            try:
+                chunk = os.read(self._read, 65536)
+            except BlockingIOError:
+                break
+            if not chunk:
+                self._ended = True
+                break
+            self._buffer += chunk
+        *lines, self._buffer = self._buffer.split(b"\n")
+        out = [json.loads(line) for line in lines if line]
+        if self._ended:
+            out.append(None)
+        return out
+
+    def close(self) -> None:
+        os.close(self._read)
+
+
+def _shm_dir() -> str | None:
+    """Memory-backed files where the system has them."""
+    return "/dev/shm" if os.path.isdir("/dev/shm") else None
+
+
+def _blocks(shared: mmap.mmap) -> tuple[np.ndarray, np.ndarray]:
+    """The command and state blocks of the shared mapping."""
+    cmd = np.ndarray((_C_LEN,), dtype=np.float64, buffer=shared)
+    state = np.ndarray((_S_LEN,), dtype=np.float64, buffer=shared, offset=8 * _C_LEN)
+    return cmd, state
+
+
+if __name__ == "__main__":
+    _control_process(sys.argv[1:])

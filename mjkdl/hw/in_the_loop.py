@@ -1,0 +1,219 @@
+"""Hardware in the loop: a real arm moves, the rest of the scene is simulated.
+
+`attach(scene, robot, robot_ip)` (what `Scene.create_robot(..., robot_ip=...)` and
+`TaskEnv(..., robot_ip=...)` call) links a `Robot` of a scene to the arm at an address. From then
+on every `scene.step()` sends the robot's command port for its mode to the arm (rate-limited,
+see `connection`), waits for the arm's clock to advance by the scene's timestep, and writes the
+measured joint positions and velocities into the simulated arm before and after MuJoCo's step:
+the simulated arm follows the real one exactly, its contacts push the simulated objects, and
+`robot.jnt_trq_msr` reads the arm's measured joint torques. The arm's clock is the master:
+against a real arm a step takes its timestep of wall-clock time; where the arm runs ahead
+(a slow loop), the simulation mirrors its latest state. In POSITION mode a `step(n)` leads
+the arm from the last target to the new `jnt_pos_cmd` along its n timesteps (a policy's
+command held for a control period), not in one jump.
+
+HAPTIC (`haptic=True`, as the Panda environment's `Actuation.HAPTIC`): the arm is torque
+controlled with what the simulated contacts do to the simulated arm — the constraint torques
+on its joints (`qfrc_constraint`) times `haptic_gain`, less `haptic_damping` times the measured
+joint velocities — so a person guiding the arm feels the simulated objects.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from ..errors import SpecError
+from ..robot import Robot
+from ..scene import Scene
+from ..spec import CtrlMode
+from .connection import (
+    _S_DQ,
+    _S_EXT,
+    _S_F,
+    _S_Q,
+    _S_TAU,
+    _S_TIME,
+    POSITION,
+    TORQUE,
+    VELOCITY,
+    ArmConnection,
+)
+from .faults import ArmConnectionError
+
+_RESYNC = 0.05  # s: how far the arm may run ahead before the simulation skips to its state
+
+
+class ArmLink:
+    """A `Robot` of a scene mirrored from, and commanding, the arm at an address.
+
+    `collision_thresholds` (torque N·m, force N) are the robot's collision reflexes while
+    linked: 100/100 by default, as the Panda environment's hardware in the loop sets them (the
+    simulated contacts are not the robot's to stop); None keeps the robot's own."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        robot: Robot,
+        robot_ip: str,
+        *,
+        model: str = "panda",
+        client: str | None = None,
+        haptic: bool = False,
+        haptic_gain: float = 0.1,
+        haptic_damping: float = 2.0,
+        watchdog: float = 0.2,
+        realtime: bool = False,
+        collision_thresholds: tuple[float, float] | None = (100.0, 100.0),
+    ) -> None:
+        if robot.n_joints != 7:
+            raise SpecError(
+                f"robot_ip: a Franka arm has 7 joints, the robot {robot.joint_names} has "
+                f"{robot.n_joints}; create the robot from link0 to the hand"
+            )
+        if getattr(scene, "_link", None) is not None:
+            raise SpecError("robot_ip: this scene already mirrors an arm; one arm per scene")
+        m = scene.model
+        joints = [m.joint(name) for name in robot.joint_names]
+        self._qadr = np.array([int(j.qposadr[0]) for j in joints])
+        self._dadr = np.array([int(j.dofadr[0]) for j in joints])
+        self.scene, self.robot = scene, robot
+        self.haptic = bool(haptic)
+        self.haptic_gain, self.haptic_damping = float(haptic_gain), float(haptic_damping)
+        self.connection = ArmConnection(
+            robot_ip,
+            model,
+            client=client,
+            watchdog=watchdog,
+            realtime=realtime,
+            collision_thresholds=collision_thresholds,
+        )
+        self._torque = np.zeros(7)
+        self._target = np.zeros(7)  # the position target sent last
+        self._path = np.zeros(7)  # this step's target, on the way from it to the new one
+        s = self.connection.read()
+        self._arm_time = float(s[_S_TIME])
+        self._target[:] = s[_S_Q : _S_Q + 7]
+        self._mirror(s)
+        robot.sync_commands()  # hold where the arm is
+        scene._link = self
+
+    @property
+    def address(self) -> str:
+        return self.connection.address
+
+    def _mirror(self, s: np.ndarray) -> None:
+        d = self.scene.data
+        d.qpos[self._qadr] = s[_S_Q : _S_Q + 7]
+        d.qvel[self._dadr] = s[_S_DQ : _S_DQ + 7]
+        d.qfrc_actuator[self._dadr] = s[_S_TAU : _S_TAU + 7]
+
+    def _send(self, share: float) -> None:
+        robot, conn = self.robot, self.connection
+        if self.haptic:
+            d = self.scene.data
+            tau = self._torque
+            np.multiply(d.qfrc_constraint[self._dadr], self.haptic_gain, out=tau)
+            tau -= self.haptic_damping * d.qvel[self._dadr]
+            conn.send(TORQUE, tau)
+            return
+        mode = robot.ctrl_mode
+        if mode is CtrlMode.POSITION:
+            # A new target is reached along the control period, as the sampled command of a
+            # policy means it, not as one jump the arm would take at full acceleration.
+            goal, path = robot.jnt_pos_cmd, self._path
+            np.subtract(goal, self._target, out=path)
+            path *= share
+            path += self._target
+            conn.send(POSITION, path)
+            if share == 1.0:
+                self._target[:] = goal
+        elif mode is CtrlMode.VELOCITY:
+            conn.send(VELOCITY, robot.jnt_vel_cmd)
+        elif robot.gravity_compensation:  # the arm compensates gravity itself
+            conn.send(TORQUE, robot.jnt_trq_cmd)
+        else:  # a torque that holds gravity (the Robot's TORQUE semantics): less the gravity
+            np.subtract(robot.jnt_trq_cmd, robot.gravity_torques(), out=self._torque)
+            conn.send(TORQUE, self._torque)
+
+    def step(self, n: int) -> None:
+        """`n` timesteps: each sends the command, steps MuJoCo, then mirrors the arm's state
+        one timestep of the arm's clock later."""
+        model, data = self.scene.model, self.scene.data
+        dt = model.opt.timestep
+        conn = self.connection
+        for k in range(n):
+            conn.check()
+            self._send((k + 1) / n)
+            mujoco.mj_step(model, data)
+            self._arm_time += dt
+            s = conn.wait_until(self._arm_time)
+            if s[_S_TIME] > self._arm_time + _RESYNC:
+                self._arm_time = float(s[_S_TIME])
+            self._mirror(s)
+
+    def move_to(self, q: np.ndarray, timeout: float = 30.0) -> None:
+        """Bring the arm to joint positions `q` (rate-limited) and the simulated arm with it;
+        the robot's commands then hold there (POSITION mode)."""
+        robot, conn = self.robot, self.connection
+        robot.ctrl_mode = CtrlMode.POSITION
+        target = np.asarray(q, dtype=float)
+        conn.send(POSITION, target)
+        s = conn.read()
+        t_end = s[_S_TIME] + timeout
+        while True:
+            s = conn.wait_until(s[_S_TIME] + 0.01)
+            conn.send(POSITION, target)
+            err = np.abs(s[_S_Q : _S_Q + 7] - target).max()
+            if err < 2e-3 and np.abs(s[_S_DQ : _S_DQ + 7]).max() < 1e-2:
+                break
+            if s[_S_TIME] > t_end:
+                raise ArmConnectionError(
+                    f"the arm at {self.address} did not reach {target.round(3).tolist()} within "
+                    f"{timeout} s of its clock (still {err:.4f} rad away); check its mode"
+                )
+        self._arm_time = float(s[_S_TIME])
+        self._target[:] = target
+        self._mirror(s)
+        mujoco.mj_forward(self.scene.model, self.scene.data)
+        self._mirror(s)  # mj_forward recomputed qfrc_actuator
+        robot.sync_commands()
+
+    def external_forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """(tau_ext_hat_filtered (7), O_F_ext_hat_K (6)): what the arm estimates is pushing it."""
+        s = self.connection.read()
+        return s[_S_EXT : _S_EXT + 7].copy(), s[_S_F : _S_F + 6].copy()
+
+    def close(self) -> None:
+        """Bring the arm to rest and close the connection; the scene simulates on its own."""
+        if getattr(self.scene, "_link", None) is self:
+            self.scene._link = None
+        self.connection.close()
+
+
+def attach(scene: Scene, robot: Robot, robot_ip: str, **options: object) -> ArmLink:
+    """Link `robot` of `scene` to the arm at `robot_ip` (see `ArmLink` for the options)."""
+    return ArmLink(scene, robot, robot_ip, **options)  # type: ignore[arg-type]
+
+
+class ExternalForces:
+    """A `TaskSpec` sensor: the arm's measured external torques and wrench, as observations
+    `{arm}_ext_torques` (7, N·m) and `{arm}_ext_wrench` (6: force N, torque N·m, base frame)."""
+
+    def __init__(self, arm: str) -> None:
+        self.arm = arm
+
+    def space(self, env: object) -> dict[str, spaces.Box]:
+        return {
+            f"{self.arm}_ext_torques": spaces.Box(-np.inf, np.inf, (7,), np.float64),
+            f"{self.arm}_ext_wrench": spaces.Box(-np.inf, np.inf, (6,), np.float64),
+        }
+
+    def read(self, env: object) -> dict[str, np.ndarray]:
+        link = getattr(env, "hardware", None)
+        if link is None:
+            zero = np.zeros(13)
+            return {f"{self.arm}_ext_torques": zero[:7], f"{self.arm}_ext_wrench": zero[7:]}
+        tau, wrench = link.external_forces()
+        return {f"{self.arm}_ext_torques": tau, f"{self.arm}_ext_wrench": wrench}
