@@ -14,6 +14,7 @@ the same when the user's process asks it to stop (`close`, Ctrl+C) or dies.
 
 from __future__ import annotations
 
+import importlib
 import json
 import mmap
 import os
@@ -310,10 +311,9 @@ def _control_process(argv: list[str]) -> None:
     events = os.fdopen(int(fd), "w", buffering=1)
     loop = _Loop(model, float(watchdog), cmd, state, events, int(parent))
     try:
-        if client == "pylibfranka":
-            import pylibfranka as fr
-        else:
-            from panda_py import libfranka as fr
+        fr = importlib.import_module(
+            "pylibfranka" if client == "pylibfranka" else "panda_py.libfranka"
+        )
         loop.fr, loop.client = fr, client
         config = fr.RealtimeConfig.kEnforce if realtime == "1" else fr.RealtimeConfig.kIgnore
         loop.robot = fr.Robot(address, config)
