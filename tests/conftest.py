@@ -337,5 +337,5 @@ def franka_server() -> Iterator[str]:
     """The address of a lockstep simulated Franka arm for one test module (mjkdl's own
     clients, tests/test_hw_*.py)."""
     pytest.importorskip("pylibfranka")
-    with franka_sim("--lockstep", "--command-timeout", "10") as (host, _):
-        yield host
+    with franka_sim("--lockstep", "--command-timeout", "10") as sim:
+        yield sim.host
