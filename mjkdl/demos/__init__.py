@@ -18,6 +18,7 @@ from .hdf5 import (
     EpisodeWriter,
 )
 from .lerobot import ExportError, LeRobotExport, export_lerobot
+from .lerobot_policy import LeRobotPolicy  # registers `lerobot:PATH` policy sources
 from .policy import Policy, PolicyError, PolicySource, make_policy
 from .replay import ReplayResult, ReplayWarning, replay, replay_all
 
@@ -34,6 +35,7 @@ __all__ = [
     "Evaluation",
     "ExportError",
     "LeRobotExport",
+    "LeRobotPolicy",
     "Policy",
     "PolicyError",
     "PolicySource",

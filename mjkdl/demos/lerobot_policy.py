@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 
 from .lerobot import observation_keys, proprioception
-from .policy import PolicyError
+from .policy import PolicyError, register_source
 
 PREFIX = "lerobot:"
 
@@ -112,3 +112,6 @@ class LeRobotPolicy:
 def lerobot_policy(source: str, env: gym.Env, state_keys: Sequence[str] | None = None) -> Any:
     """The `LeRobotPolicy` that `lerobot:PATH` names."""
     return LeRobotPolicy(source.removeprefix(PREFIX), env, state_keys)
+
+
+register_source("lerobot", lerobot_policy)

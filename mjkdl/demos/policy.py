@@ -48,16 +48,23 @@ def describe(source: PolicySource) -> str:
     return source if isinstance(source, str) else getattr(source, "__qualname__", repr(source))
 
 
+# Sources named `PREFIX:...` that a higher module builds (`lerobot:PATH`: lerobot_policy.py).
+_PREFIXED: dict[str, Callable[[str, gym.Env], Policy]] = {}
+
+
+def register_source(prefix: str, make: Callable[[str, gym.Env], Policy]) -> None:
+    """Let `make_policy` build sources `PREFIX:...` with `make(source, env)`."""
+    _PREFIXED[prefix] = make
+
+
 def make_policy(source: PolicySource, env: gym.Env) -> Policy:
     """The policy `source` gives for `env` (see the module docstring)."""
     if source == "random":
         return _Random(env)
     if source == "expert":
         return _expert(env)
-    if isinstance(source, str) and source.startswith("lerobot:"):
-        from .lerobot_policy import lerobot_policy  # needs lerobot: imported on use
-
-        return lerobot_policy(source, env)
+    if isinstance(source, str) and source.split(":", 1)[0] in _PREFIXED:
+        return _PREFIXED[source.split(":", 1)[0]](source, env)
     if isinstance(source, str):
         factory = load_factory(source)
     elif callable(source):
