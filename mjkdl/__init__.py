@@ -11,6 +11,7 @@ from .errors import (
     SpecTypeError,
     UnknownNameError,
 )
+from .hw import in_the_loop as _in_the_loop  # noqa: F401  (registers robot_ip= links)
 from .ik import IKResult
 from .record import (
     ImageWriteError,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import importlib
 import inspect
 import os
 import tempfile
@@ -65,6 +64,17 @@ def register_robot_factory(factory: Callable[..., RobotHandle]) -> None:
     """Set what `Scene.create_robot` builds (`mjkdl.robot` does, on import)."""
     global _robot_factory
     _robot_factory = factory
+
+
+# The hardware-in-the-loop layer (mjkdl.hw.in_the_loop) registers how a robot is linked to a
+# real arm, so this module never imports that layer above it.
+_arm_linker: Callable[..., ArmLinkHandle] | None = None
+
+
+def register_arm_linker(linker: Callable[..., ArmLinkHandle]) -> None:
+    """Called by mjkdl.hw.in_the_loop: `linker(scene, robot, robot_ip)` links a robot to an arm."""
+    global _arm_linker
+    _arm_linker = linker
 
 
 @dataclass(frozen=True)
@@ -478,10 +488,10 @@ class Scene(Closable):
             raise UnknownNameError(f"{err}\nthe names there are:\n{tree}") from None
         self._robots.append(robot)
         if robot_ip is not None:
-            # The hw layer sits above this one: loaded by name, only when an arm is asked for.
-            hw = importlib.import_module("mjkdl.hw.in_the_loop")
+            if _arm_linker is None:
+                raise RuntimeError("import mjkdl (or mjkdl.hw.in_the_loop) to link real arms")
             try:
-                hw.attach(self, robot, robot_ip)
+                _arm_linker(self, robot, robot_ip)
             except BaseException:
                 robot.close()  # type: ignore[attr-defined]
                 raise

@@ -26,7 +26,7 @@ from gymnasium import spaces
 
 from ..errors import SpecError
 from ..robot import Robot
-from ..scene import Scene
+from ..scene import Scene, register_arm_linker
 from ..spec import CtrlMode
 from .connection import (
     _S_DQ,
@@ -217,3 +217,6 @@ class ExternalForces:
             return {f"{self.arm}_ext_torques": zero[:7], f"{self.arm}_ext_wrench": zero[7:]}
         tau, wrench = link.external_forces()
         return {f"{self.arm}_ext_torques": tau, f"{self.arm}_ext_wrench": wrench}
+
+
+register_arm_linker(attach)
