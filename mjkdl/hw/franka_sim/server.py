@@ -178,10 +178,7 @@ class FrankaSimServer:
                 self.arm.motion_cycles,
                 self.arm.motion_missed,
             )
-        self.message_id += 1
-        if self.robot is not None and self.robot.udp is not None:
-            self.arm.write_state(self._state, self.message_id)
-            self._send_udp(self._state.tobytes(), self.robot.udp)
+        self._publish_state()
         self._sent_moving = self.robot is not None and self.arm.moving
         gripper = self.gripper
         if gripper is not None and gripper.udp and self.message_id % GRIPPER_STATE_EVERY == 0:
@@ -189,6 +186,13 @@ class FrankaSimServer:
         viewer = self._viewer
         if viewer is not None and self.message_id % 16 == 0 and viewer.is_running():
             viewer.sync()
+
+    def _publish_state(self) -> None:
+        """Send the arm's state under the next message id."""
+        self.message_id += 1
+        if self.robot is not None and self.robot.udp is not None:
+            self.arm.write_state(self._state, self.message_id)
+            self._send_udp(self._state.tobytes(), self.robot.udp)
 
     def _send_udp(self, data: bytes, address: tuple[str, int]) -> None:
         # a full buffer or a vanished client: the robot just sends the next one
@@ -361,6 +365,7 @@ class FrankaSimServer:
                 self._move_reply(self._motion_id, wire.MoveStatus.PREEMPTED)
                 self._motion_id = None
             self.arm.stop_motion()
+            self._publish_state()
             self._send(peer, wire.message(command, command_id, b"\x00"))
         elif name is wire.Command.GET_ROBOT_MODEL:
             body = b"\x00" + self.arm.urdf.encode()
@@ -369,6 +374,9 @@ class FrankaSimServer:
             status = 1 if self.arm.moving else 0
             if not status:
                 self.arm.recover()
+                # libfranka's read_once takes the newest state already received: one showing
+                # the new mode must be there before the reply that ends the command.
+                self._publish_state()
             self._send(peer, wire.message(command, command_id, bytes([status])))
         else:
             status = 1 if self.arm.moving else self._setting(name, payload)
