@@ -54,6 +54,7 @@ import argparse
 import contextlib
 import io
 import itertools
+import tempfile
 import time
 
 import mujoco
@@ -125,6 +126,17 @@ def queries(planner: MotionPlanner, count: int, rng: np.random.Generator) -> lis
         if planner.checker.valid(q):
             out.append(q)
     return out
+
+
+# Why VAMP is not in the comparison (checked with `pip download vamp-planner --no-deps`).
+VAMP = (
+    "vamp-planner 0.6.4 is an sdist only; its CMake downloads CPM.cmake and fetches nanobind, "
+    "nigh, pdqsort and SIMDxorshift from GitHub at build time: no build without network access"
+)
+
+
+def _stat(ms: np.ndarray) -> str:
+    return f"median {np.median(ms):.1f} ms, p90 {np.percentile(ms, 90):.1f} ms"
 
 
 def per_call(fn, count: int) -> float:
@@ -283,9 +295,10 @@ def run_pyroboplan(
 
 def run_plain_ompl(
     planner: MotionPlanner, configs: list[np.ndarray], timeout: float
-) -> tuple[list[float], int]:
+) -> tuple[list[float], list[np.ndarray], int]:
     """Plain OMPL RRTConnect with our checker as the validity function, the same range,
-    resolution and simplifier: seconds (search + simplification) per solved query."""
+    resolution and simplifier: seconds (search + simplification) and the simplified path
+    (waypoints) per solved query, failures."""
     from ompl import base as ob
     from ompl import geometric as og
     from ompl import util as ou
@@ -308,7 +321,7 @@ def run_plain_ompl(
     si.setStateValidityCheckingResolution(0.1 / space.getMaximumExtent())
     si.setup()
     ou.setLogLevel(ou.LOG_NONE)
-    seconds, failures = [], 0
+    seconds, paths, failures = [], [], 0
     for start, goal in itertools.pairwise(configs):
         t0 = time.perf_counter()
         setup = og.SimpleSetup(si)
@@ -327,14 +340,66 @@ def run_plain_ompl(
         simplifier = og.PathSimplifier(si)
         for name in SIMPLIFY:
             getattr(simplifier, name)(path)
+        waypoints = np.array([state[0:n] for state in path.getStates()])
         seconds.append(time.perf_counter() - t0)
-    return seconds, failures
+        paths.append(waypoints)
+    return seconds, paths, failures
+
+
+def run_plain_pipeline(
+    planner: MotionPlanner, paths: list[np.ndarray]
+) -> tuple[list[float], list[float], int]:
+    """The rest of a hand-written pipeline on plain OMPL's paths: toppra (the library: the
+    same clamped spline and grid as ours, its seidel solver, ParametrizeConstAccel, the
+    constraints built once) and a final check of the timed path every CHECK_STEP (rad, any
+    joint) at the margin, without the finer checks near obstacles ours adds. Seconds of the
+    timing and of the check per path; paths that fail the check (not re-timed)."""
+    import toppra
+    import toppra.algorithm
+    import toppra.constraint
+
+    from mjkdl.plan.planner import CHECK_STEP
+    from mjkdl.plan.trajectory import KNOT_PERIOD, TimeParametrizer
+
+    v, a = planner.velocity_limits, planner.acceleration_limits
+    constraints = [
+        toppra.constraint.JointVelocityConstraint(np.column_stack([-v, v])),
+        toppra.constraint.JointAccelerationConstraint(np.column_stack([-a, a])),
+    ]
+    gridder = TimeParametrizer(v, a)
+    valid = planner.checker.valid
+    timing, checking, failures = [], [], 0
+    for waypoints in paths:
+        t0 = time.perf_counter()
+        _spline, grid, points = gridder.grid(waypoints)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        path = toppra.SplineInterpolator(s, points, bc_type="clamped")
+        traj = toppra.algorithm.TOPPRA(
+            constraints,
+            path,
+            gridpoints=grid,
+            solver_wrapper="seidel",
+            parametrizer="ParametrizeConstAccel",
+        ).compute_trajectory(0.0, 0.0)
+        t1 = time.perf_counter()
+        times = np.append(np.arange(0.0, traj.duration, KNOT_PERIOD), traj.duration)
+        q = traj(times)
+        travelled = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(q, axis=0)).max(axis=1))])
+        marks = np.floor(travelled / CHECK_STEP)
+        keep = np.diff(marks, prepend=-1.0) > 0
+        keep[-1] = True
+        ok = all(valid(state) for state in q[keep])
+        t2 = time.perf_counter()
+        timing.append(t1 - t0)
+        checking.append(t2 - t1)
+        failures += not ok
+    return timing, checking, failures
 
 
 def roboplan_scene(env: mjk.Env, planner: MotionPlanner) -> tuple | str:
     """roboplan's own model of the Panda scene, or why not."""
     try:
-        from roboplan.core import Box, Scene, loadMjcfModel
+        from roboplan.core import Box, Scene, loadJointLimitsConfig, loadMjcfModel
     except ImportError as error:
         return f"roboplan does not import ({error})"
     scene = Scene("panda", loadMjcfModel(mjk.menagerie.model_path("franka_emika_panda")))
@@ -355,15 +420,33 @@ def roboplan_scene(env: mjk.Env, planner: MotionPlanner) -> tuple | str:
     floor[2, 3] = -0.052  # its top 2 mm below the posts and the base: not touching them
     scene.addBoxGeometry("floor", "universe", Box(4.0, 4.0, 0.1), floor, np.ones(4))
     scene.addGroupFromChain("arm", "link0", "link7")
+    # Menagerie's MJCF has no velocity or acceleration limits: ours, as MoveIt's YAML.
+    lines = ["joint_limits:"]
+    for name, v, a in zip(
+        planner.robot.joint_names,
+        planner.velocity_limits,
+        planner.acceleration_limits,
+        strict=True,
+    ):
+        lines += [f"  {name}:", "    has_velocity_limits: true", f"    max_velocity: [{v}]"]
+        lines += ["    has_acceleration_limits: true", f"    max_acceleration: [{a}]"]
+    with tempfile.NamedTemporaryFile("w", suffix=".yaml") as f:
+        f.write("\n".join(lines) + "\n")
+        f.flush()
+        scene.importJointLimitsFromConfig(loadJointLimitsConfig(f.name))
     return scene, sorted(names)
 
 
 def run_roboplan(
     rp: tuple, robot: mjk.Robot, configs: list[np.ndarray], timeout: float, step_time
-) -> tuple[list[float], list[float], int]:
-    """roboplan's RRT-Connect on the consecutive pairs of `configs` (the fingers held)."""
-    from roboplan.core import JointConfiguration
+) -> dict[str, list[float]]:
+    """roboplan's own pipeline on the consecutive pairs of `configs` (the fingers held): its
+    RRT-Connect, its path shortcutter (collision steps of 0.1 rad like the search) and its
+    C++ TOPP-RA (Hermite spline) under our limits; no check after timing. Seconds of each
+    stage per solved query, the search in mj_steps, trajectory durations, failures."""
+    from roboplan.core import JointConfiguration, PathShortcutter, PathShortcuttingOptions
     from roboplan.rrt import RRT, RRTOptions
+    from roboplan.toppra import PathParameterizerTOPPRA, TOPPRAOptions
 
     scene, _names = rp
     options = RRTOptions(
@@ -376,8 +459,14 @@ def run_roboplan(
     )
     rrt = RRT(scene, options)
     rrt.setRngSeed(0)
+    shortcutter = PathShortcutter(
+        scene, PathShortcuttingOptions(group_name="arm", max_step_size=0.1)
+    )
+    timing = PathParameterizerTOPPRA(scene, "arm")
     joints = robot.joint_names
-    seconds, steps, failures = [], [], 0
+    out: dict[str, list[float]] = {
+        k: [] for k in ("search", "shortcut", "timing", "steps", "duration", "failures")
+    }
     for start, goal in itertools.pairwise(configs):
         step = step_time()
         t0 = time.perf_counter()
@@ -385,13 +474,20 @@ def run_roboplan(
             path = rrt.plan(JointConfiguration(joints, start), JointConfiguration(joints, goal))
         except RuntimeError:
             path = None
-        elapsed = time.perf_counter() - t0
+        t1 = time.perf_counter()
         if path is None or not len(path.positions):
-            failures += 1
+            out["failures"].append(1.0)
             continue
-        seconds.append(elapsed)
-        steps.append(elapsed / step)
-    return seconds, steps, failures
+        short = shortcutter.shortcut(path)
+        t2 = time.perf_counter()
+        traj = timing.generate(short, TOPPRAOptions())
+        t3 = time.perf_counter()
+        out["search"].append(t1 - t0)
+        out["shortcut"].append(t2 - t1)
+        out["timing"].append(t3 - t2)
+        out["steps"].append((t1 - t0) / step)
+        out["duration"].append(float(traj.times[-1]))
+    return out
 
 
 def roboplan_agreement(rp: tuple, planner: MotionPlanner, configs: list[np.ndarray]) -> float:
@@ -464,7 +560,8 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
         split.append(dict(planner.last_stats))
         trajectories.append(traj)
 
-    plain, plain_failures = run_plain_ompl(planner, configs, args.timeout)
+    plain, plain_paths, plain_failures = run_plain_ompl(planner, configs, args.timeout)
+    plain_timing, plain_check, plain_unsafe = run_plain_pipeline(planner, plain_paths)
     rp = roboplan_scene(env, planner) if name.startswith("Panda") else "Panda only here"
     if not isinstance(rp, str):
         rp_result = run_roboplan(rp, robot, configs, args.timeout, step_time)
@@ -525,36 +622,50 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
         + ", ".join(f"{k} {v:.2f} ms" for k, v in medians.items() if k != "project")
     )
     ms_plain = np.array(plain) * 1e3
+    ms_whole = (np.array(plain) + plain_timing + plain_check) * 1e3
     print(
-        f"  plain OMPL + checker:  solved {len(plain) / n * 100:.1f} % ({plain_failures} failed), "
-        f"median {np.median(ms_plain):.1f} ms, p90 {np.percentile(ms_plain, 90):.1f} ms "
-        f"(search + simplification)"
+        f"  (a) plain OMPL:        solved {len(plain) / n * 100:.1f} % ({plain_failures} failed), "
+        f"{_stat(ms_plain)} (search + the same simplification)"
     )
     print(
-        f"  ours / plain OMPL:     search + simplification "
-        f"{np.median(ms_search) / np.median(ms_plain):.2f}x, whole plan "
+        f"      ours / plain:      search + simplification "
+        f"{np.median(ms_search) / np.median(ms_plain):.2f}x (medians)"
+    )
+    print(
+        f"  (b) plain + toppra + check: {_stat(ms_whole)}; toppra median "
+        f"{np.median(plain_timing) * 1e3:.2f} ms, check {np.median(plain_check) * 1e3:.2f} ms; "
+        f"{plain_unsafe} of {len(plain)} timed paths fail the check (not re-timed)"
+    )
+    print(
+        f"      ours / (b):        whole plan {np.median(ms_total) / np.median(ms_whole):.2f}x; "
+        f"ours whole / plain search + simplification "
         f"{np.median(ms_total) / np.median(ms_plain):.2f}x (medians)"
     )
     if isinstance(rp, str):
         print(f"  roboplan:              {rp}; skipped")
     else:
-        rp_seconds, rp_steps, rp_failures = rp_result
-        ms_rp = np.array(rp_seconds) * 1e3
+        ms_rp = np.array(rp_result["search"]) * 1e3
+        ms_rp_whole = (
+            np.array(rp_result["search"]) + rp_result["shortcut"] + np.array(rp_result["timing"])
+        ) * 1e3
+        solved = len(rp_result["search"])
         print(
-            f"  roboplan RRT-Connect:  solved {len(rp_seconds) / n * 100:.1f} % ({rp_failures} "
-            f"failed), median {np.median(ms_rp):.1f} ms, p90 {np.percentile(ms_rp, 90):.1f} ms "
-            f"(its checker agrees with ours at zero margin on {rp_agree * 100:.1f} % of random "
-            "states; no margin)"
+            f"  (c) roboplan 0.7:      solved {solved / n * 100:.1f} % "
+            f"({len(rp_result['failures'])} failed); search {_stat(ms_rp)}; search + its "
+            f"shortcutter + its TOPP-RA {_stat(ms_rp_whole)} (shortcut median "
+            f"{np.median(rp_result['shortcut']) * 1e3:.1f} ms, TOPP-RA "
+            f"{np.median(rp_result['timing']) * 1e3:.2f} ms); trajectory duration median "
+            f"{np.median(rp_result['duration']):.2f} s; no margin, no check after timing (its "
+            f"checker agrees with ours at zero margin on {rp_agree * 100:.1f} % of random states)"
         )
         print(
-            f"  ours / roboplan:       {np.median(ms_total) / np.median(ms_rp):.2f}x (ms), "
-            f"{np.median(steps) / np.median(rp_steps):.2f}x (mj_steps; medians, whole plan "
-            "against its search)"
+            f"      ours / roboplan:   whole plan / its whole pipeline "
+            f"{np.median(ms_total) / np.median(ms_rp_whole):.2f}x; whole plan / its search "
+            f"{np.median(ms_total) / np.median(ms_rp):.2f}x "
+            f"({np.median(steps) / np.median(rp_result['steps']):.2f}x in mj_steps); search + "
+            f"simplification / its search {np.median(ms_search) / np.median(ms_rp):.2f}x"
         )
-    print(
-        "  VAMP:                  vamp-planner 0.6.4 does not build offline (an sdist whose "
-        "CMake fetches from GitHub); skipped"
-    )
+    print(f"  VAMP:                  {VAMP}; skipped")
     print(f"  trajectory duration:   median {np.median([t.duration for t in trajectories]):.2f} s")
     print(
         f"  validity check:        {check * 1e6:.1f} us = {check / step:.2f} x mj_step "
