@@ -250,3 +250,15 @@ def test_a_link_always_within_the_margin_of_its_mount_is_allowed(tmp_path) -> No
         assert planner.acm.reason("l1", "l2") == "adjacent"
         traj = planner.plan([1.0, 1.0])
         assert np.abs(traj.positions[-1] - [1.0, 1.0]).max() < 1e-12
+
+
+def test_every_datasheet_names_its_source_and_how_it_was_checked() -> None:
+    from mjkdl.plan import DATASHEETS
+
+    assert len(DATASHEETS) == 12
+    for sheet in DATASHEETS:
+        assert sheet.velocity_source and sheet.acceleration_source, sheet.arm
+        assert sheet.verified.startswith("2026-11-26: "), sheet.arm
+        assert len(sheet.velocity) == len(sheet.links), sheet.arm
+    ur10e = next(s for s in DATASHEETS if s.arm == "Universal Robots UR10e")
+    assert ur10e.velocity == pytest.approx(np.radians([120, 120, 180, 180, 180, 180]), abs=1e-4)

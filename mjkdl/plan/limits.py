@@ -38,6 +38,7 @@ class Datasheet:
     acceleration: tuple[float, ...] | None
     velocity_source: str
     acceleration_source: str
+    verified: str = ""  # how the figures were re-checked, against which published copy
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,7 @@ DATASHEETS: tuple[Datasheet, ...] = (
         (10.0,) * 7,
         "Franka FCI documentation, 'Limits for Franka Research 3' (dq_max)",
         "Franka FCI documentation, 'Limits for Franka Research 3' (ddq_max)",
+        "2026-11-26: against the FCI documentation's limit tables",
     ),
     Datasheet(
         "Franka Emika Panda",
@@ -87,6 +89,7 @@ DATASHEETS: tuple[Datasheet, ...] = (
         (15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0),
         "Franka FCI documentation, 'Limits for Panda' (dq_max)",
         "Franka FCI documentation, 'Limits for Panda' (ddq_max)",
+        "2026-11-26: against the FCI documentation's limit tables",
     ),
     Datasheet(
         "KUKA LBR iiwa 14 R820",
@@ -94,8 +97,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         1.104,
         _deg(85, 85, 100, 75, 130, 135, 135),
         None,
-        "KUKA 'LBR iiwa' specification, axis data of the LBR iiwa 14 R820",
+        "KUKA 'LBR iiwa 7 R800, LBR iiwa 14 R820' specification, §4.3.2 axis data "
+        "(spez_lbr_iiwa_en.pdf)",
         _NO_ACCEL,
+        "2026-11-26: the same seven figures in Drake's iiwa_constants.cc, which cites §4.3.2",
     ),
     Datasheet(
         "KUKA LBR iiwa 7 R800",
@@ -103,8 +108,11 @@ DATASHEETS: tuple[Datasheet, ...] = (
         1.064,
         _deg(98, 98, 100, 130, 140, 180, 180),
         None,
-        "KUKA 'LBR iiwa' specification, axis data of the LBR iiwa 7 R800",
+        "KUKA 'LBR iiwa 7 R800, LBR iiwa 14 R820' specification, axis data of the R800 "
+        "(spez_lbr_iiwa_en.pdf)",
         _NO_ACCEL,
+        "2026-11-26: the same seven figures in lbr-stack's lbr_description iiwa7 "
+        "joint_limits.yaml (the KUKA PDF itself was not reachable)",
     ),
     Datasheet(
         "UFACTORY xArm 7",
@@ -112,8 +120,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         0.820,
         _deg(*([180] * 7)),
         None,
-        "UFACTORY xArm 7 datasheet, maximum joint speed 180°/s",
+        "UFACTORY xArm user manual §8.1, xArm5/6/7 common specifications: maximum joint "
+        "speed 180°/s",
         _NO_ACCEL,
+        "2026-11-26: UFACTORY's own manual source (xArm-Developer/ufactory_doc_usermanual)",
     ),
     Datasheet(
         "UFACTORY xArm 6",
@@ -121,8 +131,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         0.820,
         _deg(*([180] * 6)),
         None,
-        "UFACTORY xArm 6 datasheet, maximum joint speed 180°/s",
+        "UFACTORY xArm user manual §8.1, xArm5/6/7 common specifications: maximum joint "
+        "speed 180°/s",
         _NO_ACCEL,
+        "2026-11-26: UFACTORY's own manual source (xArm-Developer/ufactory_doc_usermanual)",
     ),
     Datasheet(
         "Kinova Gen3 (7 DoF)",
@@ -140,6 +152,8 @@ DATASHEETS: tuple[Datasheet, ...] = (
         (8.6,) * 7,
         "Kinova Gen3 user guide, actuator speeds (large 80°/s, small 70°/s)",
         "not in the user guide: ros2_kortex's MoveIt configuration (8.6 rad/s²)",
+        "2026-11-26: Kinova's ros2_kortex kinova_gen3_7dof_robotiq_2f_85_moveit_config "
+        "joint_limits.yaml gives 1.3963 / 1.2218 rad/s and 8.6 rad/s²",
     ),
     Datasheet(
         "Universal Robots UR3e",
@@ -147,8 +161,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         0.70,
         _deg(180, 180, 180, 360, 360, 360),
         None,
-        "Universal Robots UR3e technical specifications, joint speeds",
+        "Universal Robots UR3e user manual (e-Series, 5.8), joint speeds",
         _NO_ACCEL,
+        "2026-11-26: Universal Robots' Universal_Robots_ROS2_Description ur3e "
+        "joint_limits.yaml, which cites that manual",
     ),
     Datasheet(
         "Universal Robots UR5e / UR5",
@@ -156,8 +172,11 @@ DATASHEETS: tuple[Datasheet, ...] = (
         1.18,
         _deg(180, 180, 180, 180, 180, 180),
         None,
-        "Universal Robots UR5e (and UR5 CB3) technical specifications, joint speeds",
+        "Universal Robots UR5e user manual (e-Series, 5.8) and UR5/CB3 user manual (3.13), "
+        "joint speeds",
         _NO_ACCEL,
+        "2026-11-26: Universal Robots' Universal_Robots_ROS2_Description ur5e and ur5 "
+        "joint_limits.yaml, which cite those manuals",
     ),
     Datasheet(
         "Universal Robots UR10e",
@@ -165,8 +184,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         1.62,
         _deg(120, 120, 180, 180, 180, 180),
         None,
-        "Universal Robots UR10e technical specifications, joint speeds",
+        "Universal Robots UR10e user manual (e-Series, 5.8), joint speeds",
         _NO_ACCEL,
+        "2026-11-26: Universal Robots' Universal_Robots_ROS2_Description ur10e "
+        "joint_limits.yaml, which cites that manual",
     ),
     Datasheet(
         "Trossen WidowX 250 6DOF (wx250s)",
@@ -176,6 +197,8 @@ DATASHEETS: tuple[Datasheet, ...] = (
         None,
         "no datasheet figure: Interbotix xsarm_descriptions URDF joint velocity limits (π rad/s)",
         _NO_ACCEL,
+        "2026-11-26: Interbotix's wx250s and vx300s .urdf.xacro: every arm joint's "
+        "velocity limit is π",
     ),
     Datasheet(
         "Trossen ViperX 300 6DOF (vx300s)",
@@ -185,6 +208,8 @@ DATASHEETS: tuple[Datasheet, ...] = (
         None,
         "no datasheet figure: Interbotix xsarm_descriptions URDF joint velocity limits (π rad/s)",
         _NO_ACCEL,
+        "2026-11-26: Interbotix's wx250s and vx300s .urdf.xacro: every arm joint's "
+        "velocity limit is π",
     ),
 )
 
