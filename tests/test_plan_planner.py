@@ -219,10 +219,13 @@ def test_timeout_says_what_was_tried(tmp_path) -> None:
     ) as scene:
         arm = scene.create_robot("base", "l2")
         arm.set_joint_pos([np.pi / 2, 0.0])
-        planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
+        # RRT (one tree): RRTConnect's wall test would call this query disconnected.
+        planner = MotionPlanner(
+            arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0], planner="RRT"
+        )
         with pytest.raises(
             PlanningTimeout,
-            match=r"RRTConnect found no collision-free path within 0.2 s \(\d+ states checked, "
+            match=r"RRT found no collision-free path within 0.2 s \(\d+ states checked, "
             r"status Approximate solution",
         ):
             planner.plan([-np.pi / 2, 0.0], timeout=0.2)
@@ -400,6 +403,33 @@ def test_a_goal_in_a_pocket_of_free_space_is_infeasible_without_searching(tmp_pa
         # Out of the cage, the same arm plans (the pocket test lets open goals through).
         traj = planner.plan([-np.pi / 2, 0.3])
         assert np.abs(traj.positions[-1] - [-np.pi / 2, 0.3]).max() < 1e-12
+
+
+def test_a_wall_between_two_regions_of_free_space_is_found_early(tmp_path) -> None:
+    # A post in the way of the first link at j1 = 0: j1 = -1 and j1 = 1 are in two regions
+    # of the joint space (j1 has no limits but is searched as a line, not a circle).
+    path = tmp_path / "two_link.xml"
+    path.write_text(two_link_arm())
+    post = mjk.SceneObject(
+        name="post", shape=mjk.Shape.BOX, size=[0.02, 0.02, 0.1], pos=[0.2, 0.0, 0.05], fixed=True
+    )
+    spec = base_spec(add_floor=False, robots=[mjk.RobotSpec(path=str(path))], objects=[post])
+    with mjk.Scene.build(spec) as scene:
+        arm = scene.create_robot("base", "l2")
+        arm.set_joint_pos([-1.0, 0.0])
+        planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
+        # Not a timeout: PlanningTimeout would fail this; the wall test runs after a fifth.
+        with pytest.raises(
+            InfeasibleError,
+            match=r"the start and goal lie in different regions of free space: joint 'j1' "
+            r"cannot pass -?0\.\d+ rad \(all 200 random configurations with it there are in "
+            r"collision, and neither search tree crossed \[-0\.\d+, 0\.\d+\] rad",
+        ) as error:
+            planner.plan([1.0, 0.0], timeout=2.0)
+        assert error.value.reason == "disconnected"
+        # The goal's equivalent a turn away, on the start's side, plans.
+        traj = planner.plan([1.0 - 2 * np.pi, 0.0], timeout=5.0)
+        assert np.abs(traj.positions[-1] - [1.0 - 2 * np.pi, 0.0]).max() < 1e-12
 
 
 def test_infeasible_and_timeout_are_distinct_planning_errors(panda) -> None:

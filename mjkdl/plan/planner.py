@@ -83,6 +83,13 @@ SEARCH_CONE = math.radians(45.0)
 PROJECTION_STEP = 0.02
 # How far (rad) a measured start may be past a bound and be clipped back into it.
 START_SLACK = 0.005
+# The wall test (`MotionPlanner._wall`): after this share of the timeout without a path,
+# RRTConnect's two trees are examined for a joint value neither has crossed; slices of it
+# every WALL_STEP (rad) are sampled WALL_SAMPLES times, and a slice without one free
+# configuration divides the free space: the query is infeasible.
+WALL_AFTER = 0.2
+WALL_STEP = 0.05
+WALL_SAMPLES = 200
 # Random goal states drawn within a goal tolerance when the exact goal is in collision.
 TOLERANCE_SAMPLES = 50
 
@@ -349,8 +356,10 @@ class MotionPlanner:
 
         Raises `InfeasibleError` (with a `reason`) when the query cannot be solved, before
         searching: a start or goal in collision or outside the bounds, no collision-free IK
-        solution, or a start or goal in a pocket of free space (`POCKET_RADIUS`); raises
-        `PlanningTimeout` when the search used its time.
+        solution, or a start or goal in a pocket of free space (`POCKET_RADIUS`); with
+        RRTConnect, after `WALL_AFTER` of the timeout, a joint value that divides the free
+        space between them ("disconnected", see `_wall`); raises `PlanningTimeout` when the
+        search used its time.
         """
         budget = _number(timeout, "timeout", positive=True)
         began = time.perf_counter()
@@ -830,7 +839,19 @@ class MotionPlanner:
         level = ou.getLogLevel()
         ou.setLogLevel(ou.LOG_NONE)
         try:
-            status = setup.solve(max(budget - (time.perf_counter() - began), 1e-3))
+            status = None
+            if self._planner_name == "RRTConnect":
+                # A first share of the time; then, unsolved, look for a wall between the
+                # two trees (`_wall`) before searching on.
+                first = WALL_AFTER * budget - (time.perf_counter() - began)
+                if first > 1e-3:
+                    status = setup.solve(first)
+                    if not setup.haveExactSolutionPath():
+                        wall = self._wall(planner, si, lower, upper)
+                        if wall is not None:
+                            raise InfeasibleError(wall, "disconnected")
+            if status is None or not setup.haveExactSolutionPath():
+                status = setup.solve(max(budget - (time.perf_counter() - began), 1e-3))
             solved = setup.haveExactSolutionPath()
             t_simplify = time.perf_counter()
             if solved:
@@ -853,6 +874,59 @@ class MotionPlanner:
         self.last_stats["simplify"] = t_simplify
         n = self._n
         return np.array([state[0:n] for state in path.getStates()])
+
+    def _wall(self, planner: Any, si: Any, lower: np.ndarray, upper: np.ndarray) -> str | None:
+        """Why the start and goals lie in different regions of free space, or None: a joint
+        value c that the search's start tree (RRTConnect's tag 1) and goal tree (tag 2) have
+        not crossed from either side, at which `WALL_SAMPLES` random configurations (the
+        other joints uniform within the bounds) are all in collision. Both are evidence, not
+        proof: a passage through c too narrow for either to find would be missed."""
+        from ompl import base as ob
+
+        data = ob.PlannerData(si)
+        planner.getPlannerData(data)
+        n = self._n
+        trees: dict[int, list[list[float]]] = {1: [], 2: []}
+        for k in range(data.numVertices()):
+            vertex = data.getVertex(k)
+            state = vertex.getState()
+            trees.setdefault(vertex.getTag(), []).append([state[i] for i in range(n)])
+        if not trees[1] or not trees[2]:
+            return None
+        start, goal = np.array(trees[1]), np.array(trees[2])
+        for i in range(n):
+            if start[:, i].max() < goal[:, i].min():
+                gap = (float(start[:, i].max()), float(goal[:, i].min()))
+            elif goal[:, i].max() < start[:, i].min():
+                gap = (float(goal[:, i].max()), float(start[:, i].min()))
+            else:
+                continue
+            count = max(1, math.floor((gap[1] - gap[0]) / WALL_STEP))
+            for c in np.linspace(gap[0], gap[1], count + 2)[1:-1].tolist():
+                free = False
+                for _ in range(WALL_SAMPLES):
+                    q = self._rng.uniform(lower, upper)
+                    q[i] = c
+                    self.checks += 1
+                    if self._checker.valid(q):
+                        free = True
+                        break
+                if not free:
+                    name = self._robot.joint_names[i]
+                    wrap = (
+                        "; a joint with more than a turn: try the goal's equivalent a turn "
+                        "(2π) towards the start's side"
+                        if upper[i] - lower[i] > 2 * math.pi + 1e-9
+                        else ""
+                    )
+                    return (
+                        f"the start and goal lie in different regions of free space: joint "
+                        f"{name!r} cannot pass {c:.3f} rad (all {WALL_SAMPLES} random "
+                        f"configurations with it there are in collision, and neither search "
+                        f"tree crossed [{gap[0]:.3f}, {gap[1]:.3f}] rad in "
+                        f"{len(start) + len(goal)} states){wrap}"
+                    )
+        return None
 
     def _search_valid(self, q: np.ndarray | list[float]) -> bool:
         """The search's test: `margin + padding` clear, or `margin` within `ESCAPE` of the
