@@ -18,18 +18,25 @@ Then, in the same process:
     smallest, and how many trajectories came closer than the margin.
 
 The time split of our plans (IK and pocket tests at the ends, search, simplification,
-timing, final check) is printed as medians. Plain OMPL (the same RRTConnect, range,
-resolution and simplifier, `CollisionChecker.valid` as its validity function, no timing, no
-final check) plans the same queries in the same run: our search + simplification, and our
-whole plan, against it.
+timing, final check) is printed as medians, then three like-for-like comparisons, each on
+the same queries in the same run:
 
-roboplan 0.7 (C++ RRT-Connect over Pinocchio + coal), where it imports, plans the same Panda
-queries with its own collision model: Menagerie's panda.xml through its own MJCF loader (coal
-meshes), the clutter as its boxes, the pairs our allowed-collision matrix allows (and
-adjacent links) disabled; it has no clearance margin (contact only). It needs
-LD_LIBRARY_PATH to reach the cmeel Pinocchio libraries (benchmarks/README.md). VAMP
-(`vamp-planner` 0.6.4) is an sdist whose CMake fetches its dependencies from GitHub: it
-does not build without network access, and the benchmark says so.
+  (a) plain OMPL: the same RRTConnect, range, resolution and simplifier, our
+      `CollisionChecker.valid` as its validity function; against our search + simplification.
+  (b) (a) followed by toppra (the library: the same spline and grid as ours, its seidel
+      solver, ParametrizeConstAccel) and a hand-written final check of the timed path every
+      0.05 rad at the margin (no finer checks near obstacles, no re-timing when it fails);
+      against our whole plan.
+  (c) roboplan 0.7 (C++ RRT-Connect over Pinocchio + coal), where it imports, on the Panda
+      with its own collision model: Menagerie's panda.xml through its own MJCF loader (coal
+      meshes), the clutter as its boxes, the pairs our allowed-collision matrix allows (and
+      adjacent links) disabled, our velocity and acceleration limits; no clearance margin
+      (contact only). Its search alone, and its whole pipeline: search, its PathShortcutter
+      (collision steps of 0.1 rad) and its C++ TOPP-RA (Hermite spline), with no check after
+      timing. It needs LD_LIBRARY_PATH to reach the cmeel Pinocchio libraries
+      (benchmarks/README.md). VAMP (`vamp-planner` 0.6.4) is an sdist whose CMake fetches
+      its dependencies from GitHub: it does not build without network access, and the
+      benchmark says so.
 
 pyroboplan (the peer the issue names), where it imports, plans the same queries in the same
 run: its RRTConnect (`rrt_connect`, `bidirectional_rrt`), the same timeout, its own collision
