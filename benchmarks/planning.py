@@ -552,7 +552,15 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
             mujoco.mj_step(env.model, scratch)
         return (time.perf_counter() - t0) / 20
 
+    rp = roboplan_scene(env, planner) if name.startswith("Panda") else "Panda only here"
+    models = pyroboplan_models(env, robot)
+    # Every planner takes each query in turn (the shared machine's load drifts within
+    # minutes: planners timed minutes apart would compare loads, not planners).
     total, search, steps, trajectories, failures, split = [], [], [], [], [], []
+    plain, plain_failures = [], 0
+    plain_timing, plain_check, plain_unsafe = [], [], 0
+    rp_result: dict[str, list[float]] = {}
+    theirs: tuple[list[float], list[float], int] = ([], [], 0)
     for start, goal in itertools.pairwise(configs):
         step_now = step_time()
         t0 = time.perf_counter()
@@ -560,24 +568,30 @@ def benchmark(name: str, scene, args: argparse.Namespace) -> None:
             traj = planner.plan(goal, start=start, timeout=args.timeout)
         except PlanningError as error:
             failures.append(str(error).split(":")[0])
-            continue
-        total.append(time.perf_counter() - t0)
-        steps.append(total[-1] / step_now)
-        search.append(planner.last_stats["search"] + planner.last_stats["simplify"])
-        split.append(dict(planner.last_stats))
-        trajectories.append(traj)
-
-    plain, plain_paths, plain_failures = run_plain_ompl(planner, configs, args.timeout)
-    plain_timing, plain_check, plain_unsafe = run_plain_pipeline(planner, plain_paths)
-    rp = roboplan_scene(env, planner) if name.startswith("Panda") else "Panda only here"
+        else:
+            total.append(time.perf_counter() - t0)
+            steps.append(total[-1] / step_now)
+            search.append(planner.last_stats["search"] + planner.last_stats["simplify"])
+            split.append(dict(planner.last_stats))
+            trajectories.append(traj)
+        seconds, paths, failed = run_plain_ompl(planner, [start, goal], args.timeout)
+        plain += seconds
+        plain_failures += failed
+        timing, checking, unsafe = run_plain_pipeline(planner, paths)
+        plain_timing += timing
+        plain_check += checking
+        plain_unsafe += unsafe
+        if not isinstance(rp, str):
+            for key, values in run_roboplan(
+                rp, robot, [start, goal], args.timeout, step_time
+            ).items():
+                rp_result.setdefault(key, []).extend(values)
+        if not isinstance(models, str):
+            one = run_pyroboplan(models, [start, goal], args.timeout, planner.margin, step_time)
+            theirs = (theirs[0] + one[0], theirs[1] + one[1], theirs[2] + one[2])
     if not isinstance(rp, str):
-        rp_result = run_roboplan(rp, robot, configs, args.timeout, step_time)
         rp_agree = roboplan_agreement(rp, planner, configs)
-
-    # pyroboplan on the same queries, and how often its checker agrees with ours.
-    models = pyroboplan_models(env, robot)
     if not isinstance(models, str):
-        theirs = run_pyroboplan(models, configs, args.timeout, planner.margin, step_time)
         agree = checker_agreement(planner, models, rng)
 
     # One validity check against one raw mj_step (on a scratch copy of the same state).
