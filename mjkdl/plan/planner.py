@@ -399,6 +399,11 @@ class MotionPlanner:
                         finally:
                             self.last_stats["project"] += time.perf_counter() - t_project
                         failure = "failed its projection onto the constraint"
+                    if constraint is None and isinstance(timer, TimeParametrizer):
+                        # The spline through the midpoints too hugs the checked polyline:
+                        # 1 in 60 Panda paths then cut a corner into the margin, against 10-13
+                        # in 60 through the waypoints alone, for durations within 0.5 %.
+                        waypoints = _subdivide(waypoints)
                     trajectory = self._timed(waypoints, timer, lower, upper, constraint)
                 except PlanningError as error:  # the projection: another path may do
                     failure = f"failed its projection onto the constraint (last: {error})"
