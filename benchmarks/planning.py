@@ -357,7 +357,7 @@ def run_plain_pipeline(
     planner: MotionPlanner, paths: list[np.ndarray]
 ) -> tuple[list[float], list[float], int]:
     """The rest of a hand-written pipeline on plain OMPL's paths: toppra (the library: the
-    same clamped spline and grid as ours, its seidel solver, ParametrizeConstAccel, the
+    same natural spline and grid as ours, its seidel solver, ParametrizeConstAccel, the
     constraints built once) and a final check of the timed path every CHECK_STEP (rad, any
     joint) at the margin, without the finer checks near obstacles ours adds. Seconds of the
     timing and of the check per path; paths that fail the check (not re-timed)."""
@@ -380,7 +380,7 @@ def run_plain_pipeline(
         t0 = time.perf_counter()
         _spline, grid, points = gridder.grid(waypoints)
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-        path = toppra.SplineInterpolator(s, points, bc_type="clamped")
+        path = toppra.SplineInterpolator(s, points, bc_type="natural")
         traj = toppra.algorithm.TOPPRA(
             constraints,
             path,

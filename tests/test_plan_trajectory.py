@@ -88,7 +88,7 @@ def test_timing_matches_toppras_own_solver_and_const_accel_parametrizer(seed) ->
     _spline, grid, points = timing.grid(waypoints)
     assert 30 <= len(grid) <= 100 + len(points)
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(waypoints, axis=0), axis=1))])
-    path = toppra.SplineInterpolator(s, waypoints, bc_type="clamped")
+    path = toppra.SplineInterpolator(s, waypoints, bc_type="natural")
     constraints = [
         toppra.constraint.JointVelocityConstraint(np.column_stack([-V, V])),
         toppra.constraint.JointAccelerationConstraint(np.column_stack([-A, A])),
@@ -102,6 +102,22 @@ def test_timing_matches_toppras_own_solver_and_const_accel_parametrizer(seed) ->
     assert np.abs(traj.positions[1:-1] - theirs(inner)).max() < 1e-6
     assert np.abs(traj.velocities[1:-1] - theirs(inner, 1)).max() < 1e-5
     assert np.abs(traj.accelerations - theirs(traj.times, 2)).max() < 1e-4
+
+
+def test_random_paths_get_finite_timings() -> None:
+    # 200 random paths with their midpoints (as the planner times them): each is timed in
+    # finite time. The clamped spline before took forever (or raised) on 6 of them.
+    from mjkdl.plan.planner import _subdivide
+
+    rng = np.random.default_rng(0)
+    timing = TimeParametrizer(V, A)
+    durations = []
+    for _ in range(200):
+        waypoints = rng.uniform(-2.5, 2.5, (rng.integers(2, 6), 7)) * rng.uniform(0.05, 1.0)
+        for _ in range(rng.integers(1, 4)):
+            waypoints = _subdivide(waypoints)
+        durations.append(timing(waypoints).duration)
+    assert max(durations) < 10.0
 
 
 def test_a_path_of_one_point_is_a_standstill() -> None:

