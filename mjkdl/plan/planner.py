@@ -853,7 +853,7 @@ class MotionPlanner:
                 if first > 1e-3:
                     status = setup.solve(first)
                     if not setup.haveExactSolutionPath():
-                        wall = self._wall(planner, si, lower, upper)
+                        wall = self._wall(planner, si, lower, upper, began + budget)
                         if wall is not None:
                             raise InfeasibleError(wall, "disconnected")
             if status is None or not setup.haveExactSolutionPath():
@@ -881,12 +881,15 @@ class MotionPlanner:
         n = self._n
         return np.array([state[0:n] for state in path.getStates()])
 
-    def _wall(self, planner: Any, si: Any, lower: np.ndarray, upper: np.ndarray) -> str | None:
+    def _wall(
+        self, planner: Any, si: Any, lower: np.ndarray, upper: np.ndarray, deadline: float
+    ) -> str | None:
         """Why the start and goals lie in different regions of free space, or None: a joint
         value c that the search's start tree (RRTConnect's tag 1) and goal tree (tag 2) have
         not crossed from either side, at which `WALL_SAMPLES` random configurations (the
         other joints uniform within the bounds) are all in collision. Both are evidence, not
-        proof: a passage through c too narrow for either to find would be missed."""
+        proof: a passage through c too narrow for either to find would be missed. Gives up
+        (None) at `deadline` (a `perf_counter` time)."""
         from ompl import base as ob
 
         data = ob.PlannerData(si)
@@ -909,6 +912,8 @@ class MotionPlanner:
                 continue
             count = max(1, math.floor((gap[1] - gap[0]) / WALL_STEP))
             for c in np.linspace(gap[0], gap[1], count + 2)[1:-1].tolist():
+                if time.perf_counter() > deadline:
+                    return None
                 free = False
                 for _ in range(WALL_SAMPLES):
                     q = self._rng.uniform(lower, upper)
