@@ -150,6 +150,34 @@ def test_joint_velocity_and_torque_modes_match(mode: Actuation) -> None:
         cpu_env.close()
 
 
+def _tcp_height(obs: dict) -> float:
+    return float(obs["panda_tcp_pos"][2])
+
+
+def test_rules_evaluate_on_the_device_and_plain_callables_on_the_host() -> None:
+    """Every registered task's reward, success and termination are `ArrayRule`s (evaluated
+    for all worlds as torch operations); a plain callable still runs, world by world."""
+    from mjkdl.task.rewards import batchable
+
+    for task_id in registry.TASKS:
+        env = gym.make(task_id, disable_env_checker=True).unwrapped
+        rules = [env.task_spec.reward, env.task_spec.success, env.task_spec.terminated]
+        env.close()
+        assert all(r is None or batchable(r) for r in rules), (task_id, rules)
+    spec = registry.panda_reach_spec()
+    spec.reward = _tcp_height
+    spec.time_limit = 0.4
+    batch = make_batch(spec, WORLDS, device="cpu")
+    cpu_env = TaskEnv(spec)
+    try:
+        actions = np.random.default_rng(4).uniform(-1, 1, (STEPS, WORLDS, 7)).astype(np.float32)
+        gaps, _ = _compare(batch, cpu_env, actions)
+        assert gaps["pos"] < POS_TOL and gaps["reward"] < REWARD_TOL, gaps
+    finally:
+        batch.close()
+        cpu_env.close()
+
+
 def test_observations_are_device_tensors_and_the_vector_face() -> None:
     batch = make_batch("mjkdl/PandaReach-v0", 3, device="cpu")
     try:

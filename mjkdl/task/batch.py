@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -34,6 +34,7 @@ from .batch_state import (
 from .env import TaskEnv
 from .goal import GoalTaskEnv
 from .initializers import PhysicsRandomizer
+from .rewards import batchable
 from .spec import TaskSpec
 
 __all__ = ["BatchEnv", "DeviceUnavailableError", "UnsupportedFeatureError", "make_batch"]
@@ -138,10 +139,10 @@ class BatchEnv(VectorEnv):
     worlds are meaningful) and `info["_final"]` marks them. `info["is_success"]` and
     `info["diverged"]` are bool tensors.
 
-    The task's reward, success and termination callables run on the host, once per world
-    and step, on the world's observation (float64 NumPy arrays): the task's own definitions
-    with nothing re-written, at a cost that grows with `num_envs` (docs/task.md, "Many
-    worlds").
+    The task's reward, success and termination rules (`mjkdl.task.rewards`, the same objects
+    the CPU env calls) evaluate every world at once as torch operations on the device, in
+    float64; a callable of the user's own without `evaluate` runs on the host, world by world
+    (docs/task.md, "Many worlds").
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP}  # noqa: RUF012
@@ -300,29 +301,34 @@ class BatchEnv(VectorEnv):
     def _evaluate(
         self, obs: dict[str, torch.Tensor], live: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Reward, success and termination of each world in `live` by the task's callables
-        (the others: 0, False, False)."""
+        """Reward, success and termination of each world in `live` by the task's own rules
+        (the others: 0, False, False). The rules of `mjkdl.task.rewards` (`ArrayRule`s)
+        evaluate all worlds at once on the device, in float64; any other callable runs on the
+        host, world by world, on the world's float64 NumPy observation."""
         spec = self.host.task_spec
-        n, dev = self.num_envs, self.device
-        reward = np.zeros(n)
-        success = np.zeros(n, dtype=bool)
-        terminated = np.zeros(n, dtype=bool)
-        fns = (spec.reward, spec.success, spec.terminated)
-        if any(f is not None for f in fns):
-            host_obs = {k: as_numpy(v) for k, v in obs.items()}
-            for i in torch.nonzero(live).flatten().tolist():
-                o = {k: v[i] for k, v in host_obs.items()}
-                if spec.reward is not None:
-                    reward[i] = float(spec.reward(o))
-                if spec.success is not None:
-                    success[i] = bool(spec.success(o))
-                if spec.terminated is not None:
-                    terminated[i] = bool(spec.terminated(o))
-        return (
-            torch.as_tensor(reward, device=dev, dtype=torch.float32),
-            torch.as_tensor(success, device=dev),
-            torch.as_tensor(terminated, device=dev),
-        )
+        wide = Float64View(obs)
+        host_obs: dict[str, np.ndarray] | None = None
+        out = []
+        for fn, dtype in (
+            (spec.reward, torch.float32),
+            (spec.success, torch.bool),
+            (spec.terminated, torch.bool),
+        ):
+            if fn is None:
+                value = torch.zeros(self.num_envs, dtype=dtype, device=self.device)
+            elif batchable(fn):
+                value = torch.as_tensor(fn.evaluate(wide), device=self.device)
+                value = torch.where(live, value, torch.zeros_like(value)).to(dtype)
+            else:
+                if host_obs is None:
+                    host_obs = {k: as_numpy(v) for k, v in obs.items()}
+                kind = float if dtype is torch.float32 else bool
+                rows = np.zeros(self.num_envs, dtype=kind)
+                for i in torch.nonzero(live).flatten().tolist():
+                    rows[i] = kind(fn({k: v[i] for k, v in host_obs.items()}))
+                value = torch.as_tensor(rows, device=self.device, dtype=dtype)
+            out.append(value)
+        return out[0], out[1], out[2]
 
     def _shown(self, obs: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """The agent's part of the observation, as the CPU env gives it."""
@@ -368,6 +374,27 @@ class BatchEnv(VectorEnv):
         if not self.closed:
             self.host.close()
         self.closed = True
+
+
+class Float64View(Mapping[str, torch.Tensor]):
+    """The batch's observations, each floating one cast to float64 (on its device) when first
+    read: the task's rules evaluate in the CPU env's precision."""
+
+    def __init__(self, obs: Mapping[str, torch.Tensor]) -> None:
+        self._obs = obs
+        self._wide: dict[str, torch.Tensor] = {}
+
+    def __getitem__(self, key: str) -> torch.Tensor:
+        if key not in self._wide:
+            value = self._obs[key]
+            self._wide[key] = value.double() if value.is_floating_point() else value
+        return self._wide[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._obs)
+
+    def __len__(self) -> int:
+        return len(self._obs)
 
 
 def _rows(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
