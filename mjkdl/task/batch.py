@@ -10,7 +10,6 @@ world with the world's own generator, and upload the state, so world `i` after
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Iterator, Mapping
 from typing import Any
@@ -173,22 +172,23 @@ class BatchEnv(VectorEnv):
         self.state = DeviceState(model, host.scene.data, num_envs, device, nconmax, njmax)
         self.observer = BatchObserver(host, self.state)
         self.state.tcps.update(self.observer.tcps)  # the arms' TCPs, shared with control
-        self.arms = [BatchArm(eff, model, self.state) for eff in host._effectors]
-        self._substeps, self._period = host._substeps, host._period
-        limit = host._max_steps if math.isfinite(host._max_steps) else None
+        self.arms = [BatchArm(eff, model, self.state) for eff in host.effectors]
+        self._substeps, self._period = host.control_substeps, host.control_timestep
+        limit = host.time_limit_steps
         if limit is None and horizon is not None:
             limit = horizon
         elif limit is not None and horizon is not None:
             limit = min(limit, horizon)
         self.max_episode_steps = limit
-        self._hold_steps = host._hold_steps
+        self._hold_steps = host.success_hold_steps
         dev = self.device
-        self._low = torch.as_tensor(host._action_low, device=dev, dtype=torch.float32)
-        self._high = torch.as_tensor(host._action_high, device=dev, dtype=torch.float32)
+        low, high = host.action_bounds
+        self._low = torch.as_tensor(low, device=dev, dtype=torch.float32)
+        self._high = torch.as_tensor(high, device=dev, dtype=torch.float32)
         self._normalized = spec.normalize_actions
-        if self._normalized:
-            self._mid = torch.as_tensor(host._action_mid, device=dev, dtype=torch.float32)
-            self._half = torch.as_tensor(host._action_half, device=dev, dtype=torch.float32)
+        if self._normalized:  # as the CPU env scales [-1, 1] onto the bounds
+            self._mid = torch.as_tensor(0.5 * (high + low), device=dev, dtype=torch.float32)
+            self._half = torch.as_tensor(0.5 * (high - low), device=dev, dtype=torch.float32)
         self._steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._held = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._rngs: list[np.random.Generator] = [np_random(i)[0] for i in range(num_envs)]
@@ -201,6 +201,13 @@ class BatchEnv(VectorEnv):
         self.action_labels = host.action_labels
         self._needs_reset = True
         self.closed = False
+
+    @property
+    def episode_steps(self) -> torch.Tensor:
+        """Control steps of each world's current episode: the batch's own (num_envs,) long
+        tensor on the device, which a learner may write in place (rsl-rl spreads the worlds
+        over their episodes at the start); the time limit counts from it."""
+        return self._steps
 
     # ------------------------------------------------------------------ episodes
 
@@ -288,7 +295,7 @@ class BatchEnv(VectorEnv):
             host.np_random = self._rngs[i]
             host.reset()
             s.upload(i, host.scene.data)
-            for j, eff in enumerate(host._effectors):
+            for j, eff in enumerate(host.effectors):
                 q_cmd[j][k] = eff.robot.jnt_pos_cmd
                 qd[j][k] = eff.robot.jnt_vel_msr
         idx = torch.as_tensor(ids, device=self.device, dtype=torch.long)
@@ -333,16 +340,17 @@ class BatchEnv(VectorEnv):
     def _shown(self, obs: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """The agent's part of the observation, as the CPU env gives it."""
         host = self.host
+        shown = host.observation_space.spaces
         if isinstance(host, GoalTaskEnv):
             g = host.goal_reward
             out = {
-                "observation": torch.cat([obs[k] for k in host._vector_keys], dim=1),
+                "observation": torch.cat([obs[k] for k, _ in host.observation_layout], dim=1),
                 "achieved_goal": obs[g.achieved][:, :3],
                 "desired_goal": obs[g.desired][:, :3],
             }
-            out.update((k, obs[k]) for k in host._image_keys)
+            out.update((k, obs[k]) for k in shown if k not in out)  # the cameras
             return out
-        return {k: obs[k] for k in host._shown}
+        return {k: obs[k] for k in shown}
 
     def _checked(self, actions: Any) -> torch.Tensor:
         a = torch.as_tensor(actions, device=self.device, dtype=torch.float32)
