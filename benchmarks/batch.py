@@ -7,8 +7,9 @@ control steps/s summed over worlds, world-steps/s (physics steps of one world pe
 the reset cost per world (the CPU env's reset on the host, uploaded), MuJoCo Warp's data
 per world, and the cost per world of the task's reward and success: evaluated for all worlds
 on the device (as `step` does) against each world's rules called on the host (as `step` did
-before). First-call time (kernel compile) is measured in fresh subprocesses: with an empty
-kernel cache and with the one the first filled.
+before). Cameras: frames/s of MuJoCo Warp's renderer for all worlds against MuJoCo's OpenGL
+renderer (the CPU env's) one world at a time. First-call time (kernel compile) is measured in
+fresh subprocesses: with an empty kernel cache and with the one the first filled.
 
     python benchmarks/batch.py                       # CPU device, 1..256 worlds
     python benchmarks/batch.py --device cuda --worlds 1 64 1024 8192
@@ -111,6 +112,49 @@ def batch(n: int, steps: int, device: str) -> tuple[float, float, float, tuple[f
     return rate, reset, per_world, evaluation
 
 
+def cameras(n: int, size: int, reps: int, device: str) -> tuple[float, float]:
+    """Frames/s of PickCube's `front` camera (RGB and depth, `size` x `size`): MuJoCo Warp's
+    renderer drawing all `n` worlds at once, and the baseline, MuJoCo's OpenGL renderer (the
+    CPU env's) drawing one world's state at a time, as the CPU env's camera reader does."""
+    import mujoco
+
+    from mjkdl.task import CameraSensor, TaskEnv, registry
+    from mjkdl.task.batch import make_batch
+
+    spec = registry.panda_pick_cube_spec()
+    spec.sensors = [*spec.sensors, CameraSensor("front", size, size, depth=True)]
+    envs = make_batch(spec, n, device=device)
+    envs.reset(seed=0)
+    batch_cameras = envs.observer.cameras
+    batch_cameras.read()  # warm
+    start = time.perf_counter()
+    for _ in range(reps):
+        batch_cameras.read()
+    warp_rate = n * reps / (time.perf_counter() - start)
+    envs.close()
+    env = TaskEnv(spec)
+    env.reset(seed=0)
+    r = mujoco.Renderer(env.scene.model, size, size)
+    flags = r.scene.flags  # as the CPU env's camera reader draws: no shadows, no reflections
+    flags[mujoco.mjtRndFlag.mjRND_SHADOW] = flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+
+    def frame() -> None:
+        r.update_scene(env.scene.data, camera="front")
+        r.enable_depth_rendering()
+        r.render()
+        r.disable_depth_rendering()
+        r.render()
+
+    frame()  # warm: the OpenGL context and the model's upload
+    start = time.perf_counter()
+    for _ in range(n * reps):
+        frame()
+    gl_rate = n * reps / (time.perf_counter() - start)
+    r.close()
+    env.close()
+    return warp_rate, gl_rate
+
+
 _FIRST_CALL = """
 import time, scenes, mjkdl.task
 from mjkdl.task.batch import make_batch
@@ -147,6 +191,10 @@ def main() -> None:
     parser.add_argument("--cpu-steps", type=int, default=20, help="timed CPU env steps")
     parser.add_argument("--vector-envs", type=int, default=4, help="CPU vector env size")
     parser.add_argument("--no-compile", action="store_true", help="skip the first-call runs")
+    parser.add_argument(
+        "--camera-worlds", type=int, nargs="*", default=[16, 64], help="worlds for the cameras"
+    )
+    parser.add_argument("--camera-size", type=int, default=64, help="camera image side, px")
     args = parser.parse_args()
     from mjkdl.task.batch_state import warp_modules
 
@@ -171,6 +219,14 @@ def main() -> None:
             f"{n:6d}  {rate:15.1f}  {rate * SUBSTEPS:13.0f}  {rate / base:9.2f}x"
             f"  {reset:13.3f}  {per_world / 1024:9.0f}"
             f"  {dev_us:7.2f} | {host_us:6.1f} ({host_us / dev_us:.0f}x)"
+        )
+    size = args.camera_size
+    for n in args.camera_worlds:
+        warp_rate, gl_rate = cameras(n, size, 3, device)
+        print(
+            f"camera {size}x{size} RGB+depth, {n} worlds: {warp_rate:.1f} frames/s (MuJoCo Warp) "
+            f"against {gl_rate:.1f} frames/s (MuJoCo's OpenGL, one world at a time, baseline):"
+            f" {warp_rate / gl_rate:.2f}x"
         )
     if not args.no_compile:
         with tempfile.TemporaryDirectory() as cache:

@@ -15,6 +15,7 @@ from mjkdl.task.batch import DeviceUnavailableError  # noqa: E402
 from mjkdl.task.batch_state import UnsupportedFeatureError, mat_to_quat  # noqa: E402
 from mjkdl.task.env import TaskEnv  # noqa: E402
 from mjkdl.task.initializers import PhysicsRandomizer  # noqa: E402
+from mjkdl.task.rewards import batchable  # noqa: E402
 from mjkdl.task.spec import Actuation, CameraSensor  # noqa: E402
 
 WORLDS = 2
@@ -82,6 +83,10 @@ def test_registered_tasks_match_the_cpu_env(task_id: str) -> None:
     batch = make_batch(task_id, WORLDS, device="cpu", time_limit=0.4)
     cpu_env = gym.make(task_id, time_limit=0.4).unwrapped
     try:
+        # The task's rules are evaluated for all worlds as torch operations on the device.
+        spec = batch.host.task_spec
+        rules = [r for r in (spec.reward, spec.success, spec.terminated) if r is not None]
+        assert rules and all(batchable(r) for r in rules), rules
         rng = np.random.default_rng(0)
         n = len(batch.action_labels)
         actions = rng.uniform(-1.0, 1.0, (STEPS, WORLDS, n)).astype(np.float32)
@@ -154,16 +159,8 @@ def _tcp_height(obs: dict) -> float:
     return float(obs["panda_tcp_pos"][2])
 
 
-def test_rules_evaluate_on_the_device_and_plain_callables_on_the_host() -> None:
-    """Every registered task's reward, success and termination are `ArrayRule`s (evaluated
-    for all worlds as torch operations); a plain callable still runs, world by world."""
-    from mjkdl.task.rewards import batchable
-
-    for task_id in registry.TASKS:
-        env = gym.make(task_id, disable_env_checker=True).unwrapped
-        rules = [env.task_spec.reward, env.task_spec.success, env.task_spec.terminated]
-        env.close()
-        assert all(r is None or batchable(r) for r in rules), (task_id, rules)
+def test_a_plain_callable_runs_on_the_host() -> None:
+    """A reward without `evaluate` (no `ArrayRule`) is called world by world."""
     spec = registry.panda_reach_spec()
     spec.reward = _tcp_height
     spec.time_limit = 0.4
@@ -324,3 +321,23 @@ def test_cameras_render_every_world_as_the_cpu_env_sees_it() -> None:
     finally:
         batch.close()
         cpu_env.close()
+
+
+def test_camera_buffers_count_in_the_memory_estimate() -> None:
+    import re
+
+    spec = registry.panda_reach_spec()
+    spec.sensors = [*spec.sensors, CameraSensor("front", 128, 96, depth=True)]
+    with pytest.raises(SpecError, match="GiB") as cams:
+        make_batch(spec, 10**8, device="cpu")
+    with pytest.raises(SpecError, match="GiB") as plain:
+        make_batch(registry.panda_reach_spec(), 10**8, device="cpu")
+
+    def kib(err: pytest.ExceptionInfo) -> int:
+        return int(re.search(r"\((\d+) KiB per world\)", str(err.value)).group(1))
+
+    # Colour (4 + 3 bytes a pixel) and depth (4 + 4), and the scene hierarchy's bounds.
+    env = TaskEnv(spec)
+    ngeom = env.scene.model.ngeom
+    env.close()
+    assert kib(cams) - kib(plain) == pytest.approx((128 * 96 * 15 + 28 * ngeom) / 1024, abs=1)

@@ -21,6 +21,7 @@ from gymnasium.utils.seeding import np_random
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from ..errors import MjkdlError, SpecError, SpecTypeError
+from .batch_cameras import image_bytes
 from .batch_control import BatchArm
 from .batch_sensors import BatchObserver
 from .batch_state import (
@@ -168,7 +169,8 @@ class BatchEnv(VectorEnv):
                 )
         host.reset(seed=0)  # configures the arms' actuators (Robot control modes) in the model
         model = host.scene.model
-        _check_memory(model, host.scene.data, num_envs, device, nconmax, njmax)
+        images = image_bytes(host.readers, model)
+        _check_memory(model, host.scene.data, num_envs, device, nconmax, njmax, images)
         self.state = DeviceState(model, host.scene.data, num_envs, device, nconmax, njmax)
         self.observer = BatchObserver(host, self.state)
         self.state.tcps.update(self.observer.tcps)  # the arms' TCPs, shared with control
@@ -450,10 +452,18 @@ def _free_bytes(device: str) -> int:
 
 
 def _check_memory(
-    model: Any, data: Any, num_envs: int, device: str, nconmax: int | None, njmax: int | None
+    model: Any,
+    data: Any,
+    num_envs: int,
+    device: str,
+    nconmax: int | None,
+    njmax: int | None,
+    images: int = 0,
 ) -> None:
-    """Refuse, before allocating, a batch whose MuJoCo Warp data would not fit the device."""
+    """Refuse, before allocating, a batch whose MuJoCo Warp data (and `images` bytes per
+    world of camera buffers) would not fit the device."""
     per_world, shared = world_bytes(model, data, device, nconmax, njmax)
+    per_world += images
     need = shared + per_world * num_envs
     free = _free_bytes(device)
     if need > MEMORY_SHARE * free:

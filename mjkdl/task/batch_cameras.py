@@ -109,3 +109,17 @@ class BatchCameras:
         for key, k in self._intrinsics.items():
             out[key] = k.clone()
         return out
+
+
+def image_bytes(readers: Sequence[object], model: mujoco.MjModel) -> int:
+    """Bytes per world the camera sensors among `readers` take on the device: MuJoCo Warp's
+    packed colour (4 per pixel) and depth (4) buffers, the observations read from them (3
+    and 4), and the scene hierarchy's bounds per geom (28); 0 without cameras."""
+    total = 0
+    for reader in readers:
+        if isinstance(reader, CameraReader):
+            for key, buf in reader.buffers.items():
+                if key.endswith(("_rgb", "_depth")):
+                    h, w = buf.shape[:2]
+                    total += h * w * (7 if key.endswith("_rgb") else 8)
+    return total + 28 * model.ngeom if total else 0

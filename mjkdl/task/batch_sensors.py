@@ -68,8 +68,9 @@ class BatchObserver:
                 cameras.append((sensor, reader, where))
             else:
                 self._sources.append(self._sensor(sensor, reader, model, where))
-        if cameras:
-            self._sources.append(BatchCameras(cameras, model, state).read)
+        self.cameras = BatchCameras(cameras, model, state) if cameras else None
+        if self.cameras is not None:
+            self._sources.append(self.cameras.read)
 
     def read(self) -> dict[str, torch.Tensor]:
         """Every observation, by name, in the CPU env's order (`time` last)."""
