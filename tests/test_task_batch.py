@@ -256,7 +256,7 @@ def test_unsupported_scene_feature_is_named() -> None:
         warp_model(model)
 
 
-def test_physics_randomizer_and_reflections_are_refused() -> None:
+def test_physics_randomizer_reflections_and_a_camera_twice_are_refused() -> None:
     spec = registry.panda_pick_cube_spec()
     spec.initializers = [*spec.initializers, PhysicsRandomizer(["cube"], mass_scale=(0.5, 2))]
     with pytest.raises(UnsupportedFeatureError, match=r"initializers\[1\] \(PhysicsRandomizer\)"):
@@ -266,6 +266,13 @@ def test_physics_randomizer_and_reflections_are_refused() -> None:
     with pytest.raises(
         UnsupportedFeatureError, match=r"sensors\[2\] \(CameraSensor\).*reflections"
     ):
+        make_batch(spec, 1, device="cpu")
+    spec.sensors = [
+        *spec.sensors[:2],
+        CameraSensor("front", 32, 32),
+        CameraSensor("front", 16, 16, name="small"),
+    ]
+    with pytest.raises(UnsupportedFeatureError, match=r"sensors\[3\].*'front' is observed twice"):
         make_batch(spec, 1, device="cpu")
 
 

@@ -35,7 +35,7 @@ class BatchCameras:
         state: DeviceState,
     ) -> None:
         wp, mjw = warp_modules()
-        self._state, self._mjw = state, mjw
+        self._state = state
         ids: list[int] = []
         sizes: list[tuple[int, int]] = []
         depth: list[bool] = []
