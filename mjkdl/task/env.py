@@ -121,7 +121,11 @@ def _fitting(value: object, dtype: np.dtype, field: str) -> np.ndarray:
 
 
 class ArmEffector:
-    """One arm's slice of the action: written to its robot (and gripper) every step."""
+    """One arm's slice of the action: written to its robot (and gripper) every step.
+
+    `arm` is its `ArmSpec`, `robot` and `gripper` its handles, `controller` the Cartesian
+    controller (None in the joint modes), `slice` its entries of the action and `grip_index`
+    the gripper's entry (-1 without one)."""
 
     def __init__(
         self,
