@@ -4,9 +4,12 @@
 Baseline: one CPU env (`TaskEnv.step`), then a synchronous CPU vector env of 4, then the
 batch on MuJoCo Warp's device with 1 ... 256 worlds (the CPU device where no GPU is lent):
 control steps/s summed over worlds, world-steps/s (physics steps of one world per second),
-the reset cost per world (the CPU env's reset on the host, uploaded), and MuJoCo Warp's data
-per world. First-call time (kernel compile) is measured in fresh subprocesses: with an empty
-kernel cache and with the one the first filled.
+the reset cost per world (the CPU env's reset on the host, uploaded), MuJoCo Warp's data
+per world, and the cost per world of the task's reward and success: evaluated for all worlds
+on the device (as `step` does) against each world's rules called on the host (as `step` did
+before). Cameras: frames/s of MuJoCo Warp's renderer for all worlds against MuJoCo's OpenGL
+renderer (the CPU env's) one world at a time. First-call time (kernel compile) is measured in
+fresh subprocesses: with an empty kernel cache and with the one the first filled.
 
     python benchmarks/batch.py                       # CPU device, 1..256 worlds
     python benchmarks/batch.py --device cuda --worlds 1 64 1024 8192
@@ -57,8 +60,36 @@ def cpu_vector(n: int, steps: int) -> float:
     return rate
 
 
-def batch(n: int, steps: int, device: str) -> tuple[float, float, float]:
-    """(control steps/s over all worlds, reset s per world, data bytes per world)."""
+def rules(envs: object, reps: int) -> tuple[float, float]:
+    """Microseconds per world of evaluating the task's reward and success for every world:
+    (the rules on the device, as `step` does; the baseline, each world's rules called on
+    the host with its NumPy observation, as `step` did before)."""
+    from mjkdl.task.batch import Float64View
+    from mjkdl.task.batch_state import as_numpy
+
+    spec = envs.host.task_spec  # type: ignore[attr-defined]
+    fns = [f for f in (spec.reward, spec.success, spec.terminated) if f is not None]
+    obs = envs.observer.read()  # type: ignore[attr-defined]
+    n = envs.num_envs  # type: ignore[attr-defined]
+    start = time.perf_counter()
+    for _ in range(reps):
+        wide = Float64View(obs)
+        for f in fns:
+            f.evaluate(wide)
+    device = (time.perf_counter() - start) / reps / n
+    start = time.perf_counter()
+    for _ in range(reps):
+        host = {k: as_numpy(v) for k, v in obs.items()}
+        for i in range(n):
+            o = {k: v[i] for k, v in host.items()}
+            for f in fns:
+                f(o)
+    baseline = (time.perf_counter() - start) / reps / n
+    return device * 1e6, baseline * 1e6
+
+
+def batch(n: int, steps: int, device: str) -> tuple[float, float, float, tuple[float, float]]:
+    """(control steps/s over all worlds, reset s per world, data bytes per world, `rules`)."""
     import torch
 
     from mjkdl.task.batch import make_batch, world_bytes
@@ -76,8 +107,52 @@ def batch(n: int, steps: int, device: str) -> tuple[float, float, float]:
     if device.startswith("cuda"):
         torch.cuda.synchronize()
     rate = n * steps / (time.perf_counter() - start)
+    evaluation = rules(envs, 5)
     envs.close()
-    return rate, reset, per_world
+    return rate, reset, per_world, evaluation
+
+
+def cameras(n: int, size: int, reps: int, device: str) -> tuple[float, float]:
+    """Frames/s of PickCube's `front` camera (RGB and depth, `size` x `size`): MuJoCo Warp's
+    renderer drawing all `n` worlds at once, and the baseline, MuJoCo's OpenGL renderer (the
+    CPU env's) drawing one world's state at a time, as the CPU env's camera reader does."""
+    import mujoco
+
+    from mjkdl.task import CameraSensor, TaskEnv, registry
+    from mjkdl.task.batch import make_batch
+
+    spec = registry.panda_pick_cube_spec()
+    spec.sensors = [*spec.sensors, CameraSensor("front", size, size, depth=True)]
+    envs = make_batch(spec, n, device=device)
+    envs.reset(seed=0)
+    batch_cameras = envs.observer.cameras
+    batch_cameras.read()  # warm
+    start = time.perf_counter()
+    for _ in range(reps):
+        batch_cameras.read()
+    warp_rate = n * reps / (time.perf_counter() - start)
+    envs.close()
+    env = TaskEnv(spec)
+    env.reset(seed=0)
+    r = mujoco.Renderer(env.scene.model, size, size)
+    flags = r.scene.flags  # as the CPU env's camera reader draws: no shadows, no reflections
+    flags[mujoco.mjtRndFlag.mjRND_SHADOW] = flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+
+    def frame() -> None:
+        r.update_scene(env.scene.data, camera="front")
+        r.enable_depth_rendering()
+        r.render()
+        r.disable_depth_rendering()
+        r.render()
+
+    frame()  # warm: the OpenGL context and the model's upload
+    start = time.perf_counter()
+    for _ in range(n * reps):
+        frame()
+    gl_rate = n * reps / (time.perf_counter() - start)
+    r.close()
+    env.close()
+    return warp_rate, gl_rate
 
 
 _FIRST_CALL = """
@@ -116,6 +191,10 @@ def main() -> None:
     parser.add_argument("--cpu-steps", type=int, default=20, help="timed CPU env steps")
     parser.add_argument("--vector-envs", type=int, default=4, help="CPU vector env size")
     parser.add_argument("--no-compile", action="store_true", help="skip the first-call runs")
+    parser.add_argument(
+        "--camera-worlds", type=int, nargs="*", default=[16, 64], help="worlds for the cameras"
+    )
+    parser.add_argument("--camera-size", type=int, default=64, help="camera image side, px")
     args = parser.parse_args()
     from mjkdl.task.batch_state import warp_modules
 
@@ -130,12 +209,24 @@ def main() -> None:
     k = args.vector_envs
     vec = cpu_vector(k, max(1, args.cpu_steps // 2))
     print(f"CPU sync vector env of {k}:     {vec:8.1f} control steps/s  ({vec / base:.2f}x)")
-    print("worlds  control steps/s  world-steps/s   vs CPU env  reset s/world  KiB/world")
+    print(
+        "worlds  control steps/s  world-steps/s   vs CPU env  reset s/world  KiB/world"
+        "  rules us/world (device | host loop)"
+    )
     for n in args.worlds:
-        rate, reset, per_world = batch(n, args.steps, device)
+        rate, reset, per_world, (dev_us, host_us) = batch(n, args.steps, device)
         print(
             f"{n:6d}  {rate:15.1f}  {rate * SUBSTEPS:13.0f}  {rate / base:9.2f}x"
             f"  {reset:13.3f}  {per_world / 1024:9.0f}"
+            f"  {dev_us:7.2f} | {host_us:6.1f} ({host_us / dev_us:.0f}x)"
+        )
+    size = args.camera_size
+    for n in args.camera_worlds:
+        warp_rate, gl_rate = cameras(n, size, 3, device)
+        print(
+            f"camera {size}x{size} RGB+depth, {n} worlds: {warp_rate:.1f} frames/s (MuJoCo Warp) "
+            f"against {gl_rate:.1f} frames/s (MuJoCo's OpenGL, one world at a time, baseline):"
+            f" {warp_rate / gl_rate:.2f}x"
         )
     if not args.no_compile:
         with tempfile.TemporaryDirectory() as cache:

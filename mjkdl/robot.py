@@ -363,6 +363,22 @@ class Robot:
         return list(self._chain.joint_names)
 
     @property
+    def actuator_ids(self) -> np.ndarray:
+        """MuJoCo ids of the actuators driving the chain's joints, in chain order (a copy)."""
+        self._check_open()
+        return self._actuator_ids.copy()
+
+    @property
+    def gravity_feedforward_scale(self) -> np.ndarray:
+        """Per joint, the factor that turns a gravity torque into the offset of the servo's
+        setpoint in the current control mode (POSITION: 1/(gear² kp), VELOCITY: 1/(gear² kv);
+        1 where the command is a torque): what `gravity_feedforward` adds, over the torque."""
+        self._check_open()
+        if self.ctrl_mode is CtrlMode.TORQUE or not hasattr(self, "_ff_scale"):
+            return np.ones(self._n)
+        return np.broadcast_to(np.asarray(self._ff_scale, dtype=float), (self._n,)).copy()
+
+    @property
     def joint_limits(self) -> np.ndarray:
         """n×2 [lower, upper] positions; unlimited joints have ±inf."""
         self._check_open()

@@ -52,6 +52,20 @@ def panda_env():
         yield env
 
 
+def test_settings_are_the_resolved_terms(panda_env) -> None:
+    robot = panda_arm(panda_env, mjk.CtrlMode.VELOCITY)
+    ctrl = mjk.CartesianVelocityController(robot, max_joint_velocity=0.8, posture_gain=2.0)
+    s = ctrl.settings
+    np.testing.assert_array_equal(np.stack([s.joint_lower, s.joint_upper], 1), robot.joint_limits)
+    # The Panda's model gives every joint a velocity limit (Pinocchio reads MuJoCo's none):
+    # the constructor's bound applies to all.
+    assert s.max_joint_velocity.tolist() == [0.8] * 7
+    assert (s.max_joint_acceleration, s.posture_gain, s.damping) == (10.0, 2.0, 1e-5)
+    assert s.posture.tolist() == robot.jnt_pos_msr.tolist()
+    s.posture[0] = 9.0
+    assert ctrl.settings.posture[0] != 9.0  # a copy
+
+
 @pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name)
 @pytest.mark.parametrize("axis", [0, 1, 2])
 def test_constant_twist_moves_tcp_10cm_in_2s(panda_env, mode, axis) -> None:

@@ -61,6 +61,9 @@ def test_panda_hand_opens_and_closes() -> None:
             assert hand.opening() == pytest.approx(opening, abs=0.01)
             # The measurement is the finger joints' own travel, normalised by 0.04 m.
             assert hand.opening() == pytest.approx(panda_fingers(env) / 0.04, abs=1e-9)
+        assert hand.actuator_id == env.actuator_id("actuator8")
+        # The tendon's lengths where the servo rests at ctrl 0 and 255: the fingers' 0.04 m.
+        assert hand.length_range == pytest.approx((0.0, 0.04), abs=1e-9)
 
 
 def test_robotiq_2f85_opens_and_closes_continuously() -> None:

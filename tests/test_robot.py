@@ -990,6 +990,11 @@ def test_every_mode_writes_mujocos_controls_on_every_path(tmp_path, arm: str, ca
             gain[:, 0], bias[:, 2] = kv * gear, -kv
         np.testing.assert_allclose(model.actuator_gainprm[acts], gain, rtol=1e-12, atol=0)
         np.testing.assert_allclose(model.actuator_biasprm[acts], bias, rtol=1e-12, atol=0)
+        assert robot.actuator_ids.tolist() == acts.tolist()
+        # What the feed-forward adds to the setpoint per N·m: 1/(gear² k) for a servo.
+        k = {mjk.CtrlMode.POSITION: -bias[:, 1], mjk.CtrlMode.VELOCITY: -bias[:, 2]}.get(mode)
+        scale = np.ones(2) if k is None else 1.0 / (gear**2 * k)
+        np.testing.assert_allclose(robot.gravity_feedforward_scale, scale, rtol=1e-12, atol=0)
         assert not model.actuator_ctrllimited[acts].any()
         held = {mjk.CtrlMode.POSITION: [0.4, -0.7]}.get(mode, [0.0, 0.0])
         want = _want_ctrl(scene, acts, dofs, mode, gravcomp, ff, held)

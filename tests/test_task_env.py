@@ -155,6 +155,23 @@ def test_truncated_exactly_at_the_time_limit() -> None:
     env.close()
 
 
+def test_the_envs_layout_is_readable() -> None:
+    env = make(time_limit=0.3, success=lambda obs: True, success_hold=0.2)
+    assert (env.control_substeps, env.time_limit_steps, env.success_hold_steps) == (50, 3, 2)
+    low, high = env.action_bounds
+    arm = env.task_spec.arms[0]
+    assert high.tolist() == [arm.max_linear_velocity] * 3 + [arm.max_angular_velocity] * 3 + [1]
+    assert low.tolist() == [*(-high[:6]).tolist(), 0.0]
+    low[0] = 9.0
+    assert env.action_bounds[0][0] != 9.0  # a copy
+    [eff] = env.effectors
+    assert eff.robot is env.robots["panda"] and eff.gripper is env.grippers["panda"]
+    assert (eff.slice, eff.grip_index) == (slice(0, 6), 6)
+    assert [type(r).__name__ for r in env.readers] == ["ArmReader", "PoseReader"]
+    env.close()
+    assert make(time_limit=None).time_limit_steps is None
+
+
 def test_one_step_is_control_timestep_of_physics(env: TaskEnv) -> None:
     obs, _ = env.reset(seed=0)
     obs, *_ = env.step(np.zeros(7))

@@ -268,3 +268,48 @@ def test_place_reward_formula_takes_batches() -> None:
     assert batch.shape == (64,)
     np.testing.assert_allclose(batch, one, rtol=0, atol=1e-15)
     assert batch.max() < 1.0
+
+
+def test_every_rule_evaluates_batches_as_it_evaluates_one_world() -> None:
+    """`evaluate` on (N, k) torch tensors (the batched backend's call) gives, world by world,
+    what the CPU env's call gives on that world's NumPy observation."""
+    torch = pytest.importorskip("torch")
+    from mjkdl.task.goal import GoalReward
+    from mjkdl.task.rewards import batchable
+
+    rng = np.random.default_rng(5)
+    n = 256
+    tcp = rng.uniform(-0.1, 0.1, (n, 3))
+    cube = tcp + rng.normal(0, 0.02, (n, 3))
+    cube[:, 2] = rng.uniform(0.0, 0.12, n)
+    goal = cube + rng.normal(0, 0.04, (n, 3))
+    worlds = {
+        "tcp_pos": tcp,
+        "cube_pose": np.concatenate([cube, np.tile([1.0, 0, 0, 0], (n, 1))], 1),
+        "goal_pose": np.concatenate([goal, np.tile([1.0, 0, 0, 0], (n, 1))], 1),
+        "cube_contacts": (rng.uniform(size=(n, 2)) < 0.6).astype(float),
+    }
+    placed = Placed("cube_pose", "goal_pose", 0.03, "cube_contacts")
+    rules = [
+        Reached("tcp_pos", "cube_pose", 0.02),
+        ReachReward("tcp_pos", "cube_pose", 0.02, 0.1),
+        Lifted("cube_pose", 0.02, 0.05),
+        Held("cube_pose", "cube_contacts", 0.02, 0.05),
+        LiftReward("tcp_pos", "cube_pose", "cube_contacts", 0.02, 0.05),
+        placed,
+        Placed("cube_pose", "goal_pose", 0.03),
+        PlaceReward("tcp_pos", "cube_pose", "goal_pose", placed, contacts="cube_contacts"),
+        SparseReward(placed),
+        GoalReward("cube_pose", "goal_pose", 0.03, "dense"),
+        GoalReward("cube_pose", "goal_pose", 0.03, "sparse"),
+    ]
+    batch = {k: torch.as_tensor(v) for k, v in worlds.items()}
+    for rule in rules:
+        assert batchable(rule), rule
+        got = rule.evaluate(batch)
+        assert isinstance(got, torch.Tensor) and got.shape == (n,), rule
+        one = np.array([rule({k: v[i] for k, v in worlds.items()}) for i in range(n)])
+        assert len(set(one.tolist())) > 1, rule  # both outcomes (or several rewards) occur
+        np.testing.assert_allclose(got.numpy().astype(float), one, rtol=0, atol=1e-12)
+    # A success of the user's own (no `evaluate`) keeps a reward on the host.
+    assert not batchable(SparseReward(lambda o: True))

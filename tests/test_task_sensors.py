@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 import pytest
 from conftest import menagerie
@@ -330,6 +331,23 @@ def test_contact_sensor_reports_which_bodies_touch() -> None:
     for _ in range(3):
         obs, *_ = env.step(np.zeros(7))
     assert obs["cube_contacts"].tolist() == [0.0, 0.0, 1.0]
+    env.close()
+
+
+def test_readers_name_what_they_read() -> None:
+    env = cube_env(ContactSensor("cube", ["left_finger", "world"]))
+    model = env.scene.model
+    arm, contacts = env.readers
+    assert arm.tcp_reference == (int(mujoco.mjtObj.mjOBJ_XBODY), model.body("hand").id)
+    pos, rot = arm.tcp_offset
+    assert pos.tolist() == [0.0, 0.0, 0.1034] and rot.tolist() == np.eye(3).tolist()
+    qadr, dadr = arm.joint_addresses
+    joints = [model.joint(f"joint{i}") for i in range(1, 8)]
+    assert qadr.tolist() == [int(j.qposadr[0]) for j in joints]
+    assert dadr.tolist() == [int(j.dofadr[0]) for j in joints]
+    assert arm.in_control_frame is False
+    assert contacts.body == model.body("cube").id
+    assert contacts.others == [model.body("left_finger").id, 0]
     env.close()
 
 

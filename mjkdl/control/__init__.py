@@ -1,7 +1,13 @@
 """Controllers usable from any control script: Cartesian velocity, operational space, grippers."""
 
-from .cartesian import CartesianVelocityController, SolveStatus
+from .cartesian import CartesianSettings, CartesianVelocityController, SolveStatus
 from .gripper import Gripper
 from .osc import OperationalSpaceController
 
-__all__ = ["CartesianVelocityController", "Gripper", "OperationalSpaceController", "SolveStatus"]
+__all__ = [
+    "CartesianSettings",
+    "CartesianVelocityController",
+    "Gripper",
+    "OperationalSpaceController",
+    "SolveStatus",
+]

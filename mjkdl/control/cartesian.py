@@ -21,6 +21,7 @@ import enum
 import math
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import daqp
 import mujoco
@@ -48,6 +49,36 @@ class SolveStatus(enum.Enum):
     OPTIMAL = "optimal"
     INFEASIBLE = "infeasible"  # the constraints cannot all hold: zero velocity was returned
     FAILED = "failed"  # the solver stopped without a solution (or the state held NaN): zero
+
+
+@dataclass(frozen=True)
+class CartesianSettings:
+    """The terms and bounds a `CartesianVelocityController` solves with, as resolved at
+    construction (per-joint arrays in chain order, copies): what a re-implementation of the
+    same QP (the batched backend's) needs to solve the same problem."""
+
+    joint_lower: np.ndarray
+    """Lower joint position limits."""
+    joint_upper: np.ndarray
+    """Upper joint position limits."""
+    max_joint_velocity: np.ndarray
+    """Per-joint velocity bounds (the model's where given, else the constructor's)."""
+    max_joint_acceleration: float
+    """Joint acceleration bound (inf: none)."""
+    limit_gain: float
+    """Share of the gap to a position limit one period may close."""
+    limit_horizon: float
+    """Shortest period the position-limit bounds assume, s."""
+    posture: np.ndarray
+    """Null-space posture target."""
+    posture_gain: float
+    """Gain of the posture task, 1/s."""
+    damping: float
+    """Weight of |qd|² in the cost."""
+    singular_damping: float
+    """Damping added as the smallest singular value of J falls below the threshold."""
+    singular_threshold: float
+    """Smallest singular value of J below which damping grows."""
 
 
 class CartesianVelocityController:
@@ -178,6 +209,23 @@ class CartesianVelocityController:
         self._ready = False
         self.last_status = SolveStatus.OPTIMAL
         self._warned = False
+
+    @property
+    def settings(self) -> CartesianSettings:
+        """The terms and bounds of this controller's QP (copies)."""
+        return CartesianSettings(
+            joint_lower=self._lower.copy(),
+            joint_upper=self._upper.copy(),
+            max_joint_velocity=self._vmax.copy(),
+            max_joint_acceleration=self._amax,
+            limit_gain=self._limit_gain,
+            limit_horizon=self._limit_horizon,
+            posture=self._posture.copy(),
+            posture_gain=self._posture_gain,
+            damping=self._damping,
+            singular_damping=self._singular_damping,
+            singular_threshold=self._singular_threshold,
+        )
 
     # ------------------------------------------------------------------ setup
 

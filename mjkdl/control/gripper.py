@@ -85,6 +85,19 @@ class Gripper:
         return self._name
 
     @property
+    def actuator_id(self) -> int:
+        """MuJoCo id of the actuator this gripper drives (in the scene's current model)."""
+        self._current()
+        return self._id
+
+    @property
+    def length_range(self) -> tuple[float, float]:
+        """(closed, open): the actuator lengths the servo settles at for the closed and open
+        control values, which `opening()` maps onto 0 and 1."""
+        self._current()
+        return self._length_closed, self._length_open
+
+    @property
     def binary(self) -> bool:
         """Whether actions snap to open/closed at 0.5."""
         return self._binary

@@ -17,6 +17,7 @@ from .initializers import (
 )
 from .registry import register as _register
 from .rewards import (
+    ArrayRule,
     Held,
     Lifted,
     LiftReward,
@@ -48,6 +49,7 @@ _register()
 __all__ = [
     "Actuation",
     "ArmSpec",
+    "ArrayRule",
     "BodyPoseSensor",
     "CameraSensor",
     "ContactSensor",

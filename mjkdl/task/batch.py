@@ -10,9 +10,8 @@ world with the world's own generator, and upload the state, so world `i` after
 
 from __future__ import annotations
 
-import math
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -22,6 +21,7 @@ from gymnasium.utils.seeding import np_random
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from ..errors import MjkdlError, SpecError, SpecTypeError
+from .batch_cameras import image_bytes
 from .batch_control import BatchArm
 from .batch_sensors import BatchObserver
 from .batch_state import (
@@ -34,6 +34,7 @@ from .batch_state import (
 from .env import TaskEnv
 from .goal import GoalTaskEnv
 from .initializers import PhysicsRandomizer
+from .rewards import batchable
 from .spec import TaskSpec
 
 __all__ = ["BatchEnv", "DeviceUnavailableError", "UnsupportedFeatureError", "make_batch"]
@@ -138,10 +139,10 @@ class BatchEnv(VectorEnv):
     worlds are meaningful) and `info["_final"]` marks them. `info["is_success"]` and
     `info["diverged"]` are bool tensors.
 
-    The task's reward, success and termination callables run on the host, once per world
-    and step, on the world's observation (float64 NumPy arrays): the task's own definitions
-    with nothing re-written, at a cost that grows with `num_envs` (docs/task.md, "Many
-    worlds").
+    The task's reward, success and termination rules (`mjkdl.task.rewards`, the same objects
+    the CPU env calls) evaluate every world at once as torch operations on the device, in
+    float64; a callable of the user's own without `evaluate` runs on the host, world by world
+    (docs/task.md, "Many worlds").
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP}  # noqa: RUF012
@@ -168,26 +169,28 @@ class BatchEnv(VectorEnv):
                 )
         host.reset(seed=0)  # configures the arms' actuators (Robot control modes) in the model
         model = host.scene.model
-        _check_memory(model, host.scene.data, num_envs, device, nconmax, njmax)
+        images = image_bytes(host.readers, model)
+        _check_memory(model, host.scene.data, num_envs, device, nconmax, njmax, images)
         self.state = DeviceState(model, host.scene.data, num_envs, device, nconmax, njmax)
         self.observer = BatchObserver(host, self.state)
         self.state.tcps.update(self.observer.tcps)  # the arms' TCPs, shared with control
-        self.arms = [BatchArm(eff, model, self.state) for eff in host._effectors]
-        self._substeps, self._period = host._substeps, host._period
-        limit = host._max_steps if math.isfinite(host._max_steps) else None
+        self.arms = [BatchArm(eff, model, self.state) for eff in host.effectors]
+        self._substeps, self._period = host.control_substeps, host.control_timestep
+        limit = host.time_limit_steps
         if limit is None and horizon is not None:
             limit = horizon
         elif limit is not None and horizon is not None:
             limit = min(limit, horizon)
         self.max_episode_steps = limit
-        self._hold_steps = host._hold_steps
+        self._hold_steps = host.success_hold_steps
         dev = self.device
-        self._low = torch.as_tensor(host._action_low, device=dev, dtype=torch.float32)
-        self._high = torch.as_tensor(host._action_high, device=dev, dtype=torch.float32)
+        low, high = host.action_bounds
+        self._low = torch.as_tensor(low, device=dev, dtype=torch.float32)
+        self._high = torch.as_tensor(high, device=dev, dtype=torch.float32)
         self._normalized = spec.normalize_actions
-        if self._normalized:
-            self._mid = torch.as_tensor(host._action_mid, device=dev, dtype=torch.float32)
-            self._half = torch.as_tensor(host._action_half, device=dev, dtype=torch.float32)
+        if self._normalized:  # as the CPU env scales [-1, 1] onto the bounds
+            self._mid = torch.as_tensor(0.5 * (high + low), device=dev, dtype=torch.float32)
+            self._half = torch.as_tensor(0.5 * (high - low), device=dev, dtype=torch.float32)
         self._steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._held = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._rngs: list[np.random.Generator] = [np_random(i)[0] for i in range(num_envs)]
@@ -200,6 +203,13 @@ class BatchEnv(VectorEnv):
         self.action_labels = host.action_labels
         self._needs_reset = True
         self.closed = False
+
+    @property
+    def episode_steps(self) -> torch.Tensor:
+        """Control steps of each world's current episode: the batch's own (num_envs,) long
+        tensor on the device, which a learner may write in place (rsl-rl spreads the worlds
+        over their episodes at the start); the time limit counts from it."""
+        return self._steps
 
     # ------------------------------------------------------------------ episodes
 
@@ -287,7 +297,7 @@ class BatchEnv(VectorEnv):
             host.np_random = self._rngs[i]
             host.reset()
             s.upload(i, host.scene.data)
-            for j, eff in enumerate(host._effectors):
+            for j, eff in enumerate(host.effectors):
                 q_cmd[j][k] = eff.robot.jnt_pos_cmd
                 qd[j][k] = eff.robot.jnt_vel_msr
         idx = torch.as_tensor(ids, device=self.device, dtype=torch.long)
@@ -300,43 +310,49 @@ class BatchEnv(VectorEnv):
     def _evaluate(
         self, obs: dict[str, torch.Tensor], live: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Reward, success and termination of each world in `live` by the task's callables
-        (the others: 0, False, False)."""
+        """Reward, success and termination of each world in `live` by the task's own rules
+        (the others: 0, False, False). The rules of `mjkdl.task.rewards` (`ArrayRule`s)
+        evaluate all worlds at once on the device, in float64; any other callable runs on the
+        host, world by world, on the world's float64 NumPy observation."""
         spec = self.host.task_spec
-        n, dev = self.num_envs, self.device
-        reward = np.zeros(n)
-        success = np.zeros(n, dtype=bool)
-        terminated = np.zeros(n, dtype=bool)
-        fns = (spec.reward, spec.success, spec.terminated)
-        if any(f is not None for f in fns):
-            host_obs = {k: as_numpy(v) for k, v in obs.items()}
-            for i in torch.nonzero(live).flatten().tolist():
-                o = {k: v[i] for k, v in host_obs.items()}
-                if spec.reward is not None:
-                    reward[i] = float(spec.reward(o))
-                if spec.success is not None:
-                    success[i] = bool(spec.success(o))
-                if spec.terminated is not None:
-                    terminated[i] = bool(spec.terminated(o))
-        return (
-            torch.as_tensor(reward, device=dev, dtype=torch.float32),
-            torch.as_tensor(success, device=dev),
-            torch.as_tensor(terminated, device=dev),
-        )
+        wide = Float64View(obs)
+        host_obs: dict[str, np.ndarray] | None = None
+        out = []
+        for fn, dtype in (
+            (spec.reward, torch.float32),
+            (spec.success, torch.bool),
+            (spec.terminated, torch.bool),
+        ):
+            if fn is None:
+                value = torch.zeros(self.num_envs, dtype=dtype, device=self.device)
+            elif batchable(fn):
+                value = torch.as_tensor(fn.evaluate(wide), device=self.device)
+                value = torch.where(live, value, torch.zeros_like(value)).to(dtype)
+            else:
+                if host_obs is None:
+                    host_obs = {k: as_numpy(v) for k, v in obs.items()}
+                kind = float if dtype is torch.float32 else bool
+                rows = np.zeros(self.num_envs, dtype=kind)
+                for i in torch.nonzero(live).flatten().tolist():
+                    rows[i] = kind(fn({k: v[i] for k, v in host_obs.items()}))
+                value = torch.as_tensor(rows, device=self.device, dtype=dtype)
+            out.append(value)
+        return out[0], out[1], out[2]
 
     def _shown(self, obs: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """The agent's part of the observation, as the CPU env gives it."""
         host = self.host
+        shown = host.observation_space.spaces
         if isinstance(host, GoalTaskEnv):
             g = host.goal_reward
             out = {
-                "observation": torch.cat([obs[k] for k in host._vector_keys], dim=1),
+                "observation": torch.cat([obs[k] for k, _ in host.observation_layout], dim=1),
                 "achieved_goal": obs[g.achieved][:, :3],
                 "desired_goal": obs[g.desired][:, :3],
             }
-            out.update((k, obs[k]) for k in host._image_keys)
+            out.update((k, obs[k]) for k in shown if k not in out)  # the cameras
             return out
-        return {k: obs[k] for k in host._shown}
+        return {k: obs[k] for k in shown}
 
     def _checked(self, actions: Any) -> torch.Tensor:
         a = torch.as_tensor(actions, device=self.device, dtype=torch.float32)
@@ -368,6 +384,27 @@ class BatchEnv(VectorEnv):
         if not self.closed:
             self.host.close()
         self.closed = True
+
+
+class Float64View(Mapping[str, torch.Tensor]):
+    """The batch's observations, each floating one cast to float64 (on its device) when first
+    read: the task's rules evaluate in the CPU env's precision."""
+
+    def __init__(self, obs: Mapping[str, torch.Tensor]) -> None:
+        self._obs = obs
+        self._wide: dict[str, torch.Tensor] = {}
+
+    def __getitem__(self, key: str) -> torch.Tensor:
+        if key not in self._wide:
+            value = self._obs[key]
+            self._wide[key] = value.double() if value.is_floating_point() else value
+        return self._wide[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._obs)
+
+    def __len__(self) -> int:
+        return len(self._obs)
 
 
 def _rows(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
@@ -415,10 +452,18 @@ def _free_bytes(device: str) -> int:
 
 
 def _check_memory(
-    model: Any, data: Any, num_envs: int, device: str, nconmax: int | None, njmax: int | None
+    model: Any,
+    data: Any,
+    num_envs: int,
+    device: str,
+    nconmax: int | None,
+    njmax: int | None,
+    images: int = 0,
 ) -> None:
-    """Refuse, before allocating, a batch whose MuJoCo Warp data would not fit the device."""
+    """Refuse, before allocating, a batch whose MuJoCo Warp data (and `images` bytes per
+    world of camera buffers) would not fit the device."""
     per_world, shared = world_bytes(model, data, device, nconmax, njmax)
+    per_world += images
     need = shared + per_world * num_envs
     free = _free_bytes(device)
     if need > MEMORY_SHARE * free:

@@ -29,7 +29,7 @@ from .spec import Actuation, ArmSpec
 
 if TYPE_CHECKING:
     from .batch_state import DeviceState
-    from .env import _Effector
+    from .env import ArmEffector
 
 
 def _frame(model: mujoco.MjModel, name: str) -> tuple[str, int]:
@@ -47,7 +47,7 @@ class BatchArm:
     the CPU env uses; `reset_rows` takes the commands the CPU env synced at reset.
     """
 
-    def __init__(self, eff: _Effector, model: mujoco.MjModel, state: DeviceState) -> None:
+    def __init__(self, eff: ArmEffector, model: mujoco.MjModel, state: DeviceState) -> None:
         robot, arm = eff.robot, eff.arm
         self.arm, self.slice, self.grip_index = arm, eff.slice, eff.grip_index
         self._state = state
@@ -68,12 +68,12 @@ class BatchArm:
         self._hinge = torch.tensor(
             [int(model.jnt_type[j]) == hinge for j in jids], device=dev
         ).reshape(1, n, 1)
-        self._act = torch.tensor(np.asarray(robot._actuator_ids), device=dev)
+        self._act = torch.tensor(robot.actuator_ids, device=dev)
         self._mode = robot.ctrl_mode
-        # Feed-forward of the gravity torques into the servo setpoint (Robot._apply).
+        # Feed-forward of the gravity torques into the servo setpoint, as the Robot adds it.
         self._ff = bool(robot.gravity_feedforward) and self._mode is not CtrlMode.TORQUE
-        scale = getattr(robot, "_ff_scale", 1.0)
-        self._ff_scale = torch.tensor(np.broadcast_to(scale, (n,)), device=dev, dtype=torch.float32)
+        scale = robot.gravity_feedforward_scale
+        self._ff_scale = torch.tensor(scale, device=dev, dtype=torch.float32)
         # Gravity: each chain joint carries the bodies of its subtree (weights: mass less
         # MuJoCo's gravcomp share), the torque is axis · Σ m (com - anchor) × (-g).
         weights = np.zeros((n, model.nbody))
@@ -100,17 +100,17 @@ class BatchArm:
         f64 = torch.float64
         self.q_cmd = torch.zeros(nworld, n, device=dev, dtype=f64)
         if self.cartesian:
-            c = eff.controller
-            assert c is not None
-            self._lower = torch.tensor(c._lower, device=dev, dtype=f64)
-            self._upper = torch.tensor(c._upper, device=dev, dtype=f64)
-            self._vmax = torch.tensor(c._vmax, device=dev, dtype=f64)
-            self._posture = torch.tensor(c._posture, device=dev, dtype=f64)
-            self._posture_gain = float(c._posture_gain)
-            self._limit_gain, self._horizon = float(c._limit_gain), float(c._limit_horizon)
-            self._amax = float(c._amax)
-            self._damping = float(c._damping)
-            self._sing = (float(c._singular_damping), float(c._singular_threshold))
+            assert eff.controller is not None
+            c = eff.controller.settings
+            self._lower = torch.tensor(c.joint_lower, device=dev, dtype=f64)
+            self._upper = torch.tensor(c.joint_upper, device=dev, dtype=f64)
+            self._vmax = torch.tensor(c.max_joint_velocity, device=dev, dtype=f64)
+            self._posture = torch.tensor(c.posture, device=dev, dtype=f64)
+            self._posture_gain = c.posture_gain
+            self._limit_gain, self._horizon = c.limit_gain, c.limit_horizon
+            self._amax = c.max_joint_acceleration
+            self._damping = c.damping
+            self._sing = (c.singular_damping, c.singular_threshold)
             self._last = torch.zeros(nworld, n, device=dev, dtype=f64)
             self._eye = torch.eye(n, device=dev, dtype=f64)
 

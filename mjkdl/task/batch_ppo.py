@@ -54,11 +54,11 @@ class RslRlEnv(VecEnv):
     @property
     def episode_length_buf(self) -> torch.Tensor:
         """Control steps of each world's current episode."""
-        return self.batch._steps
+        return self.batch.episode_steps
 
     @episode_length_buf.setter
     def episode_length_buf(self, value: torch.Tensor) -> None:
-        self.batch._steps[:] = value
+        self.batch.episode_steps[:] = value
 
     def _group(self, obs: dict[str, torch.Tensor]) -> TensorDict:
         flat = torch.cat([v.reshape(self.num_envs, -1).float() for v in obs.values()], dim=1)

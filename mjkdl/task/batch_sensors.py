@@ -1,8 +1,9 @@
 """A task's observations for every world at once, read from MuJoCo Warp's arrays.
 
 Each source mirrors one of the CPU env's bound readers (`ArmReader`, `PoseReader`,
-`RelativeReader`, `ContactReader`), built from the same reader and sensor spec, so the keys,
-shapes and order are the CPU env's; values are float32 tensors with the worlds first.
+`RelativeReader`, `ContactReader`; `CameraReader`s through `BatchCameras`), built from the
+same reader and sensor spec, so the keys and shapes are the CPU env's; values are float32
+tensors with the worlds first (camera RGB: uint8).
 """
 
 from __future__ import annotations
@@ -14,9 +15,10 @@ import mujoco
 import torch
 
 from ..names import model_id
+from .batch_cameras import BatchCameras
 from .batch_state import DeviceState, Tcp, UnsupportedFeatureError, mat_to_quat
-from .sensors import ArmReader, ContactReader, PoseReader, RelativeReader
-from .spec import ContactSensor, RelativePositionSensor
+from .sensors import ArmReader, CameraReader, ContactReader, PoseReader, RelativeReader
+from .spec import CameraSensor, ContactSensor, RelativePositionSensor
 
 if TYPE_CHECKING:
     from .env import TaskEnv
@@ -26,14 +28,16 @@ Source = Callable[[], dict[str, torch.Tensor]]
 
 def arm_tcp(reader: ArmReader, device: str, model: mujoco.MjModel) -> Tcp:
     """The TCP an `ArmReader` reads, as device tensors."""
-    site = reader._ref if reader._ref_kind == mujoco.mjtObj.mjOBJ_SITE else -1
-    body = int(model.site_bodyid[site]) if site >= 0 else reader._ref
+    kind, ref = reader.tcp_reference
+    site = ref if kind == mujoco.mjtObj.mjOBJ_SITE else -1
+    body = int(model.site_bodyid[site]) if site >= 0 else ref
     f32 = torch.float32
+    pos, rot = reader.tcp_offset
     return Tcp(
         site=site,
         body=body,
-        offset=torch.as_tensor(reader._off_pos, device=device, dtype=f32),
-        rotation=torch.as_tensor(reader._off_rot, device=device, dtype=f32),
+        offset=torch.as_tensor(pos, device=device, dtype=f32),
+        rotation=torch.as_tensor(rot, device=device, dtype=f32),
     )
 
 
@@ -45,19 +49,28 @@ class BatchObserver:
         self._state = state
         self.tcps: dict[str, Tcp] = {}
         self._sources: list[Source] = []
-        readers = host._readers
+        readers = host.readers
         n_arms = len(host.task_spec.arms)
         for arm, reader, eff in zip(
-            host.task_spec.arms, readers[:n_arms], host._effectors, strict=True
+            host.task_spec.arms, readers[:n_arms], host.effectors, strict=True
         ):
             assert isinstance(reader, ArmReader)
             tcp = arm_tcp(reader, state.device, model)
             self.tcps[arm.name] = tcp
             self._sources.append(self._arm(reader, tcp, eff, model))
+        cameras = []
         for i, (sensor, reader) in enumerate(
             zip(host.task_spec.sensors, readers[n_arms:], strict=True)
         ):
-            self._sources.append(self._sensor(sensor, reader, model, f"TaskSpec.sensors[{i}]"))
+            where = f"TaskSpec.sensors[{i}]"
+            if isinstance(reader, CameraReader):
+                assert isinstance(sensor, CameraSensor)
+                cameras.append((sensor, reader, where))
+            else:
+                self._sources.append(self._sensor(sensor, reader, model, where))
+        self.cameras = BatchCameras(cameras, model, state) if cameras else None
+        if self.cameras is not None:
+            self._sources.append(self.cameras.read)
 
     def read(self) -> dict[str, torch.Tensor]:
         """Every observation, by name, in the CPU env's order (`time` last)."""
@@ -70,9 +83,8 @@ class BatchObserver:
     def _arm(self, reader: ArmReader, tcp: Tcp, eff: object, model: mujoco.MjModel) -> Source:
         s, p = self._state, reader.arm
         dev = s.device
-        qadr = torch.as_tensor(reader._qadr, device=dev)
-        dadr = torch.as_tensor(reader._dadr, device=dev)
-        cf = reader._cf_mat is not None
+        qadr, dadr = (torch.as_tensor(a, device=dev) for a in reader.joint_addresses)
+        cf = reader.in_control_frame
         cf_rot: Callable[[], torch.Tensor] | None = None
         if cf:
             arm = eff.arm  # type: ignore[attr-defined]
@@ -85,7 +97,7 @@ class BatchObserver:
         grip = eff.gripper  # type: ignore[attr-defined]
         grip_range = None
         if grip is not None:
-            grip_range = (grip._id, grip._length_closed, grip._length_open)
+            grip_range = (grip.actuator_id, *grip.length_range)
         for key in reader.buffers:
             if key.endswith("_wrench"):
                 raise UnsupportedFeatureError(
@@ -134,7 +146,7 @@ class BatchObserver:
             return self._contacts(sensor, reader, model, where)
         raise UnsupportedFeatureError(
             f"{where} ({type(sensor).__name__}): the batched backend reads arms, "
-            "BodyPoseSensor, RelativePositionSensor and ContactSensor; cameras and user "
+            "BodyPoseSensor, RelativePositionSensor, ContactSensor and CameraSensor; user "
             "Sensors are CPU-env only for now"
         )
 
@@ -144,8 +156,7 @@ class BatchObserver:
         s = self._state
         (key,) = reader.buffers
         dev = s.device
-        body = reader._body
-        others = list(reader._slot)
+        body, others = reader.body, reader.others
         # slot[b] = index of body b among `others`, -1 for the rest.
         slot = torch.full((model.nbody,), -1, dtype=torch.long, device=dev)
         for i, b in enumerate(others):

@@ -120,8 +120,12 @@ def _fitting(value: object, dtype: np.dtype, field: str) -> np.ndarray:
     return arr
 
 
-class _Effector:
-    """One arm's slice of the action: written to its robot (and gripper) every step."""
+class ArmEffector:
+    """One arm's slice of the action: written to its robot (and gripper) every step.
+
+    `arm` is its `ArmSpec`, `robot` and `gripper` its handles, `controller` the Cartesian
+    controller (None in the joint modes), `slice` its entries of the action and `grip_index`
+    the gripper's entry (-1 without one)."""
 
     def __init__(
         self,
@@ -354,7 +358,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
         self.robots: dict[str, Robot] = {}
         self.grippers: dict[str, Gripper] = {}
-        self._effectors: list[_Effector] = []
+        self._effectors: list[ArmEffector] = []
         low: list[np.ndarray] = []
         high: list[np.ndarray] = []
         labels: list[str] = []
@@ -450,7 +454,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 "build a new TaskEnv for the new scene"
             )
 
-    def _add_arm(self, arm: ArmSpec, where: str, start: int) -> _Effector:
+    def _add_arm(self, arm: ArmSpec, where: str, start: int) -> ArmEffector:
         scene = self.scene
         try:
             robot = scene.create_robot(arm.base_body, arm.tip_body, arm.prefix, arm.tool)
@@ -478,7 +482,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             except (UnknownNameError, SpecError) as err:
                 raise type(err)(f"{where}.control_frame: {err}") from None
         self.robots[arm.name] = robot
-        eff = _Effector(arm, robot, gripper, controller, start)
+        eff = ArmEffector(arm, robot, gripper, controller, start)
         self._effectors.append(eff)
         return eff
 
@@ -706,6 +710,39 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         """Control steps since the last reset."""
         return self._steps
 
+    @property
+    def control_substeps(self) -> int:
+        """Physics steps per `step` (`control_timestep / scene.timestep()`)."""
+        return self._substeps
+
+    @property
+    def time_limit_steps(self) -> int | None:
+        """Control steps `TaskSpec.time_limit` allows an episode; None without a limit."""
+        return None if math.isinf(self._max_steps) else int(self._max_steps)
+
+    @property
+    def success_hold_steps(self) -> int:
+        """Control steps success must hold, after the first, before `terminate_on_success`
+        ends the episode (`TaskSpec.success_hold` in steps)."""
+        return self._hold_steps
+
+    @property
+    def action_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) of each action entry in physical units (m/s, rad/s, rad, N·m; the
+        gripper's [0, 1]) before `normalize_actions` scales them onto [-1, 1] (copies)."""
+        return self._action_low.copy(), self._action_high.copy()
+
+    @property
+    def effectors(self) -> list[ArmEffector]:
+        """Per arm, in action order, what turns its slice of the action into commands."""
+        return list(self._effectors)
+
+    @property
+    def readers(self) -> list[Reader]:
+        """The observation sources: one `ArmReader` per arm, then one per `TaskSpec.sensors`
+        entry, in order."""
+        return list(self._readers)
+
     # ------------------------------------------------------------------ rendering
 
     def render(self) -> np.ndarray | None:
@@ -848,7 +885,7 @@ def _positive(value: object) -> bool:
 
 
 def _action_bounds(
-    eff: _Effector, model: mujoco.MjModel
+    eff: ArmEffector, model: mujoco.MjModel
 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Bounds and entry names of one arm's slice of the action."""
     arm, robot = eff.arm, eff.robot

@@ -20,7 +20,7 @@ from ..errors import SpecError
 from ..validate import text
 from ._check import positive
 from .env import TaskEnv
-from .rewards import Reached, position, reach_reward
+from .rewards import Reached, array_module, distances, position, reach_reward
 from .spec import TaskSpec
 
 REWARD_TYPES = ("dense", "sparse")
@@ -56,14 +56,19 @@ class GoalReward:
         return {"GoalReward.achieved": self.achieved, "GoalReward.desired": self.desired}
 
     def of_distance(self, d: Any) -> Any:
-        """The reward for a distance or an array of distances."""
+        """The reward for a distance or an array of distances (NumPy or torch)."""
         if self.kind == "sparse":
-            return (np.asarray(d) <= self.threshold).astype(np.float64)
+            xp = array_module(d)
+            return xp.where(xp.asarray(d) <= self.threshold, 1.0, 0.0)
         return reach_reward(d, self.threshold, self.scale)
 
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: the reward (an `ArrayRule`, so batched worlds evaluate it on the device)."""
+        return self.of_distance(distances(obs, self.achieved, self.desired))
+
     def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
-        d = position(obs, self.achieved) - position(obs, self.desired)
-        return float(self.of_distance(np.sqrt(d.dot(d))))
+        position(obs, self.achieved), position(obs, self.desired)
+        return float(self.evaluate(obs))
 
 
 class GoalTaskEnv(TaskEnv):

@@ -5,6 +5,11 @@ return such callables (picklable, so vector envs and Ray can ship them). A posit
 observation is any whose first three entries are x, y, z in the world: `{arm}_tcp_pos`,
 `{name}_pose`.
 
+Each helper is one formula, written once in `evaluate(obs)` against whichever array module
+holds the observation (NumPy, or torch), for any leading batch axes: the CPU env calls the
+helper on one world's NumPy observation (`__call__`, a Python float or bool), the batched
+backend calls `evaluate` on every world's tensors at once on its device (`ArrayRule`).
+
 The dense rewards lie in [0, 1] per step, grow with progress towards success, and pay a
 success step at least as much as any step before success, so a policy that fails never earns
 more than one that succeeds (docs/task.md gives the formulas).
@@ -12,16 +17,34 @@ more than one that succeeds (docs/task.md gives the formulas).
 
 from __future__ import annotations
 
-import math
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol, TypeGuard, runtime_checkable
 
 import numpy as np
 
 from ..errors import SpecError, SpecTypeError, unknown_name
 from ..validate import real, text
 from ._check import positive
+
+
+@runtime_checkable
+class ArrayRule(Protocol):
+    """A reward, success or termination whose `evaluate(obs)` takes observations with leading
+    batch axes (NumPy arrays or torch tensors) and returns one value per world, in the same
+    array module: the batched backend evaluates such a rule for all worlds on its device
+    (any other callable runs on the host, world by world)."""
+
+    def evaluate(self, obs: Mapping[str, Any]) -> Any: ...
+
+
+def array_module(value: Any) -> Any:
+    """The module whose functions apply to `value`: torch for a tensor, else NumPy."""
+    torch = sys.modules.get("torch")
+    if torch is not None and isinstance(value, torch.Tensor):
+        return torch
+    return np
 
 
 def position(obs: Mapping[str, np.ndarray], key: str) -> np.ndarray:
@@ -56,8 +79,8 @@ def check_positions(fn: object, boxes: Mapping[str, Any], where: str) -> None:
 
 def distance(obs: Mapping[str, np.ndarray], a: str, b: str) -> float:
     """Metres between the positions held by observations `a` and `b`."""
-    d = position(obs, a) - position(obs, b)
-    return math.sqrt(d.dot(d))
+    position(obs, a), position(obs, b)
+    return float(distances(obs, a, b))
 
 
 def height(obs: Mapping[str, np.ndarray], key: str) -> float:
@@ -65,9 +88,62 @@ def height(obs: Mapping[str, np.ndarray], key: str) -> float:
     return float(position(obs, key)[2])
 
 
-def _closeness(d: float, scale: float) -> float:
-    """1 at distance 0, falling smoothly towards 0 over a few `scale`s."""
-    return 1.0 - math.tanh(d / scale)
+def batchable(rule: object) -> TypeGuard[ArrayRule]:
+    """`rule` is an `ArrayRule` all the way down (a reward's `success` included), so the
+    batched backend can evaluate it on its device."""
+    inner = getattr(rule, "success", None)
+    return isinstance(rule, ArrayRule) and (inner is None or batchable(inner))
+
+
+def _outcome(rule: Any, obs: Mapping[str, Any]) -> Any:
+    """A nested rule's value: batched where it can be, else its plain call (one world)."""
+    return rule.evaluate(obs) if isinstance(rule, ArrayRule) else rule(obs)
+
+
+def _xyz(obs: Mapping[str, Any], key: str) -> Any:
+    """x, y, z of position observation `key`, over any leading axes (NumPy: as float64)."""
+    value = obs[key]
+    if array_module(value) is np:
+        value = np.asarray(value, dtype=float)
+    return value[..., :3]
+
+
+def _flags(obs: Mapping[str, Any], key: str) -> Any:
+    """Which entries of the `ContactSensor` observation `key` are in contact."""
+    value = obs[key]
+    if array_module(value) is np:
+        value = np.asarray(value)
+    return value > 0.5
+
+
+def distances(obs: Mapping[str, Any], a: str, b: str) -> Any:
+    """Metres between position observations `a` and `b` per world, over any leading axes
+    (NumPy arrays or torch tensors)."""
+    d = _xyz(obs, a) - _xyz(obs, b)
+    return array_module(d).sqrt((d * d).sum(-1))
+
+
+def _grasped(obs: Mapping[str, Any], key: str) -> Any:
+    """Every entry of the `ContactSensor` observation `key` is in contact."""
+    return _flags(obs, key).all(-1)
+
+
+def _touched(obs: Mapping[str, Any], key: str) -> Any:
+    """Some entry of the `ContactSensor` observation `key` is in contact."""
+    return _flags(obs, key).any(-1)
+
+
+def _checked(obs: Mapping[str, Any], rule: Any) -> None:
+    """One world's observation holds what `rule` (and a `success` inside it) reads: the CPU
+    env's call, every step, fails naming the observation."""
+    for key in rule._positions().values():
+        position(obs, key)
+    contacts = getattr(rule, "contacts", "")
+    if contacts and contacts not in obs:
+        raise unknown_name("observation", contacts, obs, where="the step's observation")
+    inner = getattr(rule, "success", None)
+    if inner is not None and hasattr(inner, "_positions"):
+        _checked(obs, inner)
 
 
 @dataclass(frozen=True)
@@ -86,8 +162,13 @@ class Reached:
     def _positions(self) -> dict[str, str]:
         return {"Reached.a": self.a, "Reached.b": self.b}
 
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: within `tolerance`."""
+        return distances(obs, self.a, self.b) <= self.tolerance
+
     def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
-        return distance(obs, self.a, self.b) <= self.tolerance
+        _checked(obs, self)
+        return bool(self.evaluate(obs))
 
 
 @dataclass(frozen=True)
@@ -111,14 +192,21 @@ class ReachReward:
     def _positions(self) -> dict[str, str]:
         return {"ReachReward.a": self.a, "ReachReward.b": self.b}
 
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: the reward."""
+        return reach_reward(distances(obs, self.a, self.b), self.success_distance, self.scale)
+
     def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
-        d = distance(obs, self.a, self.b)
-        return reach_reward(d, self.success_distance, self.scale)
+        _checked(obs, self)
+        return float(self.evaluate(obs))
 
 
 def reach_reward(d: Any, success_distance: float, scale: float) -> Any:
-    """`ReachReward`'s formula for a distance or an array of them (goal-conditioned envs)."""
-    return 0.5 * (1.0 - np.tanh(np.asarray(d) / scale)) + 0.5 * (np.asarray(d) <= success_distance)
+    """`ReachReward`'s formula for a distance or an array of them (NumPy or torch)."""
+    xp = array_module(d)
+    if xp is np:
+        d = np.asarray(d)
+    return 0.5 * (1.0 - xp.tanh(d / scale)) + 0.5 * (d <= success_distance)
 
 
 @dataclass(frozen=True)
@@ -138,15 +226,13 @@ class Lifted:
     def _positions(self) -> dict[str, str]:
         return {"Lifted.key": self.key}
 
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: lifted."""
+        return _xyz(obs, self.key)[..., 2] >= self.rest_z + self.lift
+
     def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
-        return height(obs, self.key) >= self.rest_z + self.lift
-
-
-def _grasped(obs: Mapping[str, np.ndarray], key: str) -> bool:
-    """Every entry of the `ContactSensor` observation `key` is in contact."""
-    if key not in obs:
-        raise unknown_name("observation", key, obs, where="the step's observation")
-    return bool(np.all(np.asarray(obs[key]) > 0.5))
+        _checked(obs, self)
+        return bool(self.evaluate(obs))
 
 
 @dataclass(frozen=True)
@@ -168,9 +254,14 @@ class Held:
     def _positions(self) -> dict[str, str]:
         return {"Held.obj": self.obj}
 
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: lifted and grasped."""
+        lifted = _xyz(obs, self.obj)[..., 2] >= self.rest_z + self.lift
+        return lifted & _grasped(obs, self.contacts)
+
     def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
-        lifted = height(obs, self.obj) >= self.rest_z + self.lift
-        return lifted and _grasped(obs, self.contacts)
+        _checked(obs, self)
+        return bool(self.evaluate(obs))
 
 
 @dataclass(frozen=True)
@@ -201,15 +292,18 @@ class LiftReward:
     def _positions(self) -> dict[str, str]:
         return {"LiftReward.tcp": self.tcp, "LiftReward.obj": self.obj}
 
-    def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
-        gained = (height(obs, self.obj) - self.rest_z) / self.lift
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: the reward."""
+        gained = (_xyz(obs, self.obj)[..., 2] - self.rest_z) / self.lift
         grasped = _grasped(obs, self.contacts)
-        if grasped and gained >= 1.0:
-            return 1.0
-        reward = 0.25 * _closeness(distance(obs, self.tcp, self.obj), self.reach_scale)
-        if grasped:
-            reward += 0.25 + 0.25 * max(0.0, gained)
-        return reward
+        xp = array_module(gained)
+        reach = 0.25 * (1.0 - xp.tanh(distances(obs, self.tcp, self.obj) / self.reach_scale))
+        staged = xp.where(grasped, reach + (0.25 + 0.25 * gained.clip(min=0.0)), reach)
+        return xp.where(grasped & (gained >= 1.0), 1.0, staged)
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
+        _checked(obs, self)
+        return float(self.evaluate(obs))
 
 
 @dataclass(frozen=True)
@@ -225,6 +319,11 @@ class SparseReward:
     def _positions(self) -> dict[str, str]:
         inner = getattr(self.success, "_positions", None)
         return inner() if inner is not None else {}
+
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: 1.0 or 0.0."""
+        done = _outcome(self.success, obs)
+        return array_module(done).where(done, 1.0, 0.0)
 
     def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
         return 1.0 if self.success(obs) else 0.0
@@ -251,11 +350,16 @@ class Placed:
     def _positions(self) -> dict[str, str]:
         return {"Placed.obj": self.obj, "Placed.goal": self.goal}
 
-    def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
-        there = distance(obs, self.obj, self.goal) <= self.tolerance
-        if not self.contacts or not there:
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: placed (and let go of)."""
+        there = distances(obs, self.obj, self.goal) <= self.tolerance
+        if not self.contacts:
             return there
-        return not bool(np.any(np.asarray(obs[self.contacts]) > 0.5))
+        return there & ~_touched(obs, self.contacts)
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> bool:
+        _checked(obs, self)
+        return bool(self.evaluate(obs))
 
 
 @dataclass(frozen=True)
@@ -290,27 +394,32 @@ class PlaceReward:
             "PlaceReward.goal": self.goal,
         }
 
-    def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
-        if self.success(obs):
-            return 1.0
+    def evaluate(self, obs: Mapping[str, Any]) -> Any:
+        """Per world: the reward."""
         grasped = _grasped(obs, self.contacts) if self.contacts else False
-        return float(
-            place_reward(
-                distance(obs, self.tcp, self.obj),
-                distance(obs, self.obj, self.goal),
-                grasped,
-                self.reach_scale,
-                self.goal_scale,
-            )
+        staged = place_reward(
+            distances(obs, self.tcp, self.obj),
+            distances(obs, self.obj, self.goal),
+            grasped,
+            self.reach_scale,
+            self.goal_scale,
         )
+        return array_module(staged).where(_outcome(self.success, obs), 1.0, staged)
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> float:
+        _checked(obs, self)
+        return float(self.evaluate(obs))
 
 
 def place_reward(
     d_reach: Any, d_goal: Any, grasped: Any, reach_scale: float, goal_scale: float
 ) -> Any:
     """`PlaceReward`'s formula before success, for numbers or arrays with a leading batch
-    axis: `0.25 * (1 - tanh(d_reach / reach_scale)) + 0.25 * grasped
+    axis (NumPy or torch): `0.25 * (1 - tanh(d_reach / reach_scale)) + 0.25 * grasped
     + 0.5 * (1 - tanh(d_goal / goal_scale))`, below 1 whenever `d_goal > 0`."""
-    reach = 1.0 - np.tanh(np.asarray(d_reach) / reach_scale)
-    goal = 1.0 - np.tanh(np.asarray(d_goal) / goal_scale)
-    return 0.25 * reach + 0.25 * np.asarray(grasped, dtype=float) + 0.5 * goal
+    xp = array_module(d_reach)
+    if xp is np:
+        d_reach, d_goal, grasped = np.asarray(d_reach), np.asarray(d_goal), np.asarray(grasped)
+    reach = 1.0 - xp.tanh(d_reach / reach_scale)
+    goal = 1.0 - xp.tanh(d_goal / goal_scale)
+    return 0.25 * reach + 0.25 * grasped + 0.5 * goal

@@ -154,6 +154,27 @@ class ArmReader(Reader):
                 views.append(data.sensordata[adr : adr + 3])
             self._wrench.append((b[key][:3], b[key][3:], *views))
 
+    @property
+    def tcp_reference(self) -> tuple[int, int]:
+        """(MuJoCo object type, id) of the TCP's reference frame: the tool's `tcp_site`
+        (`mjOBJ_SITE`) or the tip body (`mjOBJ_XBODY`)."""
+        return int(self._ref_kind), int(self._ref)
+
+    @property
+    def tcp_offset(self) -> tuple[np.ndarray, np.ndarray]:
+        """(position (3,), rotation (3, 3)) of the TCP in its reference frame (copies)."""
+        return self._off_pos.copy(), self._off_rot.copy()
+
+    @property
+    def joint_addresses(self) -> tuple[np.ndarray, np.ndarray]:
+        """(`qpos` addresses, `qvel` addresses) of the arm's joints, chain order (copies)."""
+        return self._qadr.copy(), self._dadr.copy()
+
+    @property
+    def in_control_frame(self) -> bool:
+        """Whether `{arm}_tcp_vel` is along a control frame's axes (else the world's)."""
+        return self._cf_mat is not None
+
     def read(self) -> None:
         d = self._data
         np.take(d.qpos, self._qadr, out=self._pos)
@@ -317,6 +338,16 @@ class ContactReader(Reader):
         self._data, self._body = data, body
         self._slot = {b: i for i, b in enumerate(others)}
         self._geom_body = model.geom_bodyid
+
+    @property
+    def body(self) -> int:
+        """MuJoCo id of the body whose contacts count."""
+        return int(self._body)
+
+    @property
+    def others(self) -> list[int]:
+        """MuJoCo ids of the bodies it may touch, in observation order."""
+        return list(self._slot)
 
     def read(self) -> None:
         out, d = self._out, self._data
