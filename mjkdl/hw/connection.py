@@ -35,7 +35,7 @@ import numpy as np
 
 from ..errors import SpecError
 from .faults import ArmConnectionError, HardwareError, WatchdogWarning, translate
-from .rate_limit import RateLimiter, limits_for
+from .rate_limit import RateLimiter, limits_for, number_view
 
 POSITION, VELOCITY, TORQUE = 0, 1, 2
 # The command block: [seq, mode, stop, cmd x7]
@@ -353,14 +353,14 @@ class _Loop:
     ) -> None:
         self.watchdog = watchdog
         self.cmd, self.state = cmd, state
-        self._c, self._s = memoryview(cmd), memoryview(state)
+        self._c, self._s = number_view(cmd), number_view(state)
         self._cmd_values = cmd[_C_CMD:]
         self._q, self._dq = state[_S_Q : _S_Q + 7], state[_S_DQ : _S_DQ + 7]
         self._tau, self._ext = state[_S_TAU : _S_TAU + 7], state[_S_EXT : _S_EXT + 7]
         self._f = state[_S_F : _S_F + 6]
         self._scratch = np.zeros(7)
         self._still = np.zeros(7, dtype=bool)
-        self._still_view = memoryview(self._still)
+        self._still_view = number_view(self._still)
         self.events, self.parent = events, parent
         self.orphaned = False  # the user's process is gone (see watch_parent)
         self.limiter = RateLimiter(limits_for(model))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -109,7 +110,13 @@ _ZERO7, _ONE7, _EPS7, _DT7, _INV_DT7, _2DT7 = (
 )
 
 
-def all_finite(values: np.ndarray, flags: np.ndarray, view: memoryview) -> bool:
+def number_view(array: np.ndarray) -> Any:
+    """A memoryview of `array`: indexing it gives Python numbers (floats from the interpreter's
+    free list, bools), where indexing the array makes a new NumPy scalar each time."""
+    return memoryview(array)  # type: ignore[arg-type]  # NumPy's stubs lack __buffer__
+
+
+def all_finite(values: np.ndarray, flags: np.ndarray, view: Any) -> bool:
     """Whether the 7 `values` are finite, through the caller's bool array `flags` and its
     memoryview `view` (a NumPy reduction, or `.data`, would allocate)."""
     np.isfinite(values, out=flags)
@@ -193,7 +200,7 @@ class RateLimiter:
         self._share, self._jm, self._am, self._neg = (np.zeros(7) for _ in range(4))
         self._acc, self._hi, self._lo = np.zeros(7), np.zeros(7), np.zeros(7)
         self._flags = np.zeros(7, dtype=bool)
-        self._flags_view = memoryview(self._flags)
+        self._flags_view = number_view(self._flags)
         self._err, self._dist, self._cap, self._speed = (np.zeros(7) for _ in range(4))
 
     def reset(
