@@ -90,6 +90,8 @@ def _ticks(model: str, mode: int, n: int) -> tuple[np.ndarray, np.ndarray, bool]
             break
     tracemalloc.stop()
     ran = extra >= 0
+    # every tick after the motion's first is counted in the period histogram
+    assert state[conn._S_HIST :].sum() == 50 - 1 + ran.sum()
     return extra[ran], kept[ran], bool(out.motion_finished)
 
 

@@ -45,7 +45,11 @@ _C_LEN = _C_CMD + 7
 # F_ext(6)]; late counts the ticks that came more than one robot cycle after the previous one.
 _S_SEQ, _S_TIME, _S_STATUS, _S_RATE, _S_TICKS, _S_LATE = 0, 1, 2, 3, 4, 5
 _S_Q, _S_DQ, _S_TAU, _S_EXT, _S_F = 6, 13, 20, 27, 34
-_S_LEN = _S_F + 6
+_S_HIST = _S_F + 6
+# After the state: how many ticks came how long (wall clock) after the previous tick of their
+# motion, in bins of PERIOD_BIN s; the last bin holds every period from PERIOD_BINS - 1 on.
+PERIOD_BIN, PERIOD_BINS = 1e-4, 51
+_S_LEN = _S_HIST + PERIOD_BINS
 IDLE, MOVING, STOPPING, CLOSED = 0.0, 1.0, 2.0, 3.0
 # The vendor client each arm is driven through by default: FR3 speaks libfranka >= 0.15
 # (pylibfranka), the Panda libfranka 0.9 (panda-py).
@@ -220,6 +224,12 @@ class ArmConnection:
             late=int(s[_S_LATE]),
         )
 
+    def period_histogram(self) -> np.ndarray:
+        """Ticks counted by the wall-clock time since the previous tick of their motion: bin
+        i holds the periods in [i, i + 1) × `PERIOD_BIN` s, the last one everything longer
+        (what a loop holding 1 kHz looks like: all in the bins around 1 ms)."""
+        return self._state[_S_HIST:].copy()
+
     def wait_until(self, arm_time: float, timeout: float = 5.0) -> np.ndarray:
         """Block until the arm's clock reaches `arm_time`; the state block then."""
         deadline = time.monotonic() + timeout
@@ -379,6 +389,7 @@ class _Loop:
         self.stopping = False
         self.last_new = 0.0
         self.watchdog_fired = 0.0
+        self.last_tick = 0.0  # monotonic time of the motion's previous tick
 
     def watch_parent(self) -> None:
         """Notice the user's process ending (a thread: the tick itself asks nothing)."""
@@ -479,6 +490,11 @@ class _Loop:
         if not self.started:
             self.started, self.last_new, self.hold = True, now, _HOLD_TICKS
             limiter.reset(np.asarray(rs.q_d), np.asarray(rs.dq_d))
+        else:
+            b = (now - self.last_tick) / PERIOD_BIN
+            i = _S_HIST + (PERIOD_BINS - 1 if b >= PERIOD_BINS - 1 else int(b))
+            self._s[i] = self._s[i] + 1.0
+        self.last_tick = now
         self.ticks += 1.0
         if period.to_sec() > 0.0015:  # a cycle (or more) went by without a command of ours
             self.late += 1.0
