@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ctypes
 import platform
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,6 +24,10 @@ from mjkdl.hw.franka_sim.model_library import (
 from mjkdl.hw.franka_sim.scene import FLANGE_OFFSET, franka_scene
 
 _D = ctypes.POINTER(ctypes.c_double)
+needs_cc = pytest.mark.skipif(
+    shutil.which("cc") is None and shutil.which("gcc") is None,
+    reason="the model library compiles with a C compiler (apt-get install gcc)",
+)
 _ARCH = {"x86_64": 0, "amd64": 0, "aarch64": 3, "arm64": 3}
 
 
@@ -94,6 +99,7 @@ def _configurations(n: int) -> np.ndarray:
     return PANDA.q_min + rng.random((n, 7)) * (PANDA.q_max - PANDA.q_min)
 
 
+@needs_cc
 def test_dynamics_equal_mujocos_with_the_hand_as_the_robot_reports_it(arm, library):
     """The hand goes in as libfranka passes it (m_total, F_x_Ctotal, I_total from the state);
     MuJoCo simulates it as bodies: the mass matrix (without the rotors' armature, which the
@@ -120,6 +126,7 @@ def test_dynamics_equal_mujocos_with_the_hand_as_the_robot_reports_it(arm, libra
         np.testing.assert_allclose(got_c, coriolis, atol=1e-9)
 
 
+@needs_cc
 def test_poses_and_jacobians_equal_mujocos(arm, library):
     """O_T_J1..7 are the links' frames in link0's, 8 the flange, 9 the end effector F_T_EE from
     the flange; zero Jacobians world-aligned at the frame's origin, body Jacobians in it."""
@@ -154,6 +161,7 @@ def test_poses_and_jacobians_equal_mujocos(arm, library):
     np.testing.assert_allclose(library.pose(9, q, F_T_EE), arm._ee_pose(q), atol=1e-9)
 
 
+@needs_cc
 def test_a_load_on_the_flange_is_a_rigid_body_there(arm, library):
     """m, F_x_C, I (about the centre of mass, flange axes) ride on the flange: Pinocchio's model
     of the same URDF with that inertia appended to link 7 gives the same dynamics."""
@@ -179,6 +187,7 @@ def test_a_load_on_the_flange_is_a_rigid_body_there(arm, library):
         np.testing.assert_allclose(got, gravity, atol=1e-9)
 
 
+@needs_cc
 def test_the_library_is_compiled_once_then_taken_from_the_cache(arm, tmp_path, monkeypatch):
     first = compile_model_library(arm.urdf, tmp_path)
     assert first.parent == tmp_path and first.name.startswith("libfcimodels-")

@@ -8,6 +8,7 @@ import importlib.util
 import json
 import os
 import re
+import shutil
 import socket
 import struct
 import subprocess
@@ -440,6 +441,10 @@ print(json.dumps(out))
 
 
 @needs_panda_py
+@pytest.mark.skipif(
+    shutil.which("cc") is None and shutil.which("gcc") is None,
+    reason="the server compiles panda-py's model library with a C compiler (apt-get install gcc)",
+)
 def test_panda_py_model_and_controllers_on_the_served_model_library(sim, sim_arm):
     """panda-py (libfranka 0.9.2) downloads the model library the server compiles: its model
     equals MuJoCo's, and its own motions and controllers end where they aim."""
