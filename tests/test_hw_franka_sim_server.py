@@ -14,6 +14,7 @@ import struct
 import subprocess
 import sys
 import textwrap
+import time
 from collections.abc import Iterator
 
 import mujoco
@@ -502,6 +503,39 @@ def test_panda_py_model_and_controllers_on_the_served_model_library(sim, sim_arm
     # zero torques on top of the robot's gravity compensation: the arm stays
     np.testing.assert_allclose(got["q_torque"], got["q_torque_start"], atol=5e-3)
     assert any("robot protocol 5" in line for line in sim.log)
+
+
+@needs_panda_py
+def test_without_a_c_compiler_panda_py_gets_libfrankas_error_and_the_log_the_fix(
+    tmp_path, monkeypatch
+):
+    """No compiler (and nothing cached): the client fails with libfranka's own message, the
+    server's log says what to install."""
+    monkeypatch.setenv("CC", "no-such-compiler")
+    monkeypatch.setenv("MJKDL_CACHE_DIR", str(tmp_path))
+    code = (
+        "import panda_py\n"
+        "try:\n    panda_py.Panda(HOST)\n"
+        "except Exception as e:\n    print(type(e).__name__, e)\n"
+    )
+    with franka_sim("--lockstep") as sim:
+        code = code.replace("HOST", repr(sim.host))
+        done = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, timeout=60
+        )
+        assert done.stdout.strip() == (
+            "RuntimeError libfranka: Server reports error when loading model library."
+        ), done.stdout + done.stderr
+        deadline = time.monotonic() + 10.0  # the log is read by a thread
+        while time.monotonic() < deadline and not any(
+            "no model library" in line for line in sim.log
+        ):
+            time.sleep(0.05)
+        assert any(
+            "no model library for the client" in line and "apt-get install gcc" in line
+            for line in sim.log
+        ), sim.log[-3:]
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_an_unknown_model_names_the_ones_there_are():
