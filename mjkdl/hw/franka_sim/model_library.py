@@ -57,9 +57,15 @@ def model_library_cache_dir() -> Path:
 
 
 def _array(name: str, values: np.ndarray) -> str:
-    flat = ", ".join(f"{v:.17g}" for v in np.asarray(values, dtype=float).ravel())
-    shape = "".join(f"[{n}]" for n in np.shape(values))
-    return f"static const double {name}{shape} = {{{flat}}};"
+    """A C array of doubles (1-D or 2-D) printed to round-trip exactly."""
+    values = np.asarray(values, dtype=float)
+
+    def row(v: np.ndarray) -> str:
+        return "{" + ", ".join(f"{x:.17g}" for x in v) + "}"
+
+    body = row(values) if values.ndim == 1 else "{" + ", ".join(row(v) for v in values) + "}"
+    shape = "".join(f"[{n}]" for n in values.shape)
+    return f"static const double {name}{shape} = {body};"
 
 
 def model_library_source(urdf: str) -> str:
@@ -323,13 +329,71 @@ static void rnea(const double q[7], const double dq[7], const double ddq[7], con
 }
 static const double NO_INERTIA[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
 static const double NO_ACCEL[3] = {0, 0, 0};
+/* The composite-rigid-body algorithm: the mass of links i..7 (m, first moment h and inertia I
+   about link i's origin, link i's axes) moving with joint i; M_ij is the torque about joint
+   i's axis it takes to turn joint j at unit acceleration. */
 EXPORT void M_NE(const double q[7], const double I_load[9], double m_load,
                  const double F_x_Cload[3], double out[49]) {
-  double e[7];
+  Tf X[7];
+  double mc[7], hc[7][3], Ic[7][9];
+  double m7, c7[3], I7[9];
+  link7_with(I_load, m_load, F_x_Cload, &m7, c7, I7);
+  for (int i = 0; i < 7; ++i) {
+    local(i, q[i], &X[i]);
+    double m = i == 6 ? m7 : MASS[i];
+    const double *c = i == 6 ? c7 : COM[i];
+    const double *I = i == 6 ? I7 : INERTIA[i];
+    double cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+    mc[i] = m;
+    for (int r = 0; r < 3; ++r) {
+      hc[i][r] = m * c[r];
+      for (int k = 0; k < 3; ++k)
+        Ic[i][3 * r + k] = I[3 * r + k] + m * ((r == k ? cc : 0.0) - c[r] * c[k]);
+    }
+  }
+  for (int i = 6; i > 0; --i) {
+    /* links i..7 seen from the parent's origin: I_O = R I R^T - m p^ p^ - p^ h^ - h^ p^, with
+       h = R h_i the first moment in the parent's axes (p^: the cross-product matrix of p) */
+    const double *R = X[i].R, *p = X[i].p;
+    double h[3], RI[9], m = mc[i];
+    mv(R, hc[i], h);
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k)
+        RI[3 * r + k] =
+            R[3 * r] * Ic[i][k] + R[3 * r + 1] * Ic[i][3 + k] + R[3 * r + 2] * Ic[i][6 + k];
+    double pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+    double ph = p[0] * h[0] + p[1] * h[1] + p[2] * h[2];
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) {
+        double rot =
+            RI[3 * r] * R[3 * k] + RI[3 * r + 1] * R[3 * k + 1] + RI[3 * r + 2] * R[3 * k + 2];
+        double e = r == k ? 1.0 : 0.0;
+        /* -m p^p^ = m (|p|^2 E - p p^T); -(p^h^ + h^p^) = 2 (p.h) E - p h^T - h p^T */
+        Ic[i - 1][3 * r + k] +=
+            rot + m * (e * pp - p[r] * p[k]) + 2.0 * e * ph - p[r] * h[k] - h[r] * p[k];
+      }
+    mc[i - 1] += m;
+    for (int r = 0; r < 3; ++r) hc[i - 1][r] += m * p[r] + h[r];
+  }
+  const double z[3] = {0.0, 0.0, 1.0};
   for (int j = 0; j < 7; ++j) {
-    memset(e, 0, sizeof e);
-    e[j] = 1.0;
-    rnea(q, ZERO7, e, NO_ACCEL, I_load, m_load, F_x_Cload, out + 7 * j);
+    /* joint j turning at unit rate: the momentum rate of links j..7, n = I z, f = z x h */
+    double n[3], f[3];
+    mv(Ic[j], z, n);
+    cross(z, hc[j], f);
+    out[7 * j + j] = n[2];
+    for (int i = j; i > 0; --i) {
+      /* into link i-1's frame */
+      double fp[3], np_[3], t[3];
+      mv(X[i].R, f, fp);
+      mv(X[i].R, n, np_);
+      cross(X[i].p, fp, t);
+      for (int r = 0; r < 3; ++r) {
+        f[r] = fp[r];
+        n[r] = np_[r] + t[r];
+      }
+      out[7 * j + i - 1] = out[7 * (i - 1) + j] = n[2];
+    }
   }
 }
 EXPORT void c_NE(const double q[7], const double dq[7], const double I_load[9], double m_load,
