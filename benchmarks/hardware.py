@@ -4,7 +4,10 @@ Baseline: the bare simulation, `mj_step` of the server's own scene at 1 kHz step
 process. Against it: the lockstep rate (steps/s, every state waits for its command) through
 pylibfranka, and in `--realtime` the client's loop at the robot's 1 kHz through pylibfranka
 (period median and p99 between the states it reads) and franky, with the commands the server
-counted missed, per 10 000 cycles.
+counted missed, per 10 000 cycles. Then mjkdl's handle (`FrankaArm`, its loop in a process of
+its own driving pylibfranka, and panda-py) holding the arm in `--realtime` for the same number
+of cycles, against pylibfranka's own loop timed in the same run: the handle's period between
+ticks (wall clock, from its 0.1 ms histogram) and the commands the server counted missed.
 
     python benchmarks/hardware.py [--cycles 10000]
 """
@@ -23,7 +26,12 @@ ROOT = Path(__file__).resolve().parents[1]
 os.environ.setdefault("MENAGERIE_ROOT", str(ROOT.parent / "shared" / "menagerie"))
 
 import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
 
+import mjkdl as mjk  # noqa: E402
+from mjkdl.hw.connection import PERIOD_BIN  # noqa: E402
+from mjkdl.hw.faults import HardwareError, ReflexError  # noqa: E402
+from mjkdl.hw.franka import FrankaArm  # noqa: E402
 from mjkdl.hw.franka_sim.scene import franka_scene  # noqa: E402
 from mjkdl.scene import Env  # noqa: E402
 
@@ -40,13 +48,18 @@ hold = plf.JointPositions(list(state.q_d))
 n = int(sys.argv[2])
 stamps = []
 t0 = time.perf_counter()
-for i in range(n):
-    state, _ = ctrl.readOnce()
-    stamps.append(time.perf_counter())
-    hold.motion_finished = i == n - 1
-    ctrl.writeOnce(hold)
+error = ""
+try:
+    for i in range(n):
+        state, _ = ctrl.readOnce()
+        stamps.append(time.perf_counter())
+        hold.motion_finished = i == n - 1
+        ctrl.writeOnce(hold)
+except Exception as e:  # a reflex on a loaded machine: the periods until then, and why
+    error = str(e).splitlines()[0]
 print(time.perf_counter() - t0)
 print(" ".join(f"{b - a:.6f}" for a, b in zip(stamps, stamps[1:])))
+print(error)
 """
 
 # franky, holding with a zero joint velocity motion for N ms (its loop runs in libfranka's own
@@ -95,14 +108,59 @@ def run(code: str, *args: str) -> str:
 
 
 def missed(log: str) -> tuple[int, int]:
-    found = re.findall(r"motion finished after (\d+) cycles, (\d+) without a command", log)
-    cycles, lost = (int(v) for v in found[-1])
-    return cycles, lost
+    found = re.findall(r"motion \w+ after (\d+) cycles, (\d+) without a command", log)
+    # every motion of this server's run (the handle's restart after a reflex)
+    return sum(int(c) for c, _ in found), sum(int(m) for _, m in found)
 
 
 def percentile(values: list[float], q: float) -> float:
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+def handle(client: str, n: int) -> tuple[np.ndarray, int, str]:
+    """FrankaArm holding the arm (zero joint velocity) for about `n` ticks; the histogram of
+    its loop's periods, the reflexes that stopped it (each followed by a new motion) and why
+    the connection ended early, if it did."""
+    reflexes, ended = 0, ""
+    with FrankaArm(HOST, client=client, watchdog=5.0) as arm:
+        arm.ctrl_mode = mjk.CtrlMode.VELOCITY
+        conn = arm.link.connection
+        start = conn.state().ticks
+        while conn.state().ticks - start < n:
+            arm.jnt_vel_cmd = np.zeros(7)  # the user's loop keeps commanding, at ~100 Hz
+            try:
+                arm.step()
+            except ReflexError:  # commands missed in a row: the robot stopped the motion
+                reflexes += 1
+            except HardwareError as err:  # the client gave up (no state for its timeout)
+                ended = str(err).split(" (arm at")[0]
+                break
+            time.sleep(0.01)
+        return conn.period_histogram(), reflexes, ended
+
+
+def histogram_percentile(hist: np.ndarray, q: float) -> float:
+    """The period (ms, the bin's upper edge) below which a share `q` of the ticks came."""
+    edge = int(np.searchsorted(np.cumsum(hist), q * hist.sum()))
+    return (edge + 1) * PERIOD_BIN * 1e3
+
+
+def pylibfranka_realtime(n: int, label: str) -> None:
+    server = Server("--realtime")
+    try:
+        out = run(PYLIBFRANKA, str(n)).split("\n")
+    finally:
+        log = server.close()
+    periods = [float(v) for v in out[1].split()]
+    cycles, lost = missed(log)
+    cycles = max(cycles, 1)
+    ms = [p * 1e3 for p in periods]
+    stopped = f"; stopped after {len(ms) + 1} cycles: {out[2]}" if out[2] else ""
+    print(
+        f"{label}: period median {percentile(ms, 0.5):.3f} ms, "
+        f"p99 {percentile(ms, 0.99):.3f} ms; missed {lost * 10000 / cycles:.0f} per 10 000{stopped}"
+    )
 
 
 def main() -> None:
@@ -123,25 +181,35 @@ def main() -> None:
         f"({n / wall / bare:.3f} of bare)"
     )
 
-    server = Server("--realtime")
-    try:
-        periods = [float(v) for v in run(PYLIBFRANKA, str(n)).splitlines()[1].split()]
-    finally:
-        log = server.close()
-    cycles, lost = missed(log)
-    ms = [p * 1e3 for p in periods]
-    print(
-        f"realtime, pylibfranka: period median {percentile(ms, 0.5):.3f} ms, "
-        f"p99 {percentile(ms, 0.99):.3f} ms; missed {lost * 10000 / cycles:.0f} per 10 000"
-    )
+    pylibfranka_realtime(n, "realtime, pylibfranka")
 
     server = Server("--realtime")
     try:
         run(FRANKY, str(n))
+    except subprocess.CalledProcessError as err:  # a reflex on a loaded machine: say which
+        print(f"realtime, franky: failed: {err.stderr.strip().splitlines()[-1]}")
     finally:
         log = server.close()
     cycles, lost = missed(log)
     print(f"realtime, franky: missed {lost * 10000 / cycles:.0f} per 10 000 ({cycles} cycles)")
+
+    # mjkdl's handle, with pylibfranka's own loop again beside it (the same minutes)
+    for client in ("pylibfranka", "panda-py"):
+        server = Server("--realtime")
+        try:
+            hist, reflexes, ended = handle(client, n)
+        finally:
+            log = server.close()
+        cycles, lost = missed(log)
+        late = hist[11:].sum() / hist.sum()  # ticks more than 1.1 ms after the previous
+        print(
+            f"realtime, FrankaArm ({client}): period median "
+            f"{histogram_percentile(hist, 0.5):.1f} ms, p99 {histogram_percentile(hist, 0.99):.1f}"
+            f" ms (0.1 ms bins), over 1.1 ms {late * 100:.1f} %; missed "
+            f"{lost * 10000 / max(cycles, 1):.0f} per 10 000 ({cycles} cycles, {reflexes} "
+            f"reflexes){'; ended: ' + ended if ended else ''}"
+        )
+        pylibfranka_realtime(n, "  beside it, pylibfranka's own loop")
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@ against `python -m mjkdl.hw.franka_sim` (lockstep) in another process."""
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 import textwrap
@@ -21,9 +22,13 @@ from mjkdl.hw.franka import FrankaArm
 HOME = np.array([0.0, -0.785398, 0.0, -2.356194, 0.0, 1.570796, 0.785398])  # the server's
 
 
-@pytest.fixture(scope="class")
-def arm(franka_server: str) -> Iterator[FrankaArm]:
-    with FrankaArm(franka_server, client="pylibfranka") as arm:
+@pytest.fixture(scope="class", params=["pylibfranka", "panda-py"])
+def arm(franka_server: str, request: pytest.FixtureRequest) -> Iterator[FrankaArm]:
+    """The handle through each client: pylibfranka (libfranka 0.21, protocol 10) and panda-py
+    (libfranka 0.9.2, protocol 5, the Panda's default)."""
+    if importlib.util.find_spec(request.param.replace("-", "_")) is None:
+        pytest.skip("pip install mjkdl[franka]")
+    with FrankaArm(franka_server, client=request.param) as arm:
         yield arm
 
 

@@ -8,11 +8,13 @@ import importlib.util
 import json
 import os
 import re
+import shutil
 import socket
 import struct
 import subprocess
 import sys
 import textwrap
+import time
 from collections.abc import Iterator
 
 import mujoco
@@ -391,21 +393,149 @@ def test_franky_velocity_control_example(server, sim_arm):
     assert moved.min() > 0.03 and moved.max() - moved.min() < 0.005, moved
 
 
+PANDA_PY_PROGRAM = """
+import json, time, numpy as np, panda_py
+from panda_py import controllers, libfranka as lf
+panda = panda_py.Panda(HOST)
+out = {}
+panda.move_to_start()
+model, s = panda.get_model(), panda.get_state()
+hand = (list(s.I_total), s.m_total, list(s.F_x_Ctotal))
+out["model"] = []
+for q in QS:
+    out["model"].append(dict(
+        mass=model.mass(q, *hand), coriolis=model.coriolis(q, DQ, *hand),
+        gravity=model.gravity(q, hand[1], hand[2]),
+        pose=model.pose(lf.Frame.kEndEffector, q, list(s.F_T_EE), list(s.EE_T_K)),
+        jac=model.zero_jacobian(lf.Frame.kEndEffector, q, list(s.F_T_EE), list(s.EE_T_K)),
+        body=model.body_jacobian(lf.Frame.kFlange, q, list(s.F_T_EE), list(s.EE_T_K))))
+out["moved"] = panda.move_to_joint_position(GOAL)
+out["q_goal"] = list(panda.q)
+target = panda.get_pose()
+target[2, 3] -= 0.05
+out["posed"] = panda.move_to_pose(target)
+s = panda.get_state()
+out["q_pose"], out["O_T_EE"], out["target"] = list(s.q), list(s.O_T_EE), target.tolist()
+
+def run(ctrl, set_control, seconds):
+    panda.start_controller(ctrl)
+    start = panda.get_state().time.to_sec()
+    while panda.get_state().time.to_sec() - start < seconds:  # the arm's clock, not the wall's
+        set_control()
+        time.sleep(0.005)
+    panda.stop_controller()
+
+q0 = panda.q.copy()
+ctrl = controllers.JointPosition()
+run(ctrl, lambda: ctrl.set_control(q0 + STEP), 1.5)
+out["q_joint"], out["q_joint_target"] = list(panda.q), list(q0 + STEP)
+x0, o0 = panda.get_position().copy(), panda.get_orientation().copy()
+ctrl = controllers.CartesianImpedance()
+run(ctrl, lambda: ctrl.set_control(x0 + [0.0, 0.0, 0.03], o0), 2.0)
+out["x_cart"], out["x_cart_target"] = list(panda.get_position()), list(x0 + [0.0, 0.0, 0.03])
+q1 = panda.q.copy()
+ctrl = controllers.AppliedTorque()
+run(ctrl, lambda: ctrl.set_control(np.zeros(7)), 1.0)
+out["q_torque"], out["q_torque_start"] = list(panda.q), list(q1)
+print(json.dumps(out))
+"""
+
+
 @needs_panda_py
-def test_panda_py_connects_on_protocol_5_but_gets_no_model_library(sim):
-    """panda-py (libfranka 0.9.2) loads Franka's binary model library at connection, which
-    only a robot can serve: the client fails with libfranka's own error, the log says why."""
+@pytest.mark.skipif(
+    shutil.which("cc") is None and shutil.which("gcc") is None,
+    reason="the server compiles panda-py's model library with a C compiler (apt-get install gcc)",
+)
+def test_panda_py_model_and_controllers_on_the_served_model_library(sim, sim_arm):
+    """panda-py (libfranka 0.9.2) downloads the model library the server compiles: its model
+    equals MuJoCo's, and its own motions and controllers end where they aim."""
+    qs = [START_Q.tolist(), (START_Q + np.array([0.3, 0.2, -0.4, 0.5, 0.6, -0.3, 0.9])).tolist()]
+    dq = [0.5, -0.4, 0.3, -0.2, 0.6, -0.5, 0.4]
+    goal = START_Q + np.array([0.2, -0.1, 0.1, 0.2, 0.1, 0.2, -0.2])
+    step = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1])
+    code = PANDA_PY_PROGRAM
+    for name, value in (("HOST", repr(sim.host)), ("QS", repr(qs)), ("DQ", repr(dq))):
+        code = code.replace(name, value)
+    code = code.replace("GOAL", repr(goal.tolist())).replace("STEP", repr(step.tolist()))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=180)
+    assert done.returncode == 0, done.stdout + done.stderr
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    m, d = sim_arm.env.model, sim_arm.env.data
+    dofs = sim_arm._dofs
+    for q, one in zip(qs, got["model"], strict=True):
+        q = np.array(q)
+        sim_arm.robot.set_joint_pos(q)
+        full = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, full)
+        mass = full[np.ix_(dofs, dofs)] - np.diag(m.dof_armature[dofs])  # no rotors in libfranka
+        np.testing.assert_allclose(np.reshape(one["mass"], (7, 7), order="F"), mass, atol=1e-6)
+        gravity = d.qfrc_bias[dofs].copy()
+        np.testing.assert_allclose(one["gravity"], gravity, atol=1e-6)
+        np.testing.assert_allclose(
+            np.reshape(one["pose"], (4, 4), order="F"), sim_arm._ee_pose(q), atol=1e-6
+        )
+        jac = sim_arm._ee_jacobian(q)
+        np.testing.assert_allclose(np.reshape(one["jac"], (6, 7), order="F"), jac, atol=1e-6)
+        d.qvel[dofs] = dq
+        mujoco.mj_forward(m, d)
+        np.testing.assert_allclose(one["coriolis"], d.qfrc_bias[dofs] - gravity, atol=1e-6)
+        d.qvel[:] = 0.0
+        # the flange's body Jacobian: the EE's rotated into the flange, at the flange
+        flange = sim_arm._flange_pose(q)
+        offset = flange[:3, 3] - sim_arm._ee_pose(q)[:3, 3]
+        at_flange = jac.copy()
+        at_flange[:3] -= np.cross(offset, jac[3:].T).T
+        body = np.vstack([flange[:3, :3].T @ at_flange[:3], flange[:3, :3].T @ at_flange[3:]])
+        np.testing.assert_allclose(np.reshape(one["body"], (6, 7), order="F"), body, atol=1e-6)
+    # move_to_joint_position: the robot's joint impedance behind panda-py's trajectory
+    assert got["moved"] is True
+    np.testing.assert_allclose(got["q_goal"], goal, atol=1e-3)
+    # move_to_pose: panda-py's Cartesian impedance, done within its thresholds (2 cm, 0.1 rad);
+    # the pose the arm reports is mjkdl's kinematics of where it stands
+    assert got["posed"] is True
+    reached = np.reshape(got["O_T_EE"], (4, 4), order="F")
+    np.testing.assert_allclose(reached, sim_arm._ee_pose(np.array(got["q_pose"])), atol=1e-6)
+    target = np.array(got["target"])
+    assert np.linalg.norm(reached[:3, 3] - target[:3, 3]) < 0.02
+    assert np.linalg.norm(pin.log3(reached[:3, :3].T @ target[:3, :3])) < 0.1
+    np.testing.assert_allclose(got["q_joint"], got["q_joint_target"], atol=5e-3)
+    np.testing.assert_allclose(got["x_cart"], got["x_cart_target"], atol=5e-3)
+    # zero torques on top of the robot's gravity compensation: the arm stays
+    np.testing.assert_allclose(got["q_torque"], got["q_torque_start"], atol=5e-3)
+    assert any("robot protocol 5" in line for line in sim.log)
+
+
+@needs_panda_py
+def test_without_a_c_compiler_panda_py_gets_libfrankas_error_and_the_log_the_fix(
+    tmp_path, monkeypatch
+):
+    """No compiler (and nothing cached): the client fails with libfranka's own message, the
+    server's log says what to install."""
+    monkeypatch.setenv("CC", "no-such-compiler")
+    monkeypatch.setenv("MJKDL_CACHE_DIR", str(tmp_path))
     code = (
         "import panda_py\n"
-        f"try:\n    panda_py.Panda({sim.host!r})\n"
+        "try:\n    panda_py.Panda(HOST)\n"
         "except Exception as e:\n    print(type(e).__name__, e)\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    assert done.stdout.strip() == (
-        "RuntimeError libfranka: Server reports error when loading model library."
-    ), done.stdout + done.stderr
-    assert any("robot protocol 5" in line for line in sim.log)
-    assert any("cannot produce one" in line for line in sim.log)
+    with franka_sim("--lockstep") as sim:
+        code = code.replace("HOST", repr(sim.host))
+        done = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, timeout=60
+        )
+        assert done.stdout.strip() == (
+            "RuntimeError libfranka: Server reports error when loading model library."
+        ), done.stdout + done.stderr
+        deadline = time.monotonic() + 10.0  # the log is read by a thread
+        while time.monotonic() < deadline and not any(
+            "no model library" in line for line in sim.log
+        ):
+            time.sleep(0.05)
+        assert any(
+            "no model library for the client" in line and "apt-get install gcc" in line
+            for line in sim.log
+        ), sim.log[-3:]
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_an_unknown_model_names_the_ones_there_are():

@@ -23,6 +23,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import warnings
 import weakref
@@ -34,7 +35,7 @@ import numpy as np
 
 from ..errors import SpecError
 from .faults import ArmConnectionError, HardwareError, WatchdogWarning, translate
-from .rate_limit import RateLimiter, limits_for
+from .rate_limit import RateLimiter, limits_for, number_view
 
 POSITION, VELOCITY, TORQUE = 0, 1, 2
 # The command block: [seq, mode, stop, cmd x7]
@@ -44,7 +45,11 @@ _C_LEN = _C_CMD + 7
 # F_ext(6)]; late counts the ticks that came more than one robot cycle after the previous one.
 _S_SEQ, _S_TIME, _S_STATUS, _S_RATE, _S_TICKS, _S_LATE = 0, 1, 2, 3, 4, 5
 _S_Q, _S_DQ, _S_TAU, _S_EXT, _S_F = 6, 13, 20, 27, 34
-_S_LEN = _S_F + 6
+_S_HIST = _S_F + 6
+# After the state: how many ticks came how long (wall clock) after the previous tick of their
+# motion, in bins of PERIOD_BIN s; the last bin holds every period from PERIOD_BINS - 1 on.
+PERIOD_BIN, PERIOD_BINS = 1e-4, 51
+_S_LEN = _S_HIST + PERIOD_BINS
 IDLE, MOVING, STOPPING, CLOSED = 0.0, 1.0, 2.0, 3.0
 # The vendor client each arm is driven through by default: FR3 speaks libfranka >= 0.15
 # (pylibfranka), the Panda libfranka 0.9 (panda-py).
@@ -219,6 +224,12 @@ class ArmConnection:
             late=int(s[_S_LATE]),
         )
 
+    def period_histogram(self) -> np.ndarray:
+        """Ticks counted by the wall-clock time since the previous tick of their motion: bin
+        i holds the periods in [i, i + 1) × `PERIOD_BIN` s, the last one everything longer
+        (what a loop holding 1 kHz looks like: all in the bins around 1 ms)."""
+        return self._state[_S_HIST:].copy()
+
     def wait_until(self, arm_time: float, timeout: float = 5.0) -> np.ndarray:
         """Block until the arm's clock reaches `arm_time`; the state block then."""
         deadline = time.monotonic() + timeout
@@ -310,6 +321,7 @@ def _control_process(argv: list[str]) -> None:
     cmd, state = _blocks(shared)
     events = os.fdopen(int(fd), "w", buffering=1)
     loop = _Loop(model, float(watchdog), cmd, state, events, int(parent))
+    threading.Thread(target=loop.watch_parent, daemon=True).start()
     try:
         fr = importlib.import_module(
             "pylibfranka" if client == "pylibfranka" else "panda_py.libfranka"
@@ -331,7 +343,14 @@ def _control_process(argv: list[str]) -> None:
 
 
 class _Loop:
-    """The child's state: the robot, the shared blocks, the rate limiter and the motion."""
+    """The child's state: the robot, the shared blocks, the rate limiter and the motion.
+
+    A tick allocates nothing of its own: the state goes into views of the shared block made
+    here, the rate limiter works in its own arrays, single numbers are read through
+    memoryviews (Python floats, which come from the interpreter's free list, where indexing a
+    NumPy array makes a scalar object) and the counters are floats for the same reason. The
+    client's own objects (its state and the command it is handed) are the client's.
+    """
 
     def __init__(
         self,
@@ -344,7 +363,16 @@ class _Loop:
     ) -> None:
         self.watchdog = watchdog
         self.cmd, self.state = cmd, state
+        self._c, self._s = number_view(cmd), number_view(state)
+        self._cmd_values = cmd[_C_CMD:]
+        self._q, self._dq = state[_S_Q : _S_Q + 7], state[_S_DQ : _S_DQ + 7]
+        self._tau, self._ext = state[_S_TAU : _S_TAU + 7], state[_S_EXT : _S_EXT + 7]
+        self._f = state[_S_F : _S_F + 6]
+        self._scratch = np.zeros(7)
+        self._still = np.zeros(7, dtype=bool)
+        self._still_view = number_view(self._still)
         self.events, self.parent = events, parent
+        self.orphaned = False  # the user's process is gone (see watch_parent)
         self.limiter = RateLimiter(limits_for(model))
         self.fr: Any = None
         self.client = "pylibfranka"
@@ -352,8 +380,8 @@ class _Loop:
         self.seen = 0.0  # the command sequence number last acted on
         self.wanted = np.zeros(7)
         self.mode = POSITION
-        self.ticks = 0
-        self.late = 0
+        self.ticks = 0.0
+        self.late = 0.0
         # the motion under way
         self.motion_mode = POSITION
         self.started = False
@@ -361,13 +389,20 @@ class _Loop:
         self.stopping = False
         self.last_new = 0.0
         self.watchdog_fired = 0.0
+        self.last_tick = 0.0  # monotonic time of the motion's previous tick
+
+    def watch_parent(self) -> None:
+        """Notice the user's process ending (a thread: the tick itself asks nothing)."""
+        while os.getppid() == self.parent:
+            time.sleep(0.01)
+        self.orphaned = True
 
     def send(self, *message: object) -> None:
         """One message to the user's process (a JSON line)."""
         self.events.write(json.dumps(message) + "\n")
 
     def publish(self, rs: Any, status: float) -> None:
-        s = self.state
+        s = self._s
         seq = s[_S_SEQ] + 1.0
         s[_S_SEQ] = seq
         s[_S_TIME] = rs.time.to_sec()
@@ -375,28 +410,29 @@ class _Loop:
         s[_S_RATE] = rs.control_command_success_rate
         s[_S_TICKS] = self.ticks
         s[_S_LATE] = self.late
-        s[_S_Q : _S_Q + 7] = rs.q
-        s[_S_DQ : _S_DQ + 7] = rs.dq
-        s[_S_TAU : _S_TAU + 7] = rs.tau_J
-        s[_S_EXT : _S_EXT + 7] = rs.tau_ext_hat_filtered
-        s[_S_F : _S_F + 6] = rs.O_F_ext_hat_K
+        self._q[...] = rs.q
+        self._dq[...] = rs.dq
+        self._tau[...] = rs.tau_J
+        self._ext[...] = rs.tau_ext_hat_filtered
+        self._f[...] = rs.O_F_ext_hat_K
         s[_S_SEQ] = seq + 1.0
 
     def take_command(self) -> bool:
         """Copy a new, consistent command into `wanted`; whether one came."""
-        c = self.cmd
+        c = self._c
         seq = c[_C_SEQ]
         if seq == self.seen or seq % 2.0 != 0.0:
             return False
-        mode = int(c[_C_MODE])
-        self.wanted[:] = c[_C_CMD:]
+        mode = c[_C_MODE]
+        np.copyto(self.wanted, self._cmd_values)
         if c[_C_SEQ] != seq:
             return False
-        self.seen, self.mode = seq, mode
+        self.seen = seq
+        self.mode = POSITION if mode == POSITION else VELOCITY if mode == VELOCITY else TORQUE
         return True
 
     def stop_asked(self) -> bool:
-        return self.cmd[_C_STOP] != 0.0 or os.getppid() != self.parent
+        return self._c[_C_STOP] != 0.0 or self.orphaned
 
     def run(self) -> None:
         """Idle until a command comes, run its motion, and again, until asked to stop."""
@@ -454,9 +490,14 @@ class _Loop:
         if not self.started:
             self.started, self.last_new, self.hold = True, now, _HOLD_TICKS
             limiter.reset(np.asarray(rs.q_d), np.asarray(rs.dq_d))
-        self.ticks += 1
+        else:
+            b = (now - self.last_tick) / PERIOD_BIN
+            i = _S_HIST + (PERIOD_BINS - 1 if b >= PERIOD_BINS - 1 else int(b))
+            self._s[i] = self._s[i] + 1.0
+        self.last_tick = now
+        self.ticks += 1.0
         if period.to_sec() > 0.0015:  # a cycle (or more) went by without a command of ours
-            self.late += 1
+            self.late += 1.0
         self.publish(rs, STOPPING if self.stopping else MOVING)
         if self.take_command():
             self.last_new = now
@@ -471,36 +512,45 @@ class _Loop:
         if self.hold:  # the motion's first ticks stand still at its start
             self.hold -= 1
             if mode == TORQUE:
-                return fr.Torques(limiter.tau.tolist())
+                return fr.Torques(limiter.tau)
             if mode == VELOCITY:
-                return fr.JointVelocities(_ZERO.tolist())
-            return fr.JointPositions(limiter.q.tolist())
+                return fr.JointVelocities(_ZERO)
+            return fr.JointPositions(limiter.q)
         if mode == TORQUE:
-            dq = np.asarray(rs.dq)
             if stopping:
-                tau = limiter.torque(-_DAMPING * dq)
-                finished = float(np.abs(dq).max()) < _REST_SPEED
+                np.multiply(self._dq, _BRAKE, out=self._scratch)  # rs.dq, as published
+                tau = limiter.torque(self._scratch)
+                finished = self._below(self._dq, _REST_SPEEDS)
             else:
                 tau = limiter.torque(self.wanted)
-            out = fr.Torques(tau.tolist())
+            out = fr.Torques(tau)
         elif mode == VELOCITY:
             v = limiter.velocity(self.wanted if not stopping else _ZERO)
-            finished = stopping and float(np.abs(v).max()) < 1e-6
-            out = fr.JointVelocities(v.tolist())
+            finished = stopping and self._below(v, _AT_REST)
+            out = fr.JointVelocities(v)
         else:
             if stopping:
                 limiter.velocity(_ZERO)
                 q = limiter.q
-                finished = float(np.abs(limiter.dq).max()) < 1e-6
+                finished = self._below(limiter.dq, _AT_REST)
             else:
                 q = limiter.position(self.wanted)
-            out = fr.JointPositions(q.tolist())
+            out = fr.JointPositions(q)
         if finished:
             out.motion_finished = True
         return out
 
+    def _below(self, values: np.ndarray, bound: np.ndarray) -> bool:
+        """Whether every |value| is below `bound` (7 values; without a temporary array)."""
+        np.abs(values, out=self._scratch)
+        np.less(self._scratch, bound, out=self._still)
+        v = self._still_view
+        return bool(v[0] and v[1] and v[2] and v[3] and v[4] and v[5] and v[6])
+
 
 _ZERO = np.zeros(7)
+# the thresholds and gain above as arrays (a ufunc wraps a Python number in a new array)
+_REST_SPEEDS, _AT_REST, _BRAKE = np.full(7, _REST_SPEED), np.full(7, 1e-6), np.full(7, -_DAMPING)
 
 
 class _Events:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -41,7 +42,14 @@ class ArmLimits:
     max_acceleration: np.ndarray  # rad/s^2 per joint
     max_jerk: np.ndarray  # rad/s^3 per joint
     max_torque_rate: np.ndarray  # Nm/s per joint
-    velocity_bounds: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # q -> (lower, upper)
+    # (q, lower, upper): the velocity bounds at q written into lower and upper
+    bounds_into: Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+
+    def velocity_bounds(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The joint velocity bounds (lower, upper) at `q`, rad/s."""
+        lower, upper = np.zeros(7), np.zeros(7)
+        self.bounds_into(np.asarray(q, dtype=float), lower, upper)
+        return lower, upper
 
     def describe(self) -> str:
         """One paragraph naming the limits (printed once by the first connection)."""
@@ -59,12 +67,17 @@ class ArmLimits:
         )
 
 
-def _panda_velocity_bounds() -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+def _panda_bounds_into() -> Callable[[np.ndarray, np.ndarray, np.ndarray], None]:
     acc = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0]) - _EPS
     # libfranka 0.9.2 keeps a margin of 3 lost packets' worth of acceleration.
     upper = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61]) - _EPS - 3.0 * DT * acc
     lower = -upper
-    return lambda q: (lower, upper)
+
+    def bounds(q: np.ndarray, lower_out: np.ndarray, upper_out: np.ndarray) -> None:
+        np.copyto(lower_out, lower)
+        np.copyto(upper_out, upper)
+
+    return bounds
 
 
 # FR3 (libfranka >= 0.15): v_max(q) = clip(-a + sqrt(b * (c - q)), 0, v_cap) per joint, and the
@@ -82,11 +95,54 @@ _FR3 = np.array(
 )
 
 
-def _fr3_velocity_bounds(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    a, b, cu, cl, cap = _FR3.T
-    upper = np.minimum(cap, np.maximum(0.0, -a + np.sqrt(np.maximum(0.0, b * (cu - q))))) - _EPS
-    lower = np.maximum(-cap, np.minimum(0.0, a - np.sqrt(np.maximum(0.0, b * (cl + q))))) + _EPS
-    return lower, upper
+_FR3_A, _FR3_B, _FR3_CU, _FR3_CL, _FR3_CAP = (np.ascontiguousarray(c) for c in _FR3.T)
+_FR3_NCAP = -_FR3_CAP
+_FR3_SCRATCH = np.zeros(7)
+
+
+def _full(value: float) -> np.ndarray:
+    return np.full(7, value)
+
+
+# Constants as arrays: a NumPy ufunc given a Python number allocates to wrap it.
+_ZERO7, _ONE7, _EPS7, _DT7, _INV_DT7, _2DT7 = (
+    _full(v) for v in (0.0, 1.0, _EPS, DT, 1.0 / DT, 2.0 * DT)
+)
+
+
+def number_view(array: np.ndarray) -> Any:
+    """A memoryview of `array`: indexing it gives Python numbers (floats from the interpreter's
+    free list, bools), where indexing the array makes a new NumPy scalar each time."""
+    return memoryview(array)  # type: ignore[arg-type]  # NumPy's stubs lack __buffer__
+
+
+def all_finite(values: np.ndarray, flags: np.ndarray, view: Any) -> bool:
+    """Whether the 7 `values` are finite, through the caller's bool array `flags` and its
+    memoryview `view` (a NumPy reduction, or `.data`, would allocate)."""
+    np.isfinite(values, out=flags)
+    return bool(view[0] and view[1] and view[2] and view[3] and view[4] and view[5] and view[6])
+
+
+def _fr3_bounds_into(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> None:
+    # upper = min(cap, max(0, -a + sqrt(max(0, b (c_upper - q))))) - eps, lower mirrored;
+    # in place: the control loop allocates nothing per tick
+    t = _FR3_SCRATCH
+    np.subtract(_FR3_CU, q, out=t)
+    np.multiply(t, _FR3_B, out=t)
+    np.maximum(t, _ZERO7, out=t)
+    np.sqrt(t, out=t)
+    np.subtract(t, _FR3_A, out=t)
+    np.maximum(t, _ZERO7, out=t)
+    np.minimum(t, _FR3_CAP, out=upper)
+    np.subtract(upper, _EPS7, out=upper)
+    np.add(_FR3_CL, q, out=t)
+    np.multiply(t, _FR3_B, out=t)
+    np.maximum(t, _ZERO7, out=t)
+    np.sqrt(t, out=t)
+    np.subtract(_FR3_A, t, out=t)
+    np.minimum(t, _ZERO7, out=t)
+    np.maximum(t, _FR3_NCAP, out=lower)
+    np.add(lower, _EPS7, out=lower)
 
 
 LIMITS: dict[str, ArmLimits] = {
@@ -95,14 +151,14 @@ LIMITS: dict[str, ArmLimits] = {
         max_acceleration=np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0]) - _EPS,
         max_jerk=np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]) - _EPS,
         max_torque_rate=np.full(7, 1000.0 - _EPS),
-        velocity_bounds=_panda_velocity_bounds(),
+        bounds_into=_panda_bounds_into(),
     ),
     "fr3": ArmLimits(
         "fr3",
         max_acceleration=np.full(7, 10.0 - _EPS),
         max_jerk=np.full(7, 5000.0 - _EPS),
         max_torque_rate=np.full(7, 1000.0 - _EPS),
-        velocity_bounds=_fr3_velocity_bounds,
+        bounds_into=_fr3_bounds_into,
     ),
 }
 
@@ -119,7 +175,8 @@ class RateLimiter:
 
     `reset` starts from the arm at rest at `q` (the state a motion starts from); then each call
     of `position`, `velocity` or `torque` returns the command to send this tick (an array
-    owned by the limiter, overwritten by the next call).
+    owned by the limiter, overwritten by the next call). A tick allocates nothing: every
+    intermediate lives in arrays made here.
     """
 
     def __init__(self, limits: ArmLimits) -> None:
@@ -127,12 +184,24 @@ class RateLimiter:
         self._acc_max = limits.max_acceleration
         self._jerk_max = limits.max_jerk
         self._ratio = limits.max_jerk / limits.max_acceleration
+        self._step = limits.max_torque_rate * DT
+        self._neg_step = -self._step
+        self._approach_acc = APPROACH_SHARE * limits.max_acceleration
+        self._gain = _full(APPROACH_GAIN)
+        self._half_share = _full(0.5 * APPROACH_SHARE)
         self.q = np.zeros(7)  # last commanded position
         self.dq = np.zeros(7)  # last commanded velocity
         self.ddq = np.zeros(7)  # last commanded acceleration
         self.tau = np.zeros(7)  # last commanded torque
         self._out = np.zeros(7)
         self._start = 0  # ticks left at START_SHARE of the limits
+        # scratch
+        self._lower, self._upper, self._at = np.zeros(7), np.zeros(7), np.zeros(7)
+        self._share, self._jm, self._am, self._neg = (np.zeros(7) for _ in range(4))
+        self._acc, self._hi, self._lo = np.zeros(7), np.zeros(7), np.zeros(7)
+        self._flags = np.zeros(7, dtype=bool)
+        self._flags_view = number_view(self._flags)
+        self._err, self._dist, self._cap, self._speed = (np.zeros(7) for _ in range(4))
 
     def reset(
         self, q: np.ndarray, dq: np.ndarray | None = None, tau: np.ndarray | None = None
@@ -147,25 +216,48 @@ class RateLimiter:
     def velocity(self, dq_cmd: np.ndarray, share: float = 1.0) -> np.ndarray:
         """The joint velocities to send for the wanted `dq_cmd` (also advances `q`), at
         `share` of the acceleration and jerk limits."""
-        _check_finite(dq_cmd, "velocity")
+        self._check_finite(dq_cmd, "velocity")
         # The bounds where this tick ends (FR3's shrink with q): libfranka evaluates them
         # at the last position, which lets a fast joint overrun a shrinking bound by ~1e-3.
-        lower, upper = self.limits.velocity_bounds(self.q + self.dq * (2.0 * DT))
-        jerk_max, acc_max = self._jerk_max * share, self._acc_max * share
+        at, lower, upper = self._at, self._lower, self._upper
+        np.multiply(self.dq, _2DT7, out=at)
+        np.add(at, self.q, out=at)
+        self.limits.bounds_into(at, lower, upper)
         if self._start:
             self._start -= 1
-            jerk_max, acc_max = jerk_max * START_SHARE, acc_max * START_SHARE
-        jerk = ((dq_cmd - self.dq) / DT - self.ddq) / DT
-        acc = self.ddq + np.clip(jerk, -jerk_max, jerk_max) * DT
+            share = share * START_SHARE
+        jerk_max, acc_max, neg = self._jm, self._am, self._neg
+        self._share.fill(share)
+        np.multiply(self._jerk_max, self._share, out=jerk_max)
+        np.multiply(self._acc_max, self._share, out=acc_max)
+        acc = self._acc  # the jerk first, then the acceleration it gives
+        np.subtract(dq_cmd, self.dq, out=acc)
+        np.multiply(acc, _INV_DT7, out=acc)
+        np.subtract(acc, self.ddq, out=acc)
+        np.multiply(acc, _INV_DT7, out=acc)
+        np.negative(jerk_max, out=neg)
+        np.maximum(acc, neg, out=acc)
+        np.minimum(acc, jerk_max, out=acc)
+        np.multiply(acc, _DT7, out=acc)
+        np.add(acc, self.ddq, out=acc)
         # The acceleration is bounded so that the velocity can still reach its limit at the
         # jerk limit: a_max(v) = (j_max / a_max) * (v_limit - v).
-        acc_hi = np.minimum(self._ratio * (upper - self.dq), acc_max)
-        acc_lo = np.maximum(self._ratio * (lower - self.dq), -acc_max)
-        np.clip(acc, acc_lo, acc_hi, out=acc)
-        self.ddq[:] = acc
-        self.dq += acc * DT
-        self.q += self.dq * DT
-        self._out[:] = self.dq
+        hi, lo = self._hi, self._lo
+        np.subtract(upper, self.dq, out=hi)
+        np.multiply(hi, self._ratio, out=hi)
+        np.minimum(hi, acc_max, out=hi)
+        np.subtract(lower, self.dq, out=lo)
+        np.multiply(lo, self._ratio, out=lo)
+        np.negative(acc_max, out=neg)
+        np.maximum(lo, neg, out=lo)
+        np.maximum(acc, lo, out=acc)  # (lo <= hi: clip)
+        np.minimum(acc, hi, out=acc)
+        np.copyto(self.ddq, acc)
+        np.multiply(acc, _DT7, out=acc)
+        np.add(self.dq, acc, out=self.dq)
+        np.multiply(self.dq, _DT7, out=acc)
+        np.add(self.q, acc, out=self.q)
+        np.copyto(self._out, self.dq)
         return self._out
 
     def position(self, q_cmd: np.ndarray) -> np.ndarray:
@@ -177,25 +269,43 @@ class RateLimiter:
         limits, so whatever the targets do,
         the positions sent keep every limit. (libfranka's limitRate on the position itself
         assumes a smooth signal: on a jump it overshoots and rings.)"""
-        _check_finite(q_cmd, "position")
-        err = q_cmd - self.q
-        dist = np.abs(err)
-        lower, upper = self.limits.velocity_bounds(self.q)
-        cap = APPROACH_SHARE * np.where(err > 0.0, upper, -lower)
-        speed = np.minimum(APPROACH_GAIN * dist, np.sqrt(APPROACH_SHARE * self._acc_max * dist))
-        self.velocity(np.copysign(np.minimum(speed, np.maximum(cap, 0.0)), err), APPROACH_SHARE)
-        self._out[:] = self.q
+        self._check_finite(q_cmd, "position")
+        err, dist, cap, speed = self._err, self._dist, self._cap, self._speed
+        np.subtract(q_cmd, self.q, out=err)
+        np.abs(err, out=dist)
+        lower, upper = self._lower, self._upper
+        self.limits.bounds_into(self.q, lower, upper)
+        # the bound in the direction of travel, at APPROACH_SHARE: with s = sign(err),
+        # (1 + s)/2 upper - (1 - s)/2 lower (s = 0: no travel, the speed is 0 anyway)
+        np.sign(err, out=speed)
+        np.add(_ONE7, speed, out=cap)
+        np.multiply(cap, upper, out=cap)
+        np.subtract(_ONE7, speed, out=speed)
+        np.multiply(speed, lower, out=speed)
+        np.subtract(cap, speed, out=cap)
+        np.multiply(cap, self._half_share, out=cap)
+        np.maximum(cap, _ZERO7, out=cap)
+        np.multiply(dist, self._approach_acc, out=speed)
+        np.sqrt(speed, out=speed)
+        np.multiply(dist, self._gain, out=dist)
+        np.minimum(speed, dist, out=speed)
+        np.minimum(speed, cap, out=speed)
+        np.copysign(speed, err, out=speed)
+        self.velocity(speed, APPROACH_SHARE)
+        np.copyto(self._out, self.q)
         return self._out
 
     def torque(self, tau_cmd: np.ndarray) -> np.ndarray:
         """The torques to send for the wanted `tau_cmd` (at most the torque rate per tick)."""
-        _check_finite(tau_cmd, "torque")
-        step = self.limits.max_torque_rate * DT
-        self.tau += np.clip(tau_cmd - self.tau, -step, step)
-        self._out[:] = self.tau
+        self._check_finite(tau_cmd, "torque")
+        step = self._acc
+        np.subtract(tau_cmd, self.tau, out=step)
+        np.maximum(step, self._neg_step, out=step)
+        np.minimum(step, self._step, out=step)
+        np.add(self.tau, step, out=self.tau)
+        np.copyto(self._out, self.tau)
         return self._out
 
-
-def _check_finite(value: np.ndarray, what: str) -> None:
-    if not np.isfinite(value).all():
-        raise SpecError(f"the {what} command holds NaN or Inf: {value}; send finite values")
+    def _check_finite(self, value: np.ndarray, what: str) -> None:
+        if not all_finite(value, self._flags, self._flags_view):
+            raise SpecError(f"the {what} command holds NaN or Inf: {value}; send finite values")

@@ -27,6 +27,7 @@ from . import wire
 from .arm import DT, LOST_CYCLES_LIMIT, SimulatedArm
 from .gripper import SimulatedHand
 from .limits import MODELS
+from .model_library import ModelLibraryError, model_library
 from .scene import franka_scene
 
 log = logging.getLogger("mjkdl.hw.franka_sim")
@@ -348,12 +349,14 @@ class FrankaSimServer:
             if protocol.version == 5 and command == wire.SET_FILTERS_V5:
                 self._send(peer, wire.message(command, command_id, b"\x00"))
             elif protocol.version == 5 and command == wire.LOAD_MODEL_LIBRARY_V5:
-                log.error(
-                    "franka_sim: the client asked for Franka's binary model library "
-                    "(libfcimodels, protocol 5): the simulator cannot produce one; use a "
-                    "libfranka >= 0.18 client, whose model is built from the URDF served"
-                )
-                self._send(peer, wire.message(command, command_id, b"\x01"))
+                # the binary model library (libfcimodels), compiled here from the arm's URDF
+                architecture, system = struct.unpack_from("<BB", payload.ljust(2, b"\xff"))
+                try:
+                    body = b"\x00" + model_library(self.arm.urdf, architecture, system)
+                except ModelLibraryError as err:
+                    log.error("franka_sim: no model library for the client: %s", err)
+                    body = b"\x01"
+                self._send(peer, wire.message(command, command_id, body))
             else:
                 log.error("franka_sim: unknown command %d (protocol %d)", command, protocol.version)
                 self._drop(peer, "sent an unknown command")
