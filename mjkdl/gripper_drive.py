@@ -3,6 +3,8 @@ scene's `MjSpec` so that it grasps with a set force at a set finger speed (docs/
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 
@@ -12,12 +14,16 @@ from .spec import GripperDrive
 # The servo presses with the full force from this far (per finger, m) short of its target on:
 # stiff enough that objects of any width but the thinnest get the set force.
 SATURATION = 0.005
-# Pad contacts of Menagerie's Robotiq 2F-85: stiffer and harder than MuJoCo's defaults
-# (0.02 s, 0.9-0.95), and winning over the object's own by priority. The soft default lets a
-# squeezed object sink in and creep out of the grip.
-PAD_SOLREF = (0.004, 1.0)
+# Pad contacts as stiff and hard as Menagerie's Robotiq 2F-85 pads (0.004 s, 0.95-0.99), not
+# MuJoCo's defaults (0.02 s, 0.9-0.95), into which a squeezed object sinks and creeps out of
+# the grip; overdamped (damping ratio 2, lossy like rubber), or a cube shaken in the grip sets
+# the damped fingers breathing and the squeeze swings between 6 and 26 N (measured).
+# They win over the object's by `solmix` (MuJoCo mixes solref/solimp by the two geoms' solmix
+# weights), not by `priority`, which would also impose the pads' condim and friction and take
+# away, say, a cube's torsional friction.
+PAD_SOLREF = (0.004, 2.0)
 PAD_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
-PAD_PRIORITY = 1
+PAD_SOLMIX = 1000.0  # against MuJoCo's default 1: the pads' parameters weigh 0.999
 
 
 def apply_drives(
@@ -61,10 +67,23 @@ def _apply(
     for j in joints:
         joint = s.joint(model.joint(j).name)
         joint.damping[0] = float(drive.force) / float(drive.speed)
-        for geom in s.body(model.body(model.jnt_bodyid[j]).name).geoms:
+        body = model.body(model.jnt_bodyid[j]).name
+        pads = [g for g in s.body(body).geoms if _is_pad(g, prefix, drive.pads)]
+        if not pads:
+            classes = sorted({g.classname.name[len(prefix) :] for g in s.body(body).geoms})
+            raise SpecError(
+                f"{field}.pads: no geom of finger body {body!r} has a name or class starting "
+                f"with {drive.pads!r}; its classes: {classes}"
+            )
+        for geom in pads:
             geom.solref = list(PAD_SOLREF)
             geom.solimp = list(PAD_SOLIMP)
-            geom.priority = PAD_PRIORITY
+            geom.solmix = PAD_SOLMIX
+
+
+def _is_pad(geom: Any, prefix: str, pads: str) -> bool:
+    names = (geom.name, geom.classname.name)
+    return any(n.startswith(prefix) and n[len(prefix) :].startswith(pads) for n in names)
 
 
 def _fingers(

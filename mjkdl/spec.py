@@ -101,8 +101,10 @@ class GripperDrive:
     - the actuator's servo is made stiff and force-limited, so a closed command on an object
       presses each finger on it with `force` (from 5 mm short of the commanded position on);
     - each finger joint gets the damping `force / speed`, so a free finger moves at `speed`;
-    - the finger bodies' geoms get stiff contacts that win over the object's (`priority` 1,
-      `solref` 0.004 s, `solimp` 0.95-0.99: Menagerie's Robotiq 2F-85 pads).
+    - the fingers' pad geoms (`pads`) get stiff, overdamped contacts that win over the
+      object's (`solref` 0.004 s with damping ratio 2, `solimp` 0.95-0.99: as stiff as
+      Menagerie's Robotiq 2F-85 pads; by `solmix`, so the object keeps its friction and
+      condim).
 
     The actuator (named without the robot's prefix) must be a position servo on slide finger
     joints, directly or through a fixed tendon with equal coefficients (Menagerie's Panda hand).
@@ -117,11 +119,16 @@ class GripperDrive:
     speed: float = 0.05
     """Speed of each finger moving freely, m/s (the Franka Hand's maximum: 0.05 m/s per
     finger, libfranka's `speed` of 0.1 m/s on the width)."""
+    pads: str = ""
+    """The finger geoms that get the pads' contacts: those whose name or default class,
+    without the robot's prefix, starts with this; "" for every geom of the finger bodies."""
 
     @classmethod
     def franka_hand(cls) -> GripperDrive:
-        """Menagerie's Panda hand (`actuator8`) at the Franka Hand's 20 N and 0.05 m/s."""
-        return cls(actuator="actuator8")
+        """Menagerie's Panda hand (`actuator8`) at the Franka Hand's 20 N and 0.05 m/s, its
+        fingertip pads (classes `fingertip_pad_collision_*`) stiff, the rest of its fingers
+        as the model has them."""
+        return cls(actuator="actuator8", pads="fingertip_pad_collision")
 
 
 @dataclass

@@ -360,6 +360,7 @@ def _check_robot(robot: RobotSpec, field: str) -> None:
         where = f"{field}.grippers[{j}]"
         if not text(drive.actuator, f"{where}.actuator"):
             raise SpecError(f"{where}.actuator is empty: name the gripper's actuator")
+        text(drive.pads, f"{where}.pads")
         for name, unit in (("force", "N"), ("speed", "m/s")):
             if real(getattr(drive, name), f"{where}.{name}") <= 0.0:
                 raise SpecError(

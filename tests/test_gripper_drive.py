@@ -26,7 +26,8 @@ def finger_dofs(model: mujoco.MjModel, prefix: str = "") -> list[int]:
 
 
 def test_the_drive_rewrites_the_servo_damping_and_pads() -> None:
-    assert mjk.GripperDrive.franka_hand() == mjk.GripperDrive("actuator8", 20.0, 0.05)
+    franka = mjk.GripperDrive.franka_hand()
+    assert franka == mjk.GripperDrive("actuator8", 20.0, 0.05, "fingertip_pad_collision")
     own = compile_scene(base_spec(robots=[mjk.RobotSpec(path=menagerie("franka_emika_panda"))]))
     model = compile_scene(hand_spec("p/", force=30.0, speed=0.04))
     a = model.actuator("p/actuator8").id
@@ -41,13 +42,20 @@ def test_the_drive_rewrites_the_servo_damping_and_pads() -> None:
     assert model.actuator_biasprm[a, 2] == own.actuator_biasprm[b, 2]  # its own kv kept
     np.testing.assert_allclose(model.dof_damping[finger_dofs(model, "p/")], 30.0 / 0.04)
     pads = model.geom_bodyid == model.body("p/left_finger").id
-    assert np.all(model.geom_priority[pads] == 1)
-    np.testing.assert_allclose(model.geom_solref[pads], [[0.004, 1.0]] * int(pads.sum()))
+    assert np.all(model.geom_solmix[pads] == 1000.0) and np.all(model.geom_priority[pads] == 0)
+    np.testing.assert_allclose(model.geom_solref[pads], [[0.004, 2.0]] * int(pads.sum()))
     np.testing.assert_allclose(model.geom_solimp[pads, :3], [[0.95, 0.99, 0.001]] * 8)
     hand = model.geom_bodyid == model.body("p/hand").id  # the rest as the model has it
-    assert np.all(model.geom_priority[hand] == 0)
+    assert np.all(model.geom_solmix[hand] == 1.0)
     np.testing.assert_allclose(model.geom_solref[hand, 0], 0.02)
     assert model.dof_damping[model.joint("p/joint1").dofadr[0]] == own.dof_damping[0]
+    # franka_hand(): only the fingertip pads (5 boxes a finger), not the finger's mesh.
+    arm = mjk.RobotSpec(path=menagerie("franka_emika_panda"), prefix="p/", grippers=[franka])
+    tips = compile_scene(base_spec(robots=[arm]))
+    finger = tips.geom_bodyid == tips.body("p/left_finger").id
+    boxes = finger & (tips.geom_type == mujoco.mjtGeom.mjGEOM_BOX)
+    assert int(boxes.sum()) == 5 and np.all(tips.geom_solmix[boxes] == 1000.0)
+    assert np.all(tips.geom_solmix[finger & ~boxes] == 1.0)
 
 
 def test_the_hand_squeezes_with_its_force_and_moves_at_its_speed() -> None:
@@ -112,6 +120,12 @@ def test_the_hand_squeezes_with_its_force_and_moves_at_its_speed() -> None:
             mjk.GripperDrive("actuator8", speed=float("nan")),
             mjk.SpecError,
             "robots[0].grippers[0].speed must be finite, got nan",
+        ),
+        (
+            mjk.GripperDrive("actuator8", pads="pad"),
+            mjk.SpecError,
+            "robots[0].grippers[0].pads: no geom of finger body 'left_finger' has a name or "
+            "class starting with 'pad'; its classes: ['collision', 'fingertip_pad_collision_1',",
         ),
         (
             mjk.GripperDrive("actuator9"),
