@@ -1,20 +1,22 @@
-"""Grasps at the arm's twist limit: slip and losses under MuJoCo contact options, and their cost.
+"""Grasps at the arm's twist limit: slip and losses under the hand's drive and MuJoCo's contact
+options, and their cost.
 
 For each seed the PickCube expert grasps the cube (Menagerie Panda and hand, 2 ms steps),
 then a scripted motion at the twist limit (0.5 m/s, the action at +-1): a lift of two
 control steps (~7 cm from the floor, PickCube's lift), one more up, a carry of three sideways,
 a shake of eight alternating steps (up/down, forward/back: reversals at the twist limit).
-Measured per option set, in the same process on the same seeds:
+The hand is driven either by Menagerie's own finger servo (about 1 N a finger) or by a
+`GripperDrive` (the tasks' `GripperDrive.franka_hand()`: 20 N a finger at 0.05 m/s, stiff
+pads). Measured per setup, in the same process on the same seeds:
 - slip: how far the cube's centre moved in the TCP's frame since the grasp closed, after the
   lift and the most over the whole motion (mm);
 - held: both fingers still touch the cube at the end, off the floor;
-- control-step time over the motion (the grasp in contact), as a ratio to MuJoCo's
-  defaults (pyramidal cone, impratio 1), interleaved seed by seed.
+- control-step time over the motion (the grasp in contact), as a ratio to the first row
+  (Menagerie's servo under MuJoCo's defaults), interleaved seed by seed.
 The same with Menagerie's Robotiq 2F-85 on the hand-less Panda (its model's own options,
 elliptic and impratio 10, against pyramidal and impratio 1). Then the PickCube expert's
 success (episodes of `mjkdl/PandaPickCube-v0`'s spec, 100 steps) lifting at full speed (its
-default) and gently (the old lift, a quarter of the gain), under MuJoCo's defaults and under
-`PhysicsOptions.grasping()`.
+default) and gently (a quarter of the gain), with and without the drive.
 
     python benchmarks/grasp.py              # 30 seeds
     python benchmarks/grasp.py --seeds 10
@@ -35,14 +37,29 @@ from mjkdl.task import ArmSpec, ContactSensor, GripperSpec, TaskEnv, TaskSpec
 from mjkdl.task.experts import PickCubeExpert, _Phase
 from mjkdl.task.registry import PANDA_HOME, panda_pick_cube_spec
 
-# (contact options, physics timestep): the last rows show the slip's dependence on the step.
+# (contact options, physics timestep, the hand's drive): the tasks' Panda hand squeezes with
+# `GripperDrive.franka_hand()` (20 N a finger, stiff pads); None is Menagerie's own finger servo
+# (about 1 N a finger), the tasks' hand before it.
+FRANKA = mjk.GripperDrive.franka_hand()
 OPTIONS = {
-    "MuJoCo defaults (pyramidal, impratio 1)": (mjk.PhysicsOptions(), 0.002),
-    "grasping(): elliptic, impratio 10 (tasks' default)": (mjk.PhysicsOptions.grasping(), 0.002),
-    "elliptic, impratio 10, noslip 10": (mjk.PhysicsOptions("elliptic", 10.0, 10), 0.002),
-    "elliptic, impratio 100": (mjk.PhysicsOptions("elliptic", 100.0), 0.002),
-    "MuJoCo defaults, 1 ms steps": (mjk.PhysicsOptions(), 0.001),
-    "grasping(), 0.5 ms steps": (mjk.PhysicsOptions.grasping(), 0.0005),
+    "Menagerie's servo, MuJoCo defaults (pyramidal, impratio 1)": (
+        mjk.PhysicsOptions(),
+        0.002,
+        None,
+    ),
+    "Menagerie's servo, grasping(): elliptic, impratio 10": (
+        mjk.PhysicsOptions.grasping(),
+        0.002,
+        None,
+    ),
+    "Menagerie's servo, grasping(), 0.5 ms steps": (mjk.PhysicsOptions.grasping(), 0.0005, None),
+    "franka_hand() 20 N, MuJoCo defaults": (mjk.PhysicsOptions(), 0.002, FRANKA),
+    "franka_hand() 20 N, grasping() (the tasks')": (mjk.PhysicsOptions.grasping(), 0.002, FRANKA),
+    "GripperDrive 70 N (datasheet, continuous), grasping()": (
+        mjk.PhysicsOptions.grasping(),
+        0.002,
+        mjk.GripperDrive("actuator8", force=70.0),
+    ),
 }
 # (action index, sign) per control step: lift, carry sideways, shake.
 LIFT_STEPS = 2
@@ -87,6 +104,16 @@ def robotiq_spec(physics: mjk.PhysicsOptions) -> TaskSpec:
     return spec
 
 
+def panda_spec(
+    physics: mjk.PhysicsOptions, drive: mjk.GripperDrive | None, timestep: float = 0.002
+) -> TaskSpec:
+    """PickCube's spec under `physics`, its hand driven by `drive` (None: Menagerie's servo)."""
+    spec = panda_pick_cube_spec()
+    spec.scene.physics, spec.scene.timestep = physics, timestep
+    spec.scene.robots[0].grippers = [] if drive is None else [drive]
+    return spec
+
+
 def _in_tcp(obs: dict[str, np.ndarray]) -> np.ndarray:
     rot = np.zeros(9)
     mujoco.mju_quat2Mat(rot, obs["panda_tcp_quat"].astype(float))
@@ -128,10 +155,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=30)
     args = parser.parse_args()
     envs = {}
-    for name, (physics, timestep) in OPTIONS.items():
-        spec = panda_pick_cube_spec()
-        spec.scene.physics, spec.scene.timestep = physics, timestep
-        envs[name] = TaskEnv(spec)
+    for name, (physics, timestep, drive) in OPTIONS.items():
+        envs[name] = TaskEnv(panda_spec(physics, drive, timestep))
     for name, physics in ROBOTIQ_OPTIONS.items():
         envs[name] = TaskEnv(robotiq_spec(physics))
     results: dict[str, list[tuple[float, float, bool, float]]] = {n: [] for n in envs}
@@ -157,18 +182,23 @@ def main() -> None:
     for env in envs.values():
         env.close()
     print()
-    print("| PickCube expert | MuJoCo defaults | grasping() |")
-    print("|---|---|---|")
+    print("| PickCube expert | Menagerie's servo, MuJoCo defaults | Menagerie's servo, "
+          "grasping() | franka_hand(), grasping() (the tasks') |")  # fmt: skip
+    print("|---|---|---|---|")
+    setups = [
+        (mjk.PhysicsOptions(), None),
+        (mjk.PhysicsOptions.grasping(), None),
+        (mjk.PhysicsOptions.grasping(), FRANKA),
+    ]
     for label, lift_gain in (("full-speed lift (lift_gain 10)", 10.0), ("gentle lift (2.5)", 2.5)):
         wins = []
-        for physics in (mjk.PhysicsOptions(), mjk.PhysicsOptions.grasping()):
-            spec = panda_pick_cube_spec()
-            spec.scene.physics = physics
+        for physics, drive in setups:
+            spec = panda_spec(physics, drive)
             spec.terminate_on_success, spec.success_hold = True, 0.5
             with_env = TaskEnv(spec)
             wins.append(sum(_episode(with_env, lift_gain, s) for s in range(args.seeds)))
             with_env.close()
-        print(f"| {label} | {wins[0]}/{args.seeds} | {wins[1]}/{args.seeds} |")
+        print(f"| {label} | " + " | ".join(f"{w}/{args.seeds}" for w in wins) + " |")
 
 
 def _episode(env: TaskEnv, lift_gain: float, seed: int) -> bool:

@@ -19,6 +19,7 @@ import numpy as np
 
 from . import urdf
 from .errors import BuildError, ModelFileError, SpecError, unknown_name
+from .gripper_drive import apply_drives
 from .spec import (
     AttachKind,
     AttachmentSpec,
@@ -90,6 +91,13 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
     for i, cam in enumerate(spec.cameras):
         _add_camera(s, cam, f"cameras[{i}] ({cam.name!r})")
     _apply_physics(s, spec.physics)
+    drives = [
+        (robot.prefix, drive, f"robots[{i}].grippers[{j}]")
+        for i, robot in enumerate(spec.robots)
+        for j, drive in enumerate(robot.grippers)
+    ]
+    if drives:  # the transmissions are read from a first compile (MjSpec cannot list them)
+        apply_drives(s, compile_mjspec(s), drives)
     return s
 
 

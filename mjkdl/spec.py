@@ -93,6 +93,45 @@ class AttachmentSpec:
 
 
 @dataclass
+class GripperDrive:
+    """A parallel gripper that squeezes with a set force and moves its fingers at a set speed,
+    as real hands do (the Franka Hand's `grasp(width, speed, force)`), instead of the soft
+    position servo of its model. Applied when the scene is built (docs/physics.md):
+
+    - the actuator's servo is made stiff and force-limited, so a closed command on an object
+      presses each finger on it with `force` (from 5 mm short of the commanded position on);
+    - each finger joint gets the damping `force / speed`, so a free finger moves at `speed`;
+    - the fingers' pad geoms (`pads`) get stiff, overdamped contacts that win over the
+      object's (`solref` 0.004 s with damping ratio 2, `solimp` 0.95-0.99: as stiff as
+      Menagerie's Robotiq 2F-85 pads; by `solmix`, so the object keeps its friction and
+      condim).
+
+    The actuator (named without the robot's prefix) must be a position servo on slide finger
+    joints, directly or through a fixed tendon with equal coefficients (Menagerie's Panda hand).
+    The defaults are the Franka Hand's: `GripperDrive.franka_hand()`.
+    """
+
+    actuator: str = ""
+    """The gripper's position-servo actuator, without the robot's prefix. Required."""
+    force: float = 20.0
+    """Force each finger presses on a held object, N (frankx's Franka Hand default; Franka's
+    datasheet: 70 N continuous, 140 N peak)."""
+    speed: float = 0.05
+    """Speed of each finger moving freely, m/s (the Franka Hand's maximum: 0.05 m/s per
+    finger, libfranka's `speed` of 0.1 m/s on the width)."""
+    pads: str = ""
+    """The finger geoms that get the pads' contacts: those whose name or default class,
+    without the robot's prefix, starts with this; "" for every geom of the finger bodies."""
+
+    @classmethod
+    def franka_hand(cls) -> GripperDrive:
+        """Menagerie's Panda hand (`actuator8`) at the Franka Hand's 20 N and 0.05 m/s, its
+        fingertip pads (classes `fingertip_pad_collision_*`) stiff, the rest of its fingers
+        as the model has them."""
+        return cls(actuator="actuator8", pads="fingertip_pad_collision")
+
+
+@dataclass
 class RobotSpec:
     """A robot from an MJCF or URDF file, in the world at `pos`/`euler` or on `attach_to`.
 
@@ -118,6 +157,9 @@ class RobotSpec:
     if any)."""
     floating: bool = False
     """URDF only: give the root link a free joint (a mobile or floating base)."""
+    grippers: list[GripperDrive] = field(default_factory=list)
+    """Grippers of the robot (or its attachments) that grasp with a set force
+    (`GripperDrive.franka_hand()` for the Panda's hand); empty keeps the models' servos."""
 
 
 @dataclass

@@ -24,6 +24,7 @@ from .spec import (
     CameraSpec,
     Condim,
     ForceTorqueSensorSpec,
+    GripperDrive,
     PhysicsOptions,
     RobotSpec,
     SceneObject,
@@ -354,6 +355,17 @@ def _check_robot(robot: RobotSpec, field: str) -> None:
         prefix = text(att.prefix, f"{where}.prefix")
         reserved_prefix(robot.prefix + prefix, f"{where}.prefix")
         _pose(att.pos, att.euler, where)
+    _entries(robot.grippers, GripperDrive, f"{field}.grippers")
+    for j, drive in enumerate(robot.grippers):
+        where = f"{field}.grippers[{j}]"
+        if not text(drive.actuator, f"{where}.actuator"):
+            raise SpecError(f"{where}.actuator is empty: name the gripper's actuator")
+        text(drive.pads, f"{where}.pads")
+        for name, unit in (("force", "N"), ("speed", "m/s")):
+            if real(getattr(drive, name), f"{where}.{name}") <= 0.0:
+                raise SpecError(
+                    f"{where}.{name} must be positive ({unit}), got {getattr(drive, name)!r}"
+                )
 
 
 def check_tool(tool: object, field: str = "tool") -> None:

@@ -84,7 +84,7 @@ def run_benchmark(name: str, *args: str) -> str:
         (
             "grasp",
             ("--seeds", "1"),
-            r"\| grasping\(\): elliptic, impratio 10 \(tasks' default\) \|",
+            r"\| franka_hand\(\) 20 N, grasping\(\) \(the tasks'\) \| \d+\.\d / \d+\.\d mm \|",
         ),
         ("experts", ("--seeds", "1"), r"\| `mjkdl/PandaStack-v0` \|"),
     ],

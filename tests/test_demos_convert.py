@@ -35,14 +35,17 @@ def picks(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_convert_adds_a_camera_by_exact_replay(picks: Path, tmp_path: Path) -> None:
     out = tmp_path / "wrist.hdf5"
     r = cli("convert", str(picks), str(out), "--env-kwargs", '{"camera_names": ["wrist"], '
-            '"camera_size": [32, 40]}')  # fmt: skip
+            '"camera_size": [32, 40], "camera_depth": true}')  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == f"{out}: 2 demos, observations by actions"
     with DemoFile(picks) as a, DemoFile(out) as b:
-        assert b.env_kwargs == {"max_episode_steps": 8, **WRIST}
+        assert b.env_kwargs == {"max_episode_steps": 8, **WRIST, "camera_depth": True}
         assert b.seeds == a.seeds == [3, 4]
         for da, db in zip(a, b, strict=True):
             assert db.obs["wrist_rgb"].shape == (8, 32, 40, 3) and db.obs["wrist_rgb"].std() > 0
+            depth = db.obs["wrist_depth"]  # metres: the fingers a few cm away, the floor < 1 m
+            assert depth.shape == (8, 32, 40) and depth.dtype == np.float32
+            assert 0.01 < depth.min() < 0.1 and 0.3 < depth.max() < 1.0
             assert np.array_equal(da.states, db.states) and np.array_equal(da.actions, db.actions)
             for key, rows in da.obs.items():  # the old keys, as recorded
                 assert np.array_equal(rows, db.obs[key]), key
@@ -72,11 +75,13 @@ def test_convert_from_states(picks: Path, tmp_path: Path) -> None:
 def test_frames_from_states_are_the_frames_of_replay(picks: Path, tmp_path: Path) -> None:
     """A camera observes the state it is recorded with (#30 item 1: needs TaskEnv to update
     the cameras' poses after each step)."""
-    by_actions = convert(picks, tmp_path / "a.hdf5", WRIST).path
-    by_states = convert(picks, tmp_path / "s.hdf5", WRIST, mode="states").path
+    kwargs = {**WRIST, "camera_depth": True}  # depth too: the same render of the same state
+    by_actions = convert(picks, tmp_path / "a.hdf5", kwargs).path
+    by_states = convert(picks, tmp_path / "s.hdf5", kwargs, mode="states").path
     with DemoFile(by_actions) as a, DemoFile(by_states) as s:
         for da, ds in zip(a, s, strict=True):
             assert np.array_equal(da.obs["wrist_rgb"], ds.obs["wrist_rgb"])
+            assert np.array_equal(da.obs["wrist_depth"], ds.obs["wrist_depth"])
 
 
 def test_convert_refuses_what_it_cannot_do(picks: Path, tmp_path: Path) -> None:

@@ -147,6 +147,19 @@ def test_bad_exports(exported: tuple[Path, Path], tmp_path: Path) -> None:
     assert not (tmp_path / "out").exists()
 
 
+def test_depth_is_refused_with_the_way_out(tmp_path: Path) -> None:
+    demos = tmp_path / "depth.hdf5"
+    collect(REACH, "random", demos, episodes=1, seed=0, keep_failures=True, progress=False,
+            env_kwargs={**CAMERA, "camera_depth": True, "max_episode_steps": 2})  # fmt: skip
+    with pytest.raises(
+        ExportError,
+        match=r"depth\.hdf5 holds depth images \['front_depth'\] \(float32 metres\): .*"
+        r"convert IN OUT --env-kwargs '\{\"camera_depth\": false\}'",
+    ):
+        export_lerobot(demos, tmp_path / "out", writer="pyarrow")
+    assert not (tmp_path / "out").exists()
+
+
 @NO_LEROBOT
 def test_lerobots_own_loader_reads_the_export(exported: tuple[Path, Path]) -> None:
     """Where lerobot imports (0.4 pins torch < 2.11; CI has a newer torch, so this skips

@@ -243,10 +243,14 @@ def test_actions_are_normalised_to_the_twist_limits_and_the_gripper_closes_on_pl
     # 0.5 of the 0.5 m/s bound for 0.3 s; the position servos lag a little at the start.
     moved = obs["panda_tcp_pos"] - start
     assert 0.05 < moved[0] < 0.08 and abs(moved[1]) < 0.01 and abs(moved[2]) < 0.01
-    assert obs["panda_gripper"][0] < 0.1  # closed
-    for _ in range(3):
+    # The fingers move at the Franka Hand's 0.05 m/s each (GripperDrive): 15 of 40 mm in 0.3 s.
+    assert obs["panda_gripper"][0] == pytest.approx(1.0 - 0.3 * 0.05 / 0.04, abs=0.03)
+    for _ in range(7):
+        obs, *_ = env.step(np.array([0, 0, 0, 0, 0, 0, 1.0], np.float32))
+    assert obs["panda_gripper"][0] < 0.02  # closed
+    for _ in range(10):
         obs, *_ = env.step(np.array([0, 0, 0, 0, 0, 0, -1.0], np.float32))
-    assert obs["panda_gripper"][0] > 0.9
+    assert obs["panda_gripper"][0] > 0.98
     env.close()
 
 

@@ -268,6 +268,14 @@ def export_lerobot(
         fps, arms = _env_facts(demos.env_name, demos.env_kwargs)
         task = task or demos.env_name
         first = demos.demo(demos.names[0])
+        depth = sorted(k for k, v in first.obs.items() if k.endswith("_depth") and v.ndim == 3)
+        if depth:
+            raise ExportError(
+                f"{demos.path} holds depth images {depth} (float32 metres): LeRobot's video "
+                "features hold 8-bit colour, which would quantise them; export a copy without "
+                "them: python -m mjkdl.demos convert IN OUT --env-kwargs "
+                "'{\"camera_depth\": false}'"
+            )
         keys = _chosen_state_keys(first, arms, state_keys, demos.path)
         try:
             if dataset_cls is not None:

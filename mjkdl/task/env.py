@@ -808,6 +808,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 # freeing them here can hang (software EGL) or fail, so they are kept until exit.
 _ORPHANED: list[mujoco.Renderer] = []
 _SETTLE_STEPS = 500  # physics steps a gripper gets to open at reset (1 s at 2 ms)
+_SETTLE_DAMPING = 0.1  # of the tool joints' own damping, while they settle at reset
 
 
 def _check_one_arm(spec: TaskSpec) -> None:
@@ -836,12 +837,19 @@ def _settle_tool(scene: Env, tip_body: str) -> None:
         free_v[model.jnt_dofadr[j] : model.jnt_dofadr[j] + n_v] = True
     pinned_q, pinned_v = ~free_q, ~free_v
     qpos, time = data.qpos.copy(), data.time
-    for k in range(_SETTLE_STEPS):
-        mujoco.mj_step(model, data)
-        data.qpos[pinned_q] = qpos[pinned_q]
-        data.qvel[pinned_v] = 0.0
-        if k > 10 and np.abs(data.qvel[free_v]).max() < 1e-4:
-            break
+    # A GripperDrive sets the fingers' speed through their damping (the Franka Hand's 0.8 s
+    # to open); placing them before the episode need not take the real hand's time.
+    damping = model.dof_damping[free_v].copy()
+    model.dof_damping[free_v] = damping * _SETTLE_DAMPING
+    try:
+        for k in range(_SETTLE_STEPS):
+            mujoco.mj_step(model, data)
+            data.qpos[pinned_q] = qpos[pinned_q]
+            data.qvel[pinned_v] = 0.0
+            if k > 10 and np.abs(data.qvel[free_v]).max() < 1e-4:
+                break
+    finally:
+        model.dof_damping[free_v] = damping
     data.qvel[:] = 0.0
     data.qacc_warmstart[:] = 0.0
     data.time = time

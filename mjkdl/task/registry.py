@@ -26,6 +26,7 @@ from ..spec import (
     AttachTarget,
     CameraSpec,
     Condim,
+    GripperDrive,
     PhysicsOptions,
     RobotSpec,
     SceneObject,
@@ -89,13 +90,19 @@ def panda_arm(name: str = "panda") -> ArmSpec:
 def panda_scene(objects: list[SceneObject]) -> SceneSpec:
     """Menagerie's Panda at the world origin on a floor, `objects`, a `front` camera facing
     the arm and a `wrist` camera on the hand looking between the fingers; contact options
-    for grasping (`PhysicsOptions.grasping()`)."""
+    for grasping (`PhysicsOptions.grasping()`) and the hand squeezing as the Franka Hand does
+    (`GripperDrive.franka_hand()`: 20 N per finger, 0.05 m/s)."""
     return SceneSpec(
         timestep=0.002,
         add_floor=True,
         add_skybox=False,
         physics=PhysicsOptions.grasping(),
-        robots=[RobotSpec(path=menagerie.model_path("franka_emika_panda"))],
+        robots=[
+            RobotSpec(
+                path=menagerie.model_path("franka_emika_panda"),
+                grippers=[GripperDrive.franka_hand()],
+            )
+        ],
         objects=objects,
         cameras=[
             CameraSpec(name="front", pos=[1.6, 0.0, 0.9], euler=[0.0, 65.0, 90.0], fovy=45.0),
@@ -329,7 +336,11 @@ class _Registered(TaskEnv):
             raise SpecError(f"camera_size must be (height, width), got {size!r}")
         h, w = integer(size[0], "camera_size[0]"), integer(size[1], "camera_size[1]")
         cams = names(given["camera_names"], "camera_names", "camera")
-        spec.sensors = [*spec.sensors, *(CameraSensor(c, width=w, height=h) for c in cams)]
+        depth = flag(given["camera_depth"], "camera_depth")
+        spec.sensors = [
+            *spec.sensors,
+            *(CameraSensor(c, width=w, height=h, depth=depth) for c in cams),
+        ]
         render = {k: given[k] for k in _RENDER}
         render.update(hardware)
         if goal is None:
@@ -348,7 +359,8 @@ class PandaReachEnv(_Registered, TaskEnv):
     Success (`info["is_success"]`): TCP within `success_distance` metres of the goal; the
     episode goes on unless `terminate_on_success`. `reward_type`: "dense" (`ReachReward`) or
     "sparse" (1 on success steps). `camera_names` (of "front", "wrist") add `{name}_rgb`
-    observations of `camera_size` (height, width).
+    observations of `camera_size` (height, width), and with `camera_depth` each camera's
+    `{name}_depth` (float32 metres along the optical axis, the same render).
     """
 
     def __init__(
@@ -365,6 +377,7 @@ class PandaReachEnv(_Registered, TaskEnv):
         terminate_on_success: bool = False,
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -400,6 +413,7 @@ class PandaPickCubeEnv(_Registered, TaskEnv):
         terminate_on_success: bool = True,
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -433,6 +447,7 @@ class PandaReachGoalEnv(_Registered, GoalTaskEnv):
         reward_type: str = "sparse",
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -471,6 +486,7 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         reward_type: str = "sparse",
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -514,6 +530,7 @@ class PandaPushEnv(_Registered, TaskEnv):
         terminate_on_success: bool = False,
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -555,6 +572,7 @@ class PandaPickAndPlaceEnv(_Registered, TaskEnv):
         terminate_on_success: bool = False,
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -595,6 +613,7 @@ class PandaStackEnv(_Registered, TaskEnv):
         terminate_on_success: bool = False,
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -628,6 +647,7 @@ class PandaPushGoalEnv(_Registered, GoalTaskEnv):
         reward_type: str = "sparse",
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -661,6 +681,7 @@ class PandaPickAndPlaceGoalEnv(_Registered, GoalTaskEnv):
         reward_type: str = "sparse",
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,
@@ -693,6 +714,7 @@ class PandaStackGoalEnv(_Registered, GoalTaskEnv):
         reward_type: str = "sparse",
         camera_names: Sequence[str] = (),
         camera_size: Sequence[int] = (128, 128),
+        camera_depth: bool = False,
         hide_observations: Sequence[str] = HIDDEN,
         render_camera: str = "front",
         render_width: int = 640,

@@ -301,9 +301,15 @@ class CameraReader(Reader):
         self._flags = flags
         self._rgb = self.buffers[f"{name}_rgb"]
         self._depth = self.buffers.get(f"{name}_depth")
+        self._warm = self._depth is None
         self.buffers[f"{name}_intrinsics"][:] = intrinsics(float(model.cam_fovy[cam]), w, h)
 
     def read(self) -> None:
+        if not self._warm:
+            # The first depth frame this camera renders differs from every later render of the
+            # same state by one float32 step in places (EGL, measured): render it twice.
+            self._warm = True
+            self.read()
         r = self._renderer(*self._size)
         flags = r.scene.flags  # the renderer is shared: set this camera's look every time
         flags[mujoco.mjtRndFlag.mjRND_SHADOW], flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = (
