@@ -51,7 +51,8 @@ class _Peer:
 
 
 class FrankaSimServer:
-    """A simulated Franka arm (and hand) at `host`, speaking protocols 10 and 5."""
+    """A simulated Franka arm (and hand) at `host`, speaking protocols 10 and 5; `scene`: what
+    it shares its world with (`scene.SCENES`: "pick", or "empty" for hardware in the loop)."""
 
     def __init__(
         self,
@@ -62,10 +63,13 @@ class FrankaSimServer:
         command_timeout: float = 1.0,
         robot_port: int = wire.ROBOT_PORT,
         gripper_port: int = wire.GRIPPER_PORT,
+        scene: str = "pick",
     ) -> None:
         if model not in MODELS:
             raise SpecError(f"model {model!r}: the simulator knows {sorted(MODELS)}")
+        spec = franka_scene(scene)  # a bad name fails before the ports are taken
         self.host = host
+        self.scene = scene
         self.lockstep = lockstep
         self.command_timeout = command_timeout
         # the ports first: a taken address fails before the scene is built
@@ -75,7 +79,7 @@ class FrankaSimServer:
         except AddressInUseError:
             self._robot_listener.close()
             raise
-        self.arm = SimulatedArm(franka_scene(), MODELS[model])
+        self.arm = SimulatedArm(spec, MODELS[model])
         self.hand = SimulatedHand(self.arm.env)
         self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._udp.bind((host, 0))
@@ -118,12 +122,13 @@ class FrankaSimServer:
     # -- the loop ----------------------------------------------------------------------------
     def serve_forever(self) -> None:
         log.info(
-            "franka_sim: %s on %s (robot port %d, hand port %d), %s",
+            "franka_sim: %s on %s (robot port %d, hand port %d), %s, scene %s",
             self.arm.limits.name,
             self.host,
             self._robot_listener.getsockname()[1],
             self._gripper_listener.getsockname()[1],
             "lockstep" if self.lockstep else "realtime 1 kHz",
+            self.scene,
         )
         next_tick = time.perf_counter()
         try:
@@ -472,6 +477,11 @@ class FrankaSimServer:
             status = wire.MoveStatus.COMMAND_NOT_POSSIBLE
         else:
             status = wire.MoveStatus.MOTION_STARTED
+            log.info(
+                "franka_sim: motion started: %s generator, %s controller",
+                generator.name.lower(),
+                controller.name.lower(),
+            )
             self._motion_id = command_id
             self._answering = False
             self._motion_started = time.perf_counter()
