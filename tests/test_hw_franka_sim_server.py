@@ -380,6 +380,36 @@ def test_cartesian_pose_example_draws_its_arc(server, sim_arm):
     np.testing.assert_allclose(moved, [0.3, 0.0, -0.3], atol=2e-3)
 
 
+def test_the_same_arc_under_the_robots_cartesian_impedance(server, sim_arm):
+    """The example's arc in ControllerMode.CartesianImpedance (the robot's Cartesian spring
+    pulls the hand along it): it ends where mjkdl's kinematics put the commanded pose and
+    follows it within a few millimetres (the spring lags the accelerating hand)."""
+    home(server)
+    out = client(
+        server,
+        """
+        ctrl = robot.start_cartesian_pose_control(plf.ControllerMode.CartesianImpedance)
+        state, _ = ctrl.readOnce()
+        start, t, lag = np.array(state.O_T_EE_d), 0.0, 0.0
+        while t < 5.0:
+            state, period = ctrl.readOnce()
+            lag = max(lag, np.linalg.norm(np.subtract(state.O_T_EE, state.O_T_EE_c)[12:15]))
+            t += period.to_sec()
+            angle = np.pi / 4 * (1 - np.cos(np.pi / 5.0 * t))
+            pose = start.copy()
+            pose[12] += 0.3 * np.sin(angle)
+            pose[14] += 0.3 * (np.cos(angle) - 1)
+            cmd = plf.CartesianPose(list(pose))
+            cmd.motion_finished = t >= 5.0
+            ctrl.writeOnce(cmd)
+        print(lag)
+        """,
+    )
+    assert float(out) < 0.005, out  # m
+    moved = ee_position(server, sim_arm) - sim_arm._ee_pose(START_Q)[:3, 3]
+    np.testing.assert_allclose(moved, [0.3, 0.0, -0.3], atol=2e-3)
+
+
 @needs_franky
 def test_franky_velocity_control_example(server, sim_arm):
     out = run_franka_example(FRANKY / "velocity_control.py", "--host", server)
