@@ -17,11 +17,12 @@ import socket
 import struct
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from mjkdl.errors import MjkdlError, SpecError
+from mjkdl.viewer.display import NoDisplayError, require_display
+from mjkdl.viewer.window import Window
 
 from . import wire
 from .arm import DT, LOST_CYCLES_LIMIT, SimulatedArm
@@ -68,6 +69,11 @@ class FrankaSimServer:
         if model not in MODELS:
             raise SpecError(f"model {model!r}: the simulator knows {sorted(MODELS)}")
         spec = franka_scene(scene)  # a bad name fails before the ports are taken
+        if viewer:
+            try:
+                require_display()
+            except NoDisplayError as err:
+                raise NoDisplayError(f"--viewer: {err}; or leave --viewer out") from err
         self.host = host
         self.scene = scene
         self.lockstep = lockstep
@@ -91,7 +97,9 @@ class FrankaSimServer:
         self.message_id = 0
         self._motion_id: int | None = None
         self._gripper_job_ids: int | None = None
-        self._viewer = self._open_viewer() if viewer else None
+        self._viewer: Window | None = None
+        if viewer:
+            self._viewer = self._open_viewer()
         self._running = True
         self._sent_moving = False  # the last state sent showed a motion running
         self._answering = False  # the running motion's client has sent a command
@@ -114,10 +122,12 @@ class FrankaSimServer:
         sock.setblocking(False)
         return sock
 
-    def _open_viewer(self) -> Any:
-        import mujoco.viewer
-
-        return mujoco.viewer.launch_passive(self.arm.env.model, self.arm.env.data)
+    def _open_viewer(self) -> Window:
+        try:
+            return Window.launch(self.arm.env.model, self.arm.env.data, on_key=lambda key: None)
+        except NoDisplayError:
+            self.close()
+            raise
 
     # -- the loop ----------------------------------------------------------------------------
     def serve_forever(self) -> None:
@@ -190,7 +200,7 @@ class FrankaSimServer:
             self._send_udp(self.hand.state(self.message_id), gripper.udp)
         viewer = self._viewer
         if viewer is not None and self.message_id % 16 == 0 and viewer.is_running():
-            viewer.sync()
+            viewer.sync(full=False)  # also takes back the window's perturbation forces
 
     def _publish_state(self) -> None:
         """Send the arm's state under the next message id."""
