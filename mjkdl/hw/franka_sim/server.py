@@ -35,6 +35,9 @@ log = logging.getLogger("mjkdl.hw.franka_sim")
 CONNECT_REPLY = struct.Struct("<BH")  # status, server version
 GRIPPER_CONNECT_REPLY = struct.Struct("<HH")
 GRIPPER_STATE_EVERY = 10  # cycles: the hand streams its state at 100 Hz
+# Lockstep, a motion's client not answering yet: states after the first few come this slowly.
+FIRST_COMMAND_FAST_CYCLES = 2
+FIRST_COMMAND_WAIT = 0.1  # s
 
 
 class AddressInUseError(MjkdlError, OSError):
@@ -104,6 +107,7 @@ class FrankaSimServer:
         self._sent_moving = False  # the last state sent showed a motion running
         self._answering = False  # the running motion's client has sent a command
         self._motion_started = 0.0  # perf_counter at the Move
+        self._waiting_cycles = 0  # cycles since the Move without a command (lockstep)
 
     def _listen(self, port: int) -> socket.socket:
         sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -143,20 +147,27 @@ class FrankaSimServer:
         next_tick = time.perf_counter()
         try:
             while self._running:
-                # Lockstep once the client answers: libfranka's first loop turn reads a state
-                # beyond the one that showed its motion started, so until its first command
-                # the states keep coming at 1 kHz (the arm holds still meanwhile).
+                # Lockstep once the client answers. Before its first command libfranka reads
+                # states beyond the one that showed its motion started (how many is the
+                # client's affair), so they keep coming while the arm holds still: the first
+                # few at 1 kHz, then slowly, so that a client stalled between two reads (a
+                # loaded machine) sees one cycle pass, as its motion generator assumes, not a
+                # jump of many.
+                waiting = self.lockstep and self._sent_moving and not self._answering
                 if self.lockstep and self._answering and self._sent_moving:
                     self._poll(0.0)
                     cmd = self._await_command()
+                    next_tick = time.perf_counter()
                 else:
-                    next_tick += DT
+                    slow = waiting and self._waiting_cycles >= FIRST_COMMAND_FAST_CYCLES
+                    next_tick += FIRST_COMMAND_WAIT if slow else DT
                     delay = next_tick - time.perf_counter()
                     if delay < -0.05:  # far behind (a stall): do not run to catch up
                         next_tick = time.perf_counter()
-                    self._poll(max(delay, 0.0))
+                    self._poll(max(delay, 0.0), udp=waiting)
                     cmd = self._latest_command()
                     self._check_first_command()
+                    self._waiting_cycles += waiting
                 if cmd is not None:
                     self._answering = True
                 self._cycle(cmd)
@@ -395,6 +406,8 @@ class FrankaSimServer:
             self._send(peer, wire.message(command, command_id, bytes([status])))
         else:
             status = 1 if self.arm.moving else self._setting(name, payload)
+            if status == 0:
+                self._publish_state()  # the new frames and load, before the reply (as above)
             self._send(peer, wire.message(command, command_id, bytes([status])))
 
     def _setting(self, name: wire.Command, payload: bytes) -> int:
@@ -494,6 +507,7 @@ class FrankaSimServer:
             )
             self._motion_id = command_id
             self._answering = False
+            self._waiting_cycles = 0
             self._motion_started = time.perf_counter()
         self._send(peer, wire.message(command, command_id, bytes([protocol.move_status(status)])))
 
