@@ -158,16 +158,18 @@ class FrankaSimServer:
                     self._poll(0.0)
                     cmd = self._await_command()
                     next_tick = time.perf_counter()
+                elif waiting and self._waiting_cycles >= FIRST_COMMAND_FAST_CYCLES:
+                    cmd = self._await_first_command()
+                    next_tick = time.perf_counter()
                 else:
-                    slow = waiting and self._waiting_cycles >= FIRST_COMMAND_FAST_CYCLES
-                    next_tick += FIRST_COMMAND_WAIT if slow else DT
+                    next_tick += DT
                     delay = next_tick - time.perf_counter()
                     if delay < -0.05:  # far behind (a stall): do not run to catch up
                         next_tick = time.perf_counter()
-                    self._poll(max(delay, 0.0), udp=waiting)
+                    self._poll(max(delay, 0.0))
                     cmd = self._latest_command()
                     self._check_first_command()
-                    self._waiting_cycles += waiting
+                self._waiting_cycles += waiting
                 if cmd is not None:
                     self._answering = True
                 self._cycle(cmd)
@@ -258,6 +260,21 @@ class FrankaSimServer:
                 self.command_timeout,
             )
             self.arm.reflex("communication_constraints_violation")
+
+    def _await_first_command(self) -> np.void | None:
+        """Lockstep, a motion's client not answering yet: its first command, or None once
+        `FIRST_COMMAND_WAIT` has passed (the next state then goes out)."""
+        deadline = time.perf_counter() + FIRST_COMMAND_WAIT
+        while self.robot is not None and self.arm.moving and self._running:
+            cmd = self._latest_command()
+            if cmd is not None:
+                return cmd
+            remaining = deadline - time.perf_counter()
+            if remaining <= 0.0:
+                break
+            self._poll(remaining, udp=True)
+        self._check_first_command()
+        return None
 
     def _await_command(self) -> np.void | None:
         """Lockstep: wait for the command answering the last state."""
