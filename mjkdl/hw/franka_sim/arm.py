@@ -392,7 +392,8 @@ class SimulatedArm:
         jt_pinv = np.linalg.pinv(jac.T, rcond=1e-3)
         nullspace = np.eye(7) - jac.T @ jt_pinv
         hold = NULLSPACE_STIFFNESS * (self.q_d - q) - 2.0 * np.sqrt(NULLSPACE_STIFFNESS) * dq
-        coriolis = self.robot.nonlinear_effects(q, dq) - self.robot.nonlinear_effects(q, 0 * dq)
+        robot = self.robot
+        coriolis = robot.nonlinear_effects(q, dq) - robot.nonlinear_effects(q, np.zeros_like(dq))
         return jac.T @ force + nullspace @ hold + coriolis
 
     def _check_measured(self, q: np.ndarray, dq: np.ndarray) -> None:
