@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -278,6 +279,17 @@ class FrankaSim:
     host: str
     proc: subprocess.Popen
     log: list[str]
+
+    def wait_for(self, text: str, timeout: float = 10.0) -> str:
+        """The first log line holding `text`; the log is read by a thread, so a line the
+        server wrote before its reply may not be in `log` yet when the reply comes."""
+        deadline = time.monotonic() + timeout
+        while True:
+            found = [line for line in self.log if text in line]
+            if found or time.monotonic() > deadline:
+                assert found, f"no {text!r} in the server's log: {self.log[-5:]}"
+                return found[0]
+            time.sleep(0.01)
 
 
 @contextmanager

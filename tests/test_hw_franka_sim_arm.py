@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+import mujoco
 import numpy as np
 import pytest
 
 from mjkdl.hw.franka_sim import wire
 from mjkdl.hw.franka_sim.arm import LOST_CYCLES_LIMIT, SimulatedArm
-from mjkdl.hw.franka_sim.limits import FR3
-from mjkdl.hw.franka_sim.scene import franka_scene
+from mjkdl.hw.franka_sim.limits import FR3, PANDA
+from mjkdl.hw.franka_sim.scene import START_Q, franka_scene
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +74,63 @@ def test_a_torque_step_is_a_torque_discontinuity(fr3):
     assert _errors(fr3) == ["controller_torque_discontinuity"]
     fr3.recover()
     assert fr3.robot_mode is wire.RobotMode.IDLE and not fr3.errors.any()
+
+
+# ---------------------------------------------------------------------- the external-force estimate
+
+
+@pytest.fixture(scope="module")
+def panda() -> Iterator[SimulatedArm]:
+    arm = SimulatedArm(franka_scene("empty"), PANDA)
+    yield arm
+    arm.env.close()
+
+
+def push_at_ee(arm: SimulatedArm, force: np.ndarray) -> np.ndarray:
+    """Push the hand with `force` (N, base frame) at the EE point (MuJoCo applies
+    `xfrc_applied` at the body's centre of mass: the lever arm's moment goes with it); the
+    point."""
+    d = arm.env.data
+    hand = arm.env.model.body("hand").id
+    at = arm._ee_pose(arm.q)[:3, 3]
+    d.xfrc_applied[hand, :3] = force
+    d.xfrc_applied[hand, 3:] = np.cross(at - d.xipos[hand], force)
+    return at
+
+
+def _settle(arm: SimulatedArm, cycles: int) -> None:
+    for _ in range(cycles):
+        arm.step(None)
+
+
+def test_a_push_on_the_hand_is_reported_as_the_arms_force_on_its_pusher(panda):
+    """libfranka's robot_state.h: O_F_ext_hat_K is the force the robot applies to the
+    environment (the push's negative), tau_ext_hat_filtered the joint torque beyond the model."""
+    d = panda.env.data
+    panda.recover()
+    push = np.array([6.0, -4.0, -10.0])  # N, on the hand at the EE point
+    at = push_at_ee(panda, push)
+    _settle(panda, 300)
+    jac = panda._ee_jacobian(panda.q)
+    np.testing.assert_allclose(panda.tau_ext, -jac.T @ np.r_[push, 0.0, 0.0, 0.0], atol=0.05)
+    np.testing.assert_allclose(panda.F_ext[:3], -push, atol=0.05)
+    np.testing.assert_allclose(panda.F_ext[3:], 0.0, atol=0.05)
+    assert np.linalg.norm(panda.O_T_EE[:3, 3] - at) < 0.005  # the lever arm hardly moved
+    d.xfrc_applied[:] = 0.0
+    _settle(panda, 300)
+    np.testing.assert_allclose(panda.tau_ext, 0.0, atol=1e-9)
+
+
+def test_joint_limits_are_not_external_forces(panda):
+    m, d = panda.env.model, panda.env.data
+    joint = m.joint("joint4")
+    d.qpos[joint.qposadr[0]] = joint.range[1] + 0.01  # past its range: MuJoCo's limit pushes
+    mujoco.mj_forward(m, d)
+    panda.robot.update()
+    panda.recover()  # the arm holds where it is
+    _settle(panda, 5)
+    assert abs(d.qfrc_constraint[panda._dofs[3]]) > 1.0  # N·m, the limit's
+    np.testing.assert_allclose(panda.tau_ext, 0.0, atol=1e-9)
+    np.testing.assert_allclose(panda.F_ext, 0.0, atol=1e-9)
+    panda.robot.set_joint_pos(START_Q)
+    panda.recover()

@@ -25,7 +25,7 @@ from conftest import FRANKA_EXAMPLES, FrankaSim, franka_sim, run_franka_example
 
 from mjkdl.errors import SpecError
 from mjkdl.hw.franka_sim import AddressInUseError, FrankaSimServer, wire
-from mjkdl.hw.franka_sim.arm import SimulatedArm
+from mjkdl.hw.franka_sim.arm import SUCCESS_WINDOW, SimulatedArm
 from mjkdl.hw.franka_sim.limits import PANDA
 from mjkdl.hw.franka_sim.scene import CUBE_AT, START_Q, franka_scene
 
@@ -295,7 +295,7 @@ def test_a_second_client_is_refused_and_the_log_says_why(sim):
         holder.kill()
         holder.wait()
     assert out == "NetworkException libfranka: TCP connection got interrupted.", out
-    assert any("refused a second client" in line for line in sim.log), sim.log[-3:]
+    sim.wait_for("refused a second client")
 
 
 def test_a_client_killed_mid_motion_leaves_the_arm_still(sim):
@@ -330,7 +330,7 @@ def test_a_client_killed_mid_motion_leaves_the_arm_still(sim):
     mode, speed, moved = out.split()
     assert mode == "RobotMode.Idle", out
     assert float(speed) < 1e-4 and abs(float(moved)) < 1e-4, out
-    assert any("mid-motion: the arm stops" in line for line in sim.log), sim.log[-3:]
+    sim.wait_for("mid-motion: the arm stops")
     client(sim.host, f"move_to({START_Q.tolist()}, 1.0)")
 
 
@@ -342,8 +342,8 @@ def test_a_client_of_another_protocol_version_is_told_both(sim):
     status, version = struct.unpack_from("<BH", reply, wire.HEADER.size)
     # libfranka turns this into IncompatibleVersionException(server 10, library 9)
     assert (command, command_id, size, status, version) == (0, 1, 15, 1, 10)
-    refusal = [line for line in sim.log if "speaks robot protocol 9" in line]
-    assert refusal and "speaks 10" in refusal[0] and "and 5" in refusal[0], sim.log[-3:]
+    refusal = sim.wait_for("speaks robot protocol 9")
+    assert "speaks 10" in refusal and "and 5" in refusal, refusal
 
 
 def test_nothing_listening_is_the_clients_network_exception():
@@ -352,25 +352,38 @@ def test_nothing_listening_is_the_clients_network_exception():
 
 
 def test_lost_commands_lower_the_success_rate_in_realtime():
+    """A client answering every other state: the success rate the robot reports (over its last
+    100 cycles) falls to 0.5 or below. A loaded machine also loses cycles of its own; 20 lost in
+    a row stop the motion, as on the robot, with communication_constraints_violation."""
     with franka_sim("--realtime") as rt:
         out = client(
             rt.host,
             """
+            import json
             ctrl = robot.start_joint_position_control(plf.ControllerMode.JointImpedance)
-            rates = []
-            for i in range(400):
-                state, _ = ctrl.readOnce()
-                rates.append(state.control_command_success_rate)
-                hold = plf.JointPositions(list(state.q_d))  # where the robot's generator is
-                if i % 2 == 0:  # every other cycle goes unanswered
-                    ctrl.writeOnce(hold)
-            hold.motion_finished = True
-            ctrl.writeOnce(hold)
-            print(min(rates[200:]), max(rates[200:]))
+            rates, error = [], ""
+            try:
+                for i in range(300):
+                    state, _ = ctrl.readOnce()
+                    rates.append(state.control_command_success_rate)
+                    hold = plf.JointPositions(list(state.q_d))  # where the generator is
+                    if i % 2 == 0:  # every other cycle goes unanswered
+                        ctrl.writeOnce(hold)
+                hold.motion_finished = True
+                ctrl.writeOnce(hold)
+            except plf.ControlException as e:
+                error = str(e)
+            print(json.dumps(dict(rates=rates, error=error)))
             """,
         )
-    low, high = (float(v) for v in out.split())
-    assert low > 0.0 and high <= 0.75, out
+    got = json.loads(out)
+    rates, error = np.array(got["rates"]), got["error"]
+    assert error == "" or '["communication_constraints_violation"]' in error, error
+    assert rates.min() > 0.0 and rates.max() <= 1.0, rates
+    # a full window of every-other (the first states show the window filled with successes)
+    late = rates[SUCCESS_WINDOW + 10 :]
+    assert error or late.size > 0, rates
+    assert np.all(late <= 0.5 + 0.02), late  # a state's own cycle may count before it is due
 
 
 def test_cartesian_pose_example_draws_its_arc(server, sim_arm):
@@ -378,6 +391,36 @@ def test_cartesian_pose_example_draws_its_arc(server, sim_arm):
     out = run_franka_example(PYLIBFRANKA / "cartesian_pose_example.py", "--ip", server, stdin="\n")
     assert "Finished motion" in out and "Error" not in out, out
     # a quarter circle of 0.3 m in x-z in 5 s: the hand ends 0.3 m forward, 0.3 m down
+    moved = ee_position(server, sim_arm) - sim_arm._ee_pose(START_Q)[:3, 3]
+    np.testing.assert_allclose(moved, [0.3, 0.0, -0.3], atol=2e-3)
+
+
+def test_the_same_arc_under_the_robots_cartesian_impedance(server, sim_arm):
+    """The example's arc in ControllerMode.CartesianImpedance (the robot's Cartesian spring
+    pulls the hand along it): it ends where mjkdl's kinematics put the commanded pose and
+    follows it within a few millimetres (the spring lags the accelerating hand)."""
+    home(server)
+    out = client(
+        server,
+        """
+        ctrl = robot.start_cartesian_pose_control(plf.ControllerMode.CartesianImpedance)
+        state, _ = ctrl.readOnce()
+        start, t, lag = np.array(state.O_T_EE_d), 0.0, 0.0
+        while t < 5.0:
+            state, period = ctrl.readOnce()
+            lag = max(lag, np.linalg.norm(np.subtract(state.O_T_EE, state.O_T_EE_c)[12:15]))
+            t += period.to_sec()
+            angle = np.pi / 4 * (1 - np.cos(np.pi / 5.0 * t))
+            pose = start.copy()
+            pose[12] += 0.3 * np.sin(angle)
+            pose[14] += 0.3 * (np.cos(angle) - 1)
+            cmd = plf.CartesianPose(list(pose))
+            cmd.motion_finished = t >= 5.0
+            ctrl.writeOnce(cmd)
+        print(lag)
+        """,
+    )
+    assert float(out) < 0.005, out  # m
     moved = ee_position(server, sim_arm) - sim_arm._ee_pose(START_Q)[:3, 3]
     np.testing.assert_allclose(moved, [0.3, 0.0, -0.3], atol=2e-3)
 

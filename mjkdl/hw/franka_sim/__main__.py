@@ -9,6 +9,7 @@ import sys
 
 from mjkdl.errors import MjkdlError
 
+from .scene import SCENES
 from .server import FrankaSimServer
 
 
@@ -38,6 +39,13 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="during a motion, each state waits for its command (deterministic)",
     )
+    parser.add_argument(
+        "--scene",
+        choices=SCENES,
+        default="pick",
+        help="pick: a floor, a table and a cube; empty: the arm alone, for hardware in the loop "
+        "(the client's scene simulates the rest) (default %(default)s)",
+    )
     parser.add_argument("--viewer", action="store_true", help="show the scene in MuJoCo's viewer")
     parser.add_argument(
         "--command-timeout",
@@ -54,6 +62,7 @@ def main(argv: list[str] | None = None) -> int:
             lockstep=args.lockstep,
             viewer=args.viewer,
             command_timeout=args.command_timeout,
+            scene=args.scene,
         )
     except MjkdlError as err:
         print(f"franka_sim: {err}", file=sys.stderr)

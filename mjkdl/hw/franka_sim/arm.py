@@ -23,6 +23,7 @@ CARTESIAN_STIFFNESS = np.array([3000.0, 3000.0, 3000.0, 300.0, 300.0, 300.0])
 TORQUE_THRESHOLDS = np.array([20.0, 20.0, 18.0, 18.0, 16.0, 14.0, 12.0])
 FORCE_THRESHOLDS = np.array([20.0, 20.0, 20.0, 25.0, 25.0, 25.0])
 GRAVITY = np.array([0.0, 0.0, -9.81])
+NULLSPACE_STIFFNESS = 10.0  # N·m/rad: the Cartesian impedance's hold of the elbow
 LOST_CYCLES_LIMIT = 20  # consecutive cycles without a command before the robot stops
 SUCCESS_WINDOW = 100  # cycles over which control_command_success_rate is reported
 # Relative slack on the limit checks: libfranka's own rate limiter brings commands to the limits
@@ -67,6 +68,7 @@ class SimulatedArm:
         d.qpos[self._finger_qpos] = 0.04  # the hand starts open
         mujoco.mj_forward(m, d)
         self._dofs = np.array([m.jnt_dofadr[m.joint(n).id] for n in ARM_JOINTS])
+        self._qfrc = np.zeros(m.nv)
         self.urdf = arm_urdf(m, limits)
         self.hand = hand_inertia(m, d)
         self._tcp_of_flange = np.linalg.inv(_hand_tcp())  # mjkdl's TCP → the flange
@@ -359,9 +361,40 @@ class SimulatedArm:
         """The robot's torque (gravity is added by the Robot handle, as the robot adds it)."""
         if self.controller is wire.ControllerMode.EXTERNAL:
             return self.tau_J_d.copy()
-        damping = 2.0 * np.sqrt(self.K_theta * self._mass_diag)
-        tau = self.K_theta * (self.q_d - q) + damping * (self.dq_d - dq)
+        if self.controller is wire.ControllerMode.CARTESIAN_IMPEDANCE and self.generator in (
+            wire.MotionGenerator.CARTESIAN_POSITION,
+            wire.MotionGenerator.CARTESIAN_VELOCITY,
+        ):
+            tau = self._cartesian_impedance(q, dq)
+        else:
+            damping = 2.0 * np.sqrt(self.K_theta * self._mass_diag)
+            tau = self.K_theta * (self.q_d - q) + damping * (self.dq_d - dq)
         return np.clip(tau, -self.limits.tau_max, self.limits.tau_max)
+
+    def _cartesian_impedance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """The robot's Cartesian impedance: a spring `K_x` (N/m, N·m/rad; axes of the stiffness
+        frame K) with damping 2·sqrt(K) pulls the EE to the generator's pose and twist, plus
+        Coriolis; the joint motion it leaves free (the nullspace) is held at the generator's
+        joint setpoint (the elbow), softly."""
+        pose = self._ee_pose(q)
+        jac = self._ee_jacobian(q)
+        target = self.O_T_EE_d
+        axes = (pose @ self.EE_T_K)[:3, :3]
+        err = np.concatenate(
+            [pose[:3, 3] - target[:3, 3], pin.log3(pose[:3, :3] @ target[:3, :3].T)]
+        )
+        err_dot = jac @ dq - self.O_dP_EE_d
+        force = np.empty(6)
+        for sl in (slice(0, 3), slice(3, 6)):
+            k = self.K_x[sl]
+            # in the K frame's axes, then back to the base frame's
+            force[sl] = axes @ (-k * (axes.T @ err[sl]) - 2.0 * np.sqrt(k) * (axes.T @ err_dot[sl]))
+        jt_pinv = np.linalg.pinv(jac.T, rcond=1e-3)
+        nullspace = np.eye(7) - jac.T @ jt_pinv
+        hold = NULLSPACE_STIFFNESS * (self.q_d - q) - 2.0 * np.sqrt(NULLSPACE_STIFFNESS) * dq
+        robot = self.robot
+        coriolis = robot.nonlinear_effects(q, dq) - robot.nonlinear_effects(q, np.zeros_like(dq))
+        return jac.T @ force + nullspace @ hold + coriolis
 
     def _check_measured(self, q: np.ndarray, dq: np.ndarray) -> None:
         """The safety controller and the collision reflexes, in every mode."""
@@ -375,19 +408,34 @@ class SimulatedArm:
             self.reflex("cartesian_reflex")
 
     def _measure(self, tau: np.ndarray) -> None:
-        d = self.env.data
         q = self.q
         self.tau_J = tau + self.robot.gravity_torques()
         self.dtau_J = (self.tau_J - self._tau_J_prev) / DT
         self._tau_J_prev = self.tau_J
-        # What the environment pushes on the arm with (contacts, joint limits), as the robot
-        # sees it: the torque it exerts beyond its model.
-        self.tau_ext = -d.qfrc_constraint[self._dofs]
+        self.tau_ext = self._external_torques()
         jac = self._ee_jacobian(q)
         self.F_ext = np.linalg.lstsq(jac.T, self.tau_ext, rcond=1e-3)[0]
         self.O_T_EE = self._ee_pose(q)
         if not self.moving:
             self.O_T_EE_d = self.O_T_EE.copy()
+
+    def _external_torques(self) -> np.ndarray:
+        """The robot's estimate tau_ext_hat: its joint torque beyond what its model needs, which
+        (libfranka's robot_state.h) is the torque the arm exerts on the environment: minus what
+        the environment's forces do at the joints. Here those are contacts and applied forces
+        (a push: `xfrc_applied`, the viewer's perturbation); MuJoCo's joint-limit and
+        equality constraints, damping and armature are the arm's own, not external."""
+        m, d = self.env.model, self.env.data
+        qfrc = self._qfrc
+        n = d.nefc
+        contact = d.efc_type[:n] >= int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
+        mujoco.mj_mulJacTVec(m, d, qfrc, np.where(contact, d.efc_force[:n], 0.0))
+        qfrc += d.qfrc_applied
+        for b in np.flatnonzero(np.any(d.xfrc_applied, axis=1)):
+            # at the body's centre of mass, as MuJoCo applies it
+            wrench = d.xfrc_applied[b]
+            mujoco.mj_applyFT(m, d, wrench[:3], wrench[3:], d.xipos[b], int(b), qfrc)
+        return -qfrc[self._dofs]
 
     # -- the state the robot sends --------------------------------------------------------------
     def write_state(self, s: np.ndarray, message_id: int) -> None:

@@ -1,6 +1,7 @@
-"""The simulated arm's world: an ordinary mjkdl scene (Menagerie's Panda with its hand, a table,
-a cube on it), and what the robot itself tells a client about it: the arm's URDF (from
-which libfranka >= 0.18 builds its dynamics model) and the hand's mass properties."""
+"""The simulated arm's world: an ordinary mjkdl scene (Menagerie's Panda with its hand; a floor, a
+table and a cube on it, or the arm alone for hardware in the loop), and what the robot itself
+tells a client about it: the arm's URDF (from which libfranka >= 0.18 builds its dynamics model)
+and the hand's mass properties."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import mujoco
 import numpy as np
 
 from mjkdl import menagerie
+from mjkdl.errors import SpecError
 from mjkdl.spec import Condim, RobotSpec, SceneObject, SceneSpec, Shape
 
 from .limits import ArmLimits
@@ -24,15 +26,27 @@ TABLE_TOP = 0.15  # m
 CUBE_AT = np.array([0.45, 0.45, TABLE_TOP + CUBE_HALF])  # beside the examples' x-z plane
 
 
-def franka_scene() -> SceneSpec:
-    """Panda (1 kHz, the robot's control rate) at the origin, a table in front of it, a 4 cm
-    cube on the table (`CUBE_AT`)."""
+# What the simulated arm shares its world with: "pick" a floor, a table and a cube to pick
+# through the protocol; "empty" nothing, for hardware in the loop, where the client's own scene
+# simulates everything but the arm (a second floor or cube here would push the arm where the
+# client's scene has nothing).
+SCENES = ("pick", "empty")
+
+
+def franka_scene(kind: str = "pick") -> SceneSpec:
+    """Panda (1 kHz, the robot's control rate) at the origin and, for `kind` "pick", a floor,
+    a table in front of it and a 4 cm cube on the table (`CUBE_AT`); "empty": the arm alone."""
+    if kind not in SCENES:
+        raise SpecError(f"scene {kind!r}: the simulator has the scenes {list(SCENES)}")
+    pick = kind == "pick"
     return SceneSpec(
         timestep=0.001,
-        add_floor=True,
+        add_floor=pick,
         add_skybox=False,
         robots=[RobotSpec(path=menagerie.model_path("franka_emika_panda"))],
-        objects=[
+        objects=[]
+        if not pick
+        else [
             SceneObject(
                 name="table",
                 shape=Shape.BOX,

@@ -17,11 +17,12 @@ import socket
 import struct
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from mjkdl.errors import MjkdlError, SpecError
+from mjkdl.viewer.display import NoDisplayError, require_display
+from mjkdl.viewer.window import Window
 
 from . import wire
 from .arm import DT, LOST_CYCLES_LIMIT, SimulatedArm
@@ -35,6 +36,9 @@ log = logging.getLogger("mjkdl.hw.franka_sim")
 CONNECT_REPLY = struct.Struct("<BH")  # status, server version
 GRIPPER_CONNECT_REPLY = struct.Struct("<HH")
 GRIPPER_STATE_EVERY = 10  # cycles: the hand streams its state at 100 Hz
+# Lockstep, a motion's client not answering yet: states after the first few come this slowly.
+FIRST_COMMAND_FAST_CYCLES = 2
+FIRST_COMMAND_WAIT = 0.1  # s
 
 
 class AddressInUseError(MjkdlError, OSError):
@@ -52,7 +56,8 @@ class _Peer:
 
 
 class FrankaSimServer:
-    """A simulated Franka arm (and hand) at `host`, speaking protocols 10 and 5."""
+    """A simulated Franka arm (and hand) at `host`, speaking protocols 10 and 5; `scene`: what
+    it shares its world with (`scene.SCENES`: "pick", or "empty" for hardware in the loop)."""
 
     def __init__(
         self,
@@ -63,10 +68,18 @@ class FrankaSimServer:
         command_timeout: float = 1.0,
         robot_port: int = wire.ROBOT_PORT,
         gripper_port: int = wire.GRIPPER_PORT,
+        scene: str = "pick",
     ) -> None:
         if model not in MODELS:
             raise SpecError(f"model {model!r}: the simulator knows {sorted(MODELS)}")
+        spec = franka_scene(scene)  # a bad name fails before the ports are taken
+        if viewer:
+            try:
+                require_display()
+            except NoDisplayError as err:
+                raise NoDisplayError(f"--viewer: {err}; or leave --viewer out") from err
         self.host = host
+        self.scene = scene
         self.lockstep = lockstep
         self.command_timeout = command_timeout
         # the ports first: a taken address fails before the scene is built
@@ -76,7 +89,7 @@ class FrankaSimServer:
         except AddressInUseError:
             self._robot_listener.close()
             raise
-        self.arm = SimulatedArm(franka_scene(), MODELS[model])
+        self.arm = SimulatedArm(spec, MODELS[model])
         self.hand = SimulatedHand(self.arm.env)
         self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._udp.bind((host, 0))
@@ -88,11 +101,14 @@ class FrankaSimServer:
         self.message_id = 0
         self._motion_id: int | None = None
         self._gripper_job_ids: int | None = None
-        self._viewer = self._open_viewer() if viewer else None
+        self._viewer: Window | None = None
+        if viewer:
+            self._viewer = self._open_viewer()
         self._running = True
         self._sent_moving = False  # the last state sent showed a motion running
         self._answering = False  # the running motion's client has sent a command
         self._motion_started = 0.0  # perf_counter at the Move
+        self._waiting_cycles = 0  # cycles since the Move without a command (lockstep)
 
     def _listen(self, port: int) -> socket.socket:
         sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -111,30 +127,41 @@ class FrankaSimServer:
         sock.setblocking(False)
         return sock
 
-    def _open_viewer(self) -> Any:
-        import mujoco.viewer
-
-        return mujoco.viewer.launch_passive(self.arm.env.model, self.arm.env.data)
+    def _open_viewer(self) -> Window:
+        try:
+            return Window.launch(self.arm.env.model, self.arm.env.data, on_key=lambda key: None)
+        except NoDisplayError:
+            self.close()
+            raise
 
     # -- the loop ----------------------------------------------------------------------------
     def serve_forever(self) -> None:
         log.info(
-            "franka_sim: %s on %s (robot port %d, hand port %d), %s",
+            "franka_sim: %s on %s (robot port %d, hand port %d), %s, scene %s",
             self.arm.limits.name,
             self.host,
             self._robot_listener.getsockname()[1],
             self._gripper_listener.getsockname()[1],
             "lockstep" if self.lockstep else "realtime 1 kHz",
+            self.scene,
         )
         next_tick = time.perf_counter()
         try:
             while self._running:
-                # Lockstep once the client answers: libfranka's first loop turn reads a state
-                # beyond the one that showed its motion started, so until its first command
-                # the states keep coming at 1 kHz (the arm holds still meanwhile).
+                # Lockstep once the client answers. Before its first command libfranka reads
+                # states beyond the one that showed its motion started (how many is the
+                # client's affair), so they keep coming while the arm holds still: the first
+                # few at 1 kHz, then slowly, so that a client stalled between two reads (a
+                # loaded machine) sees one cycle pass, as its motion generator assumes, not a
+                # jump of many.
+                waiting = self.lockstep and self._sent_moving and not self._answering
                 if self.lockstep and self._answering and self._sent_moving:
                     self._poll(0.0)
                     cmd = self._await_command()
+                    next_tick = time.perf_counter()
+                elif waiting and self._waiting_cycles >= FIRST_COMMAND_FAST_CYCLES:
+                    cmd = self._await_first_command()
+                    next_tick = time.perf_counter()
                 else:
                     next_tick += DT
                     delay = next_tick - time.perf_counter()
@@ -143,6 +170,7 @@ class FrankaSimServer:
                     self._poll(max(delay, 0.0))
                     cmd = self._latest_command()
                     self._check_first_command()
+                self._waiting_cycles += waiting
                 if cmd is not None:
                     self._answering = True
                 self._cycle(cmd)
@@ -186,7 +214,7 @@ class FrankaSimServer:
             self._send_udp(self.hand.state(self.message_id), gripper.udp)
         viewer = self._viewer
         if viewer is not None and self.message_id % 16 == 0 and viewer.is_running():
-            viewer.sync()
+            viewer.sync(full=False)  # also takes back the window's perturbation forces
 
     def _publish_state(self) -> None:
         """Send the arm's state under the next message id."""
@@ -233,6 +261,21 @@ class FrankaSimServer:
                 self.command_timeout,
             )
             self.arm.reflex("communication_constraints_violation")
+
+    def _await_first_command(self) -> np.void | None:
+        """Lockstep, a motion's client not answering yet: its first command, or None once
+        `FIRST_COMMAND_WAIT` has passed (the next state then goes out)."""
+        deadline = time.perf_counter() + FIRST_COMMAND_WAIT
+        while self.robot is not None and self.arm.moving and self._running:
+            cmd = self._latest_command()
+            if cmd is not None:
+                return cmd
+            remaining = deadline - time.perf_counter()
+            if remaining <= 0.0:
+                break
+            self._poll(remaining, udp=True)
+        self._check_first_command()
+        return None
 
     def _await_command(self) -> np.void | None:
         """Lockstep: wait for the command answering the last state."""
@@ -383,6 +426,8 @@ class FrankaSimServer:
             self._send(peer, wire.message(command, command_id, bytes([status])))
         else:
             status = 1 if self.arm.moving else self._setting(name, payload)
+            if status == 0:
+                self._publish_state()  # the new frames and load, before the reply (as above)
             self._send(peer, wire.message(command, command_id, bytes([status])))
 
     def _setting(self, name: wire.Command, payload: bytes) -> int:
@@ -475,8 +520,14 @@ class FrankaSimServer:
             status = wire.MoveStatus.COMMAND_NOT_POSSIBLE
         else:
             status = wire.MoveStatus.MOTION_STARTED
+            log.info(
+                "franka_sim: motion started: %s generator, %s controller",
+                generator.name.lower(),
+                controller.name.lower(),
+            )
             self._motion_id = command_id
             self._answering = False
+            self._waiting_cycles = 0
             self._motion_started = time.perf_counter()
         self._send(peer, wire.message(command, command_id, bytes([protocol.move_status(status)])))
 
