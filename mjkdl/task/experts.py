@@ -24,6 +24,7 @@ from .registry import CUBE_HALF, LIFT, TASKS
 from .spec import Actuation
 
 _DOWN = np.array([0.0, 0.0, -1.0])
+GRASP_RAISE = 0.004  # m: the TCP over a floor cube's centre at the grasp (fingertips clear)
 
 
 class Expert(Protocol):
@@ -129,6 +130,9 @@ class PickCubeExpert:
     ) -> None:
         self._out = _Cartesian(env)
         self._gain, self._hover, self._lift_gain = gain, hover, lift_gain
+        # The Panda's fingertips reach 21 mm below its TCP: grasping a cube on the floor at
+        # its centre would press them into the floor (a real table), so grasp above it.
+        self._grasp_offset = np.array([0.0, 0.0, GRASP_RAISE])
         names = env.observation_space.spaces
         self._goal = "desired_goal" if "desired_goal" in names else "target_pose"
         self.reset()
@@ -155,11 +159,11 @@ class PickCubeExpert:
             if math.hypot(err[0], err[1]) < 0.01 and abs(err[2]) < 0.02 and abs(yaw_err) < 0.05:
                 self.phase = _Phase.DESCEND
         if self.phase is _Phase.DESCEND:
-            target = cube.copy()
+            target = cube + self._grasp_offset
             if np.linalg.norm(target - tcp) < 0.01:
                 self.phase, self._closing = _Phase.CLOSE, 0
         if self.phase is _Phase.CLOSE:
-            target, close = cube.copy(), True
+            target, close = cube + self._grasp_offset, True
             self._closing += 1
             if self._closing >= 4 and held:
                 self.phase = _Phase.LIFT
