@@ -37,6 +37,12 @@ from ..errors import SpecError
 from .faults import ArmConnectionError, HardwareError, WatchdogWarning, translate
 from .rate_limit import RateLimiter, limits_for, number_view
 
+# The control process's entry. Not `python -m` this module: importing mjkdl imports it first,
+# and runpy then warns that the module runs twice.
+_CHILD = (
+    "import sys; from mjkdl.hw.connection import _control_process; _control_process(sys.argv[1:])"
+)
+
 POSITION, VELOCITY, TORQUE = 0, 1, 2
 # The command block: [seq, mode, stop, cmd x7]
 _C_SEQ, _C_MODE, _C_STOP, _C_CMD = 0, 1, 2, 3
@@ -129,7 +135,7 @@ class ArmConnection:
         args = [address, model, client, str(self.watchdog), str(int(realtime)), self._path]
         args.append(thresholds)
         self._proc = subprocess.Popen(
-            [sys.executable, "-m", __name__, *args, str(os.getpid()), str(self._events.child)],
+            [sys.executable, "-c", _CHILD, *args, str(os.getpid()), str(self._events.child)],
             pass_fds=(self._events.child,),
         )
         self._events.started()
@@ -603,7 +609,3 @@ def _blocks(shared: mmap.mmap) -> tuple[np.ndarray, np.ndarray]:
     cmd = np.ndarray((_C_LEN,), dtype=np.float64, buffer=shared)
     state = np.ndarray((_S_LEN,), dtype=np.float64, buffer=shared, offset=8 * _C_LEN)
     return cmd, state
-
-
-if __name__ == "__main__":
-    _control_process(sys.argv[1:])
