@@ -9,7 +9,9 @@ per world, and the cost per world of the task's reward and success: evaluated fo
 on the device (as `step` does) against each world's rules called on the host (as `step` did
 before). Cameras: frames/s of MuJoCo Warp's renderer for all worlds against MuJoCo's OpenGL
 renderer (the CPU env's) one world at a time. First-call time (kernel compile) is measured in
-fresh subprocesses: with an empty kernel cache and with the one the first filled.
+fresh subprocesses: with an empty kernel cache and with the one the first filled. The timed
+steps run after two warm ones (kernels loaded, physics captured as a graph) with the worlds'
+episodes spread over the time limit, so about 1 % of the worlds restart in each.
 
     python benchmarks/batch.py                       # CPU device, 1..256 worlds
     python benchmarks/batch.py --device cuda --worlds 1 64 1024 8192
@@ -88,8 +90,11 @@ def rules(envs: object, reps: int) -> tuple[float, float]:
     return device * 1e6, baseline * 1e6
 
 
-def batch(n: int, steps: int, device: str) -> tuple[float, float, float, tuple[float, float]]:
-    """(control steps/s over all worlds, reset s per world, data bytes per world, `rules`)."""
+def batch(n: int, steps: int, device: str) -> tuple[float, float, float, int, tuple[float, float]]:
+    """(control steps/s over all worlds, reset s per world, data bytes per world, episodes
+    restarted in the timed steps, `rules`). The worlds' episodes are spread over the time
+    limit first, as a learner spreads them, so the timed steps restart about n/100 worlds
+    each (their starts computed ahead, as in training)."""
     import torch
 
     from mjkdl.task.batch import make_batch, world_bytes
@@ -100,16 +105,23 @@ def batch(n: int, steps: int, device: str) -> tuple[float, float, float, tuple[f
     reset = (time.perf_counter() - start) / n
     per_world, _ = world_bytes(envs.host.scene.model, envs.host.scene.data, device, None, None)
     gen = torch.Generator(device=device).manual_seed(0)
-    envs.step(torch.rand(n, 7, generator=gen, device=device) * 2 - 1)  # warm
+    for _ in range(2):  # warm: the kernels load, then the physics is captured as a graph
+        envs.step(torch.rand(n, 7, generator=gen, device=device) * 2 - 1)
+    horizon = envs.max_episode_steps or 100
+    envs.episode_steps[:] = torch.randint(0, horizon, (n,), generator=gen, device=device)
+    restarts = 0
     start = time.perf_counter()
     for _ in range(steps):
-        envs.step(torch.rand(n, 7, generator=gen, device=device) * 2 - 1)
+        _, _, terminated, truncated, _ = envs.step(
+            torch.rand(n, 7, generator=gen, device=device) * 2 - 1
+        )
+        restarts += int((terminated | truncated).sum())
     if device.startswith("cuda"):
         torch.cuda.synchronize()
     rate = n * steps / (time.perf_counter() - start)
     evaluation = rules(envs, 5)
     envs.close()
-    return rate, reset, per_world, evaluation
+    return rate, reset, per_world, restarts, evaluation
 
 
 def cameras(n: int, size: int, reps: int, device: str) -> tuple[float, float]:
@@ -162,13 +174,14 @@ import torch
 start = time.perf_counter()
 envs = make_batch({task!r}, 4, device={device!r})
 envs.reset(seed=0)
-envs.step(torch.zeros(4, 7))
+for _ in range(2):  # the kernels load, then the physics is captured
+    envs.step(torch.zeros(4, 7))
 print(time.perf_counter() - start)
 """
 
 
 def first_call(device: str, cache: str) -> float:
-    """Seconds from `make_batch` to the end of the first step, in a fresh process with the
+    """Seconds from `make_batch` to the end of the second step, in a fresh process with the
     Warp kernel cache at `cache`."""
     env = {**os.environ, "WARP_CACHE_PATH": cache}
     code = _FIRST_CALL.format(task=TASK, device=device)
@@ -187,7 +200,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="", help="cuda or cpu (default: cuda if present)")
     parser.add_argument("--worlds", type=int, nargs="+", default=[1, 4, 16, 64, 256])
-    parser.add_argument("--steps", type=int, default=3, help="timed control steps per size")
+    parser.add_argument("--steps", type=int, default=10, help="timed control steps per size")
     parser.add_argument("--cpu-steps", type=int, default=20, help="timed CPU env steps")
     parser.add_argument("--vector-envs", type=int, default=4, help="CPU vector env size")
     parser.add_argument("--no-compile", action="store_true", help="skip the first-call runs")
@@ -210,14 +223,14 @@ def main() -> None:
     vec = cpu_vector(k, max(1, args.cpu_steps // 2))
     print(f"CPU sync vector env of {k}:     {vec:8.1f} control steps/s  ({vec / base:.2f}x)")
     print(
-        "worlds  control steps/s  world-steps/s   vs CPU env  reset s/world  KiB/world"
-        "  rules us/world (device | host loop)"
+        "worlds  control steps/s  world-steps/s   vs CPU env  restarts  reset s/world"
+        "  KiB/world  rules us/world (device | host loop)"
     )
     for n in args.worlds:
-        rate, reset, per_world, (dev_us, host_us) = batch(n, args.steps, device)
+        rate, reset, per_world, restarts, (dev_us, host_us) = batch(n, args.steps, device)
         print(
             f"{n:6d}  {rate:15.1f}  {rate * SUBSTEPS:13.0f}  {rate / base:9.2f}x"
-            f"  {reset:13.3f}  {per_world / 1024:9.0f}"
+            f"  {restarts:8d}  {reset:13.3f}  {per_world / 1024:9.0f}"
             f"  {dev_us:7.2f} | {host_us:6.1f} ({host_us / dev_us:.0f}x)"
         )
     size = args.camera_size
@@ -233,7 +246,7 @@ def main() -> None:
             cold = first_call(device, cache)
             warm = first_call(device, cache)
         print(
-            f"first call (4 worlds, build+reset+step): {cold:.1f} s empty kernel cache, "
+            f"first call (4 worlds, build+reset+2 steps): {cold:.1f} s empty kernel cache, "
             f"{warm:.1f} s cached ({cold / warm:.1f}x)"
         )
 

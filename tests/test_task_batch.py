@@ -175,6 +175,70 @@ def test_a_plain_callable_runs_on_the_host() -> None:
         cpu_env.close()
 
 
+def _joint_trajectory(batch, actions: np.ndarray) -> torch.Tensor:
+    batch.reset(seed=SEED)
+    out = []
+    for a in actions:
+        obs, *_ = batch.step(torch.as_tensor(a))
+        out.append(obs["panda_joint_pos"].clone())
+    return torch.stack(out)
+
+
+def test_the_physics_replays_as_a_graph_and_a_failed_capture_only_warns(monkeypatch) -> None:
+    """From the second step on the physics replays as one captured graph: the same numbers
+    as launching the kernels one by one, across an auto-reset; if Warp cannot capture, the
+    batch says why and launches them one by one."""
+    import warp as wp
+
+    actions = np.random.default_rng(5).uniform(-1, 1, (6, WORLDS, 7)).astype(np.float32)
+    captured = make_batch("mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.4)
+    try:
+        ref = _joint_trajectory(captured, actions)
+        assert captured.state.captured
+    finally:
+        captured.close()
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise RuntimeError("graphs refused here")
+
+    monkeypatch.setattr(wp, "ScopedCapture", refuse)
+    eager = make_batch("mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.4)
+    try:
+        with pytest.warns(UserWarning, match=r"could not be captured as a graph \(graphs refused"):
+            got = _joint_trajectory(eager, actions)
+        assert not eager.state.captured
+    finally:
+        eager.close()
+    assert torch.equal(ref, got)
+
+
+def test_every_restart_is_the_cpu_envs_next_reset() -> None:
+    """Each world's next start is computed ahead (while the device steps); over three
+    episodes a world starts exactly where the CPU env's resets after `reset(seed)` do, and a
+    second `reset(seed)` starts the first episodes again."""
+    batch = make_batch("mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.2)
+    cpu_env = gym.make("mjkdl/PandaPickCube-v0", time_limit=0.2).unwrapped
+    try:
+        first, _ = batch.reset(seed=SEED)
+        starts = [first["cube_pose"].clone()]
+        zero = torch.zeros(WORLDS, 7)
+        for _ in range(4):  # two episodes of two steps
+            obs, _, terminated, truncated, _ = batch.step(zero)
+            if bool((terminated | truncated).all()):
+                starts.append(obs["cube_pose"].clone())
+        assert len(starts) == 3
+        for i in range(WORLDS):
+            for k in range(3):
+                ref = cpu_env.reset(seed=SEED + i)[0] if k == 0 else cpu_env.reset()[0]
+                gap = np.abs(starts[k][i].numpy() - ref["cube_pose"]).max()
+                assert gap < POS_TOL, (i, k, gap)
+        again, _ = batch.reset(seed=SEED)
+        assert torch.equal(again["cube_pose"], first["cube_pose"])
+    finally:
+        batch.close()
+        cpu_env.close()
+
+
 def test_observations_are_device_tensors_and_the_vector_face() -> None:
     batch = make_batch("mjkdl/PandaReach-v0", 3, device="cpu")
     try:

@@ -5,7 +5,8 @@ same `TaskSpec` (or registered id and parameters) and takes from it the compiled
 action layout, the observation readers, the arms' controllers and the task's own reward,
 success and termination callables. Resets run the CPU env's reset on the host, world by
 world with the world's own generator, and upload the state, so world `i` after
-`reset(seed=s)` starts the episode `TaskEnv.reset(seed=s + i)` starts.
+`reset(seed=s)` starts the episode `TaskEnv.reset(seed=s + i)` starts; each world's next
+start is computed ahead, while the device steps (`batch_reset.EpisodeStarts`).
 """
 
 from __future__ import annotations
@@ -17,12 +18,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch
-from gymnasium.utils.seeding import np_random
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from ..errors import MjkdlError, SpecError, SpecTypeError
 from .batch_cameras import image_bytes
 from .batch_control import BatchArm
+from .batch_reset import EpisodeStarts
 from .batch_sensors import BatchObserver
 from .batch_state import (
     DeviceState,
@@ -193,7 +194,7 @@ class BatchEnv(VectorEnv):
             self._half = torch.as_tensor(0.5 * (high - low), device=dev, dtype=torch.float32)
         self._steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._held = torch.zeros(num_envs, dtype=torch.long, device=dev)
-        self._rngs: list[np.random.Generator] = [np_random(i)[0] for i in range(num_envs)]
+        self.starts = EpisodeStarts(host, self.state, self.arms, num_envs)
         self.single_observation_space = host.observation_space
         self.single_action_space = host.action_space
         self.observation_space = gym.vector.utils.batch_space(
@@ -230,7 +231,7 @@ class BatchEnv(VectorEnv):
                 seeds = [int(seed) + i for i in range(self.num_envs)]
             if len(seeds) != self.num_envs:
                 raise SpecError(f"reset(seed=[...]) needs {self.num_envs} seeds, got {len(seeds)}")
-            self._rngs = [np_random(int(s))[0] for s in seeds]
+            self.starts.seed(seeds)
         rows = torch.ones(self.num_envs, dtype=torch.bool, device=self.device)
         self._reset_rows(rows)
         self._needs_reset = False
@@ -248,7 +249,7 @@ class BatchEnv(VectorEnv):
         a = self._checked(actions)
         for arm in self.arms:
             arm.apply(a, self._period)
-        self.state.step(self._substeps)
+        self.state.step(self._substeps, meanwhile=self.starts.prefetch)
         s = self.state
         diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1))
         obs = self.observer.read()
@@ -287,23 +288,10 @@ class BatchEnv(VectorEnv):
         return shown, reward, terminated, truncated, info
 
     def _reset_rows(self, rows: torch.Tensor) -> None:
-        """Run the CPU env's reset for each world in `rows` with that world's generator and
-        upload the state; then one `mj_forward` of every world."""
-        host, s = self.host, self.state
-        ids = torch.nonzero(rows).flatten().tolist()
-        q_cmd = [np.empty((len(ids), arm.n)) for arm in self.arms]
-        qd = [np.empty((len(ids), arm.n)) for arm in self.arms]
-        for k, i in enumerate(ids):
-            host.np_random = self._rngs[i]
-            host.reset()
-            s.upload(i, host.scene.data)
-            for j, eff in enumerate(host.effectors):
-                q_cmd[j][k] = eff.robot.jnt_pos_cmd
-                qd[j][k] = eff.robot.jnt_vel_msr
-        idx = torch.as_tensor(ids, device=self.device, dtype=torch.long)
-        for j, arm in enumerate(self.arms):
-            arm.reset_rows(idx, q_cmd[j], qd[j])
-        s.forward(keep=~rows)
+        """Worlds `rows` start their next episode (the CPU env's reset with the world's
+        generator, `EpisodeStarts`); then one `mj_forward` of every world."""
+        self.starts.start(rows)
+        self.state.forward(keep=~rows)
         self._steps[rows] = 0
         self._held[rows] = 0
 

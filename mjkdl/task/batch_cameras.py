@@ -91,9 +91,9 @@ class BatchCameras:
 
     def read(self) -> dict[str, torch.Tensor]:
         """Render the worlds' current state; every camera's observations, by name."""
-        wp, mjw = warp_modules()
+        _, mjw = warp_modules()
         s = self._state
-        with wp.ScopedDevice(wp.get_device(s.device)):
+        with s.warp():
             mjw.camlight(s.model, s.data)  # the cameras' poses of this state
             mjw.refit_bvh(s.model, s.data, self._context)
             mjw.render(s.model, s.data, self._context)
