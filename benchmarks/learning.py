@@ -7,12 +7,16 @@ On demand, not in CI (minutes to an hour on 2 cores). Needs the `rl` extra:
     python benchmarks/learning.py her-reach            # SAC + HER on PandaReachGoal-v0, 30k steps
     python benchmarks/learning.py bc-pick              # behaviour cloning of the expert, PickCube
     python benchmarks/learning.py rslrl-pick --device cuda   # rsl-rl PPO on many worlds
+    python benchmarks/learning.py rslrl-pick --device cuda --minutes 10 --chunks 10  # by time
+    python benchmarks/learning.py rslrl-place --device cuda --minutes 30 --chunks 15
     python benchmarks/learning.py rslrl-reach --device cpu --envs 8 --iterations 2  # tiny
     python benchmarks/learning.py plot                 # docs/learning.png from the saved curves
 
 The `rslrl-*` runs need the `warp-rl` extra: PPO (rsl-rl) on `mjkdl.task.make_batch`'s
 worlds with the task's recipe (`mjkdl.task.batch_ppo`), evaluated on the CPU env. Their goal on
-one H100: PickCube >= 90 % success within 10 minutes of wall time (not measured here: no GPU).
+one H100: PickCube >= 90 % success within 10 minutes of wall time, PickAndPlace >= 80 % within
+30 (`--minutes`: training wall time, the evaluations on the CPU env not counted; not measured
+here: no GPU was lent).
 
 Each run evaluates the deterministic policy on 20 held-out seeds (10000..10019) at checkpoints
 and writes its curve, with wall time and steps/s of training and of the env alone, to
@@ -72,9 +76,14 @@ def env_steps_per_second(env_id: str, steps: int = 2000) -> float:
     return rate
 
 
-def save(run: str, record: dict[str, Any]) -> None:
+def write(run: str, record: dict[str, Any]) -> None:
+    """`record` to `<results>/<run>.json`."""
     RESULTS[0].mkdir(parents=True, exist_ok=True)
     (RESULTS[0] / f"{run}.json").write_text(json.dumps(record, indent=1))
+
+
+def save(run: str, record: dict[str, Any]) -> None:
+    write(run, record)
     last = record["curve"][-1]
     print(
         f"{run}: {last['success']:.0%} success after {last['steps']} steps, "
@@ -271,9 +280,13 @@ def bc_pick(demos: int, epochs: int, noise: float) -> None:
     )
 
 
-def rslrl_run(run: str, env_id: str, device: str, envs: int, iterations: int, chunks: int):
+def rslrl_run(
+    run: str, env_id: str, device: str, envs: int, iterations: int, chunks: int, minutes: float
+):
     """rsl-rl PPO on `envs` worlds of `env_id` (the task's recipe), evaluated on the CPU env
-    after each of `chunks` equal parts of `iterations`."""
+    after each of `chunks` equal parts of `iterations`; with `minutes`, instead for that much
+    training wall time, evaluated about every `minutes / chunks`. The curve is saved after
+    every evaluation, so a run stopped from outside keeps what it measured."""
     import torch
     from rsl_rl.runners import OnPolicyRunner
     from tensordict import TensorDict
@@ -292,12 +305,24 @@ def rslrl_run(run: str, env_id: str, device: str, envs: int, iterations: int, ch
     curve: list[dict[str, float]] = []
     train_seconds, done = 0.0, 0
     start = time.perf_counter()
-    for k in range(chunks):
-        part = iterations * (k + 1) // chunks - done
-        t = time.perf_counter()
-        runner.learn(num_learning_iterations=part)
-        train_seconds += time.perf_counter() - t
-        done += part
+    record = {"run": run, "env_id": env_id, "device": str(batch.device), "num_envs": envs}
+    budget = 60.0 * minutes
+    for k in range(10**9 if budget else chunks):
+        if budget:
+            if train_seconds >= budget:
+                break
+            t = time.perf_counter()
+            while time.perf_counter() - t < budget / chunks and train_seconds < budget:
+                step = time.perf_counter()
+                runner.learn(num_learning_iterations=1)
+                train_seconds += time.perf_counter() - step
+                done += 1
+        else:
+            part = iterations * (k + 1) // chunks - done
+            t = time.perf_counter()
+            runner.learn(num_learning_iterations=part)
+            train_seconds += time.perf_counter() - t
+            done += part
         policy_net = runner.get_inference_policy("cpu")
 
         def policy(obs: dict[str, np.ndarray], policy_net: Any = policy_net) -> np.ndarray:
@@ -309,13 +334,11 @@ def rslrl_run(run: str, env_id: str, device: str, envs: int, iterations: int, ch
         steps = envs * r.num_steps_per_env * done
         rate = evaluate(env_id, policy)
         curve.append({"steps": steps, "success": rate, "seconds": train_seconds})
-        print(f"  {steps:>9} steps: {rate:.0%} ({train_seconds:.0f} s)")
+        print(f"  {steps:>9} steps: {rate:.0%} ({train_seconds:.0f} s)", flush=True)
+        write(run, {**record, "curve": curve, "train_seconds": train_seconds})
     batch.close()
     return {
-        "run": run,
-        "env_id": env_id,
-        "device": str(batch.device),
-        "num_envs": envs,
+        **record,
         "curve": curve,
         "wall_seconds": time.perf_counter() - start,
         "train_seconds": train_seconds,
@@ -351,7 +374,16 @@ def plot() -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "run", choices=["ppo-reach", "her-reach", "bc-pick", "rslrl-reach", "rslrl-pick", "plot"]
+        "run",
+        choices=[
+            "ppo-reach",
+            "her-reach",
+            "bc-pick",
+            "rslrl-reach",
+            "rslrl-pick",
+            "rslrl-place",
+            "plot",
+        ],
     )
     parser.add_argument("--device", default="cuda", help="rslrl-*: MuJoCo Warp's device")
     parser.add_argument("--envs", type=int, default=0, help="rslrl-*: worlds (0: recipe's)")
@@ -359,6 +391,9 @@ def main() -> None:
         "--iterations", type=int, default=0, help="rslrl-*: PPO iterations (0: recipe's)"
     )
     parser.add_argument("--chunks", type=int, default=1, help="rslrl-*: evaluations")
+    parser.add_argument(
+        "--minutes", type=float, default=0.0, help="rslrl-*: train this long (not --iterations)"
+    )
     parser.add_argument("--steps", type=int, default=0, help="training steps (0: the run's own)")
     parser.add_argument("--demos", type=int, default=300, help="bc-pick: expert episodes")
     parser.add_argument("--epochs", type=int, default=50, help="bc-pick: training epochs")
@@ -381,9 +416,19 @@ def main() -> None:
     elif args.run == "her-reach":
         her_reach(args.steps or 30_000)
     elif args.run.startswith("rslrl-"):
-        task = {"rslrl-reach": "mjkdl/PandaReach-v0", "rslrl-pick": "mjkdl/PandaPickCube-v0"}
+        task = {
+            "rslrl-reach": "mjkdl/PandaReach-v0",
+            "rslrl-pick": "mjkdl/PandaPickCube-v0",
+            "rslrl-place": "mjkdl/PandaPickAndPlace-v0",
+        }
         record = rslrl_run(
-            args.run, task[args.run], args.device, args.envs, args.iterations, args.chunks
+            args.run,
+            task[args.run],
+            args.device,
+            args.envs,
+            args.iterations,
+            args.chunks,
+            args.minutes,
         )
         save(args.run, record)
     elif args.run == "bc-pick":

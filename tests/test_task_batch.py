@@ -9,11 +9,12 @@ import pytest
 pytest.importorskip("mujoco_warp")
 torch = pytest.importorskip("torch")
 
-from mjkdl.errors import SpecError  # noqa: E402
+from mjkdl.errors import SimulationError, SpecError  # noqa: E402
 from mjkdl.task import make_batch, registry  # noqa: E402
 from mjkdl.task.batch import DeviceUnavailableError  # noqa: E402
 from mjkdl.task.batch_state import UnsupportedFeatureError, mat_to_quat  # noqa: E402
 from mjkdl.task.env import TaskEnv  # noqa: E402
+from mjkdl.task.experts import expert_for  # noqa: E402
 from mjkdl.task.initializers import PhysicsRandomizer  # noqa: E402
 from mjkdl.task.rewards import batchable  # noqa: E402
 from mjkdl.task.spec import Actuation, CameraSensor  # noqa: E402
@@ -239,6 +240,58 @@ def test_every_restart_is_the_cpu_envs_next_reset() -> None:
         cpu_env.close()
 
 
+def _expert_episode(task_id: str, seed: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The expert's actions over a whole CPU-env episode, and the cube's position after each."""
+    env = gym.make(task_id)
+    expert = expert_for(env)
+    obs, _ = env.reset(seed=seed)
+    actions, cubes = [], []
+    for _ in range(100):
+        actions.append(expert(obs))
+        obs, _, terminated, truncated, info = env.step(actions[-1])
+        cubes.append(obs["cube_pose"][:3].copy())
+        if terminated or truncated:
+            break
+    env.close()
+    assert info["is_success"], "the expert failed on the CPU env"
+    return np.array(actions), cubes
+
+
+def test_a_whole_grasp_and_lift_matches_the_cpu_env() -> None:
+    """The expert's PickCube episode (grasp, lift, hold) replayed in the batch: the cube
+    follows the CPU env's within 1e-4 m at every step, and the batch ends the episode with
+    success in the same step."""
+    actions, cubes = _expert_episode("mjkdl/PandaPickCube-v0", 3)
+    batch = make_batch("mjkdl/PandaPickCube-v0", 1, device="cpu")
+    try:
+        batch.reset(seed=3)
+        for k, a in enumerate(actions):
+            obs, _, terminated, _, info = batch.step(torch.as_tensor(a)[None])
+            if k < len(actions) - 1:
+                gap = np.abs(obs["cube_pose"][0, :3].numpy() - cubes[k]).max()
+                assert gap < 1e-4 and not bool(terminated[0]), (k, gap)
+        assert bool(terminated[0]) and bool(info["final_info"]["is_success"][0])
+        final = info["final_obs"]["cube_pose"][0, :3].numpy()
+        assert np.abs(final - cubes[-1]).max() < 1e-4
+        assert cubes[-1][2] > 0.05  # lifted
+    finally:
+        batch.close()
+
+
+def test_a_world_out_of_constraint_rows_raises_and_names_the_fix() -> None:
+    """MuJoCo Warp drops the constraint rows that do not fit: the grasp's 129 rows in 64
+    (MuJoCo Warp's own default for this scene) raise instead of moving on."""
+    actions, _ = _expert_episode("mjkdl/PandaPickCube-v0", 3)
+    batch = make_batch("mjkdl/PandaPickCube-v0", 1, device="cpu", njmax=64)
+    try:
+        batch.reset(seed=3)
+        with pytest.raises(SimulationError, match=r"world 0: NEFC.*larger njmax.*now 64"):
+            for a in actions:
+                batch.step(torch.as_tensor(a)[None])
+    finally:
+        batch.close()
+
+
 def test_observations_are_device_tensors_and_the_vector_face() -> None:
     batch = make_batch("mjkdl/PandaReach-v0", 3, device="cpu")
     try:
@@ -295,6 +348,13 @@ def test_cuda_without_a_gpu_names_the_fix() -> None:
 def test_bad_num_envs(num_envs: int, match: str) -> None:
     with pytest.raises(SpecError, match=match):
         make_batch("mjkdl/PandaReach-v0", num_envs, device="cpu")
+
+
+@pytest.mark.parametrize("field", ["njmax", "nconmax"])
+@pytest.mark.parametrize("value", [0, -8, 2.5, True])
+def test_bad_buffer_sizes(field: str, value: object) -> None:
+    with pytest.raises(SpecError, match=f"{field} must be a positive integer"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", **{field: value})
 
 
 def test_bad_device_and_task() -> None:

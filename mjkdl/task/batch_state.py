@@ -63,7 +63,9 @@ def warp_model(model: mujoco.MjModel) -> Any:
     m = copy.copy(model)
     m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
     try:
-        return mjw.put_model(m)
+        out = mjw.put_model(m)
+        out.opt.warn_overflow = 0  # its kernels' prints; DeviceState.step raises instead
+        return out
     except (NotImplementedError, ValueError) as err:
         raise UnsupportedFeatureError(
             f"MuJoCo Warp 4.0 cannot run this scene: {err} Use the CPU env (TaskEnv), or "
@@ -107,6 +109,12 @@ class DeviceState:
         self.contact_dist = t(d.contact.dist)
         self.contact_world = t(d.contact.worldid)
         self.naconmax = int(d.naconmax)
+        self.njmax, self.nconmax = int(d.njmax), int(d.naconmax) // nworld
+        self.overflow = t(d.overflow)
+        # Overflows of a buffer: MuJoCo Warp drops what does not fit and goes on. (Solver
+        # iteration limits are not among them: the step is still the physics.)
+        kinds = mjw.OverflowType
+        self._room = int(kinds.ALL) & ~int(kinds.ITERATIONS) & ~int(kinds.LS_ITERATIONS)
         self.root = torch.as_tensor(model.body_rootid, device=device)
         self.tcps: dict[str, Tcp] = {}  # the arms' TCPs, by arm name
         # Warp runs on its own stream; torch's work on the same arrays is ordered around it.
@@ -183,6 +191,7 @@ class DeviceState:
                 self._stepped.add(substeps)
         if meanwhile is not None:
             meanwhile()
+        self._check_room()
         if int(self.nacon[0]) > self.naconmax:
             raise SimulationError(
                 f"MuJoCo Warp found {int(self.nacon[0])} contacts, more than the "
@@ -190,6 +199,27 @@ class DeviceState:
                 float(self.time.max()),
                 {"contact overflow": (int(self.nacon[0]), 0)},
             )
+
+    def _check_room(self) -> None:
+        """Raise when a world overflowed one of MuJoCo Warp's buffers (contacts, constraint
+        rows, ...): the dropped contacts or constraints would make its physics wrong."""
+        full = self.overflow & self._room
+        if not bool(full.any()):
+            return
+        _, mjw = warp_modules()
+        worlds = torch.nonzero(full).flatten()
+        w = int(worlds[0])
+        bits = int(full[w])
+        names = [k.name for k in mjw.OverflowType if k.value and k.value & (k.value - 1) == 0]
+        which = [str(n) for n in names if bits & int(mjw.OverflowType[n])]
+        raise SimulationError(
+            f"MuJoCo Warp ran out of room in {len(worlds)} of {self.nworld} worlds (world {w}: "
+            f"{', '.join(which)}) and would drop contacts or constraints; pass make_batch a "
+            f"larger njmax (constraint rows per world, now {self.njmax}) or nconmax (contacts "
+            f"per world, now {self.nconmax})",
+            float(self.time[w]),
+            {"overflow": (len(worlds), bits)},
+        )
 
     def _physics(self, substeps: int) -> None:
         _, mjw = warp_modules()
