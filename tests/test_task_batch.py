@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("mujoco_warp")
 torch = pytest.importorskip("torch")
 
-from mjkdl.errors import SimulationError, SpecError  # noqa: E402
+from mjkdl.errors import SpecError  # noqa: E402
 from mjkdl.task import make_batch, registry  # noqa: E402
 from mjkdl.task.batch import DeviceUnavailableError  # noqa: E402
 from mjkdl.task.batch_state import UnsupportedFeatureError, mat_to_quat  # noqa: E402
@@ -278,16 +278,25 @@ def test_a_whole_grasp_and_lift_matches_the_cpu_env() -> None:
         batch.close()
 
 
-def test_a_world_out_of_constraint_rows_raises_and_names_the_fix() -> None:
-    """MuJoCo Warp drops the constraint rows that do not fit: the grasp's 129 rows in 64
-    (MuJoCo Warp's own default for this scene) raise instead of moving on."""
+def test_a_world_out_of_constraint_rows_diverges_and_the_warning_names_the_fix() -> None:
+    """MuJoCo Warp drops the constraint rows that do not fit: with the grasp's 129 rows in 64
+    (MuJoCo Warp's own default for this scene) the world's episode ends as diverged, with a
+    warning that names the fix, and its next episode starts clean."""
     actions, _ = _expert_episode("mjkdl/PandaPickCube-v0", 3)
     batch = make_batch("mjkdl/PandaPickCube-v0", 1, device="cpu", njmax=64)
     try:
         batch.reset(seed=3)
-        with pytest.raises(SimulationError, match=r"world 0: NEFC.*larger njmax.*now 64"):
+        with pytest.warns(UserWarning, match=r"world 0: NEFC.*larger njmax.*now 64"):
+            steps = 0
             for a in actions:
-                batch.step(torch.as_tensor(a)[None])
+                _, reward, terminated, _, info = batch.step(torch.as_tensor(a)[None])
+                steps += 1
+                if bool(info["diverged"][0]):
+                    break
+        assert 1 < steps < len(actions), steps  # in the grasp, before the lift succeeded
+        assert bool(terminated[0]) and float(reward[0]) == 0.0
+        assert not bool(info["is_success"][0]) and int(batch.episode_steps[0]) == 0
+        assert not bool(batch.state.overflowed()[0])  # the next episode starts clean
     finally:
         batch.close()
 

@@ -153,7 +153,9 @@ class BatchEnv(VectorEnv):
     the same step (Gymnasium's SAME_STEP autoreset): their returned observation is the new
     episode's, `info["final_obs"]` holds the last one for every world (rows of finished
     worlds are meaningful) and `info["_final"]` marks them. `info["is_success"]` and
-    `info["diverged"]` are bool tensors.
+    `info["diverged"]` are bool tensors; a world diverges when its state stops being finite
+    or when it overflows MuJoCo Warp's contact or constraint buffers (a warning names the
+    fix): its episode ends (`terminated`, reward 0).
 
     The task's reward, success and termination rules (`mjkdl.task.rewards`, the same objects
     the CPU env calls) evaluate every world at once as torch operations on the device, in
@@ -266,7 +268,10 @@ class BatchEnv(VectorEnv):
             arm.apply(a, self._period)
         self.state.step(self._substeps, meanwhile=self.starts.prefetch)
         s = self.state
-        diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1))
+        overflowed = s.overflowed()
+        diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1)) | overflowed
+        if bool(overflowed.any()):
+            warnings.warn(s.overflow_message(overflowed), stacklevel=2)
         obs = self.observer.read()
         self._steps += 1
         reward, success, terminated = self._evaluate(obs, ~diverged)
@@ -306,6 +311,7 @@ class BatchEnv(VectorEnv):
         """Worlds `rows` start their next episode (the CPU env's reset with the world's
         generator, `EpisodeStarts`); then one `mj_forward` of every world."""
         self.starts.start(rows)
+        self.state.overflow[rows] = 0
         self.state.forward(keep=~rows)
         self._steps[rows] = 0
         self._held[rows] = 0

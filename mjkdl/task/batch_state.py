@@ -191,7 +191,6 @@ class DeviceState:
                 self._stepped.add(substeps)
         if meanwhile is not None:
             meanwhile()
-        self._check_room()
         if int(self.nacon[0]) > self.naconmax:
             raise SimulationError(
                 f"MuJoCo Warp found {int(self.nacon[0])} contacts, more than the "
@@ -200,25 +199,25 @@ class DeviceState:
                 {"contact overflow": (int(self.nacon[0]), 0)},
             )
 
-    def _check_room(self) -> None:
-        """Raise when a world overflowed one of MuJoCo Warp's buffers (contacts, constraint
-        rows, ...): the dropped contacts or constraints would make its physics wrong."""
-        full = self.overflow & self._room
-        if not bool(full.any()):
-            return
+    def overflowed(self) -> torch.Tensor:
+        """(N,) bool: the worlds that overflowed one of MuJoCo Warp's buffers (contacts,
+        constraint rows, ...) since their last reset; MuJoCo Warp dropped what did not fit,
+        so their physics is wrong."""
+        return (self.overflow & self._room) != 0
+
+    def overflow_message(self, rows: torch.Tensor) -> str:
+        """What overflowed in the worlds `rows` (a bool mask), and the fix."""
         _, mjw = warp_modules()
-        worlds = torch.nonzero(full).flatten()
+        worlds = torch.nonzero(rows).flatten()
         w = int(worlds[0])
-        bits = int(full[w])
+        bits = int(self.overflow[w]) & self._room
         names = [k.name for k in mjw.OverflowType if k.value and k.value & (k.value - 1) == 0]
         which = [str(n) for n in names if bits & int(mjw.OverflowType[n])]
-        raise SimulationError(
+        return (
             f"MuJoCo Warp ran out of room in {len(worlds)} of {self.nworld} worlds (world {w}: "
-            f"{', '.join(which)}) and would drop contacts or constraints; pass make_batch a "
-            f"larger njmax (constraint rows per world, now {self.njmax}) or nconmax (contacts "
-            f"per world, now {self.nconmax})",
-            float(self.time[w]),
-            {"overflow": (len(worlds), bits)},
+            f"{', '.join(which)}) and dropped contacts or constraints; those worlds' episodes "
+            f"end as diverged. Pass make_batch a larger njmax (constraint rows per world, now "
+            f"{self.njmax}) or nconmax (contacts per world, now {self.nconmax})"
         )
 
     def _physics(self, substeps: int) -> None:
