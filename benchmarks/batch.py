@@ -103,7 +103,10 @@ def batch(n: int, steps: int, device: str) -> tuple[float, float, float, int, tu
     start = time.perf_counter()
     envs.reset(seed=0)
     reset = (time.perf_counter() - start) / n
-    per_world, _ = world_bytes(envs.host.scene.model, envs.host.scene.data, device, None, None)
+    s = envs.state
+    per_world, _ = world_bytes(
+        envs.host.scene.model, envs.host.scene.data, device, s.nconmax, s.njmax
+    )
     gen = torch.Generator(device=device).manual_seed(0)
     for _ in range(2):  # warm: the kernels load, then the physics is captured as a graph
         envs.step(torch.rand(n, 7, generator=gen, device=device) * 2 - 1)

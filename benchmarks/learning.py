@@ -46,9 +46,10 @@ EVAL_SEEDS = range(10_000, 10_020)
 Policy = Callable[[dict[str, np.ndarray]], np.ndarray]
 
 
-def evaluate(env_id: str, policy: Policy, seeds: range = EVAL_SEEDS) -> float:
-    """Fraction of `seeds` whose episode ends in success under `policy`."""
-    env = gym.make(env_id)
+def evaluate(env_id: str, policy: Policy, seeds: range = EVAL_SEEDS, **task_kwargs: Any) -> float:
+    """Fraction of `seeds` whose episode ends in success under `policy` (the env made with
+    `task_kwargs`)."""
+    env = gym.make(env_id, **task_kwargs)
     wins = 0
     for seed in seeds:
         obs, info = env.reset(seed=seed)
@@ -61,14 +62,14 @@ def evaluate(env_id: str, policy: Policy, seeds: range = EVAL_SEEDS) -> float:
     return wins / len(seeds)
 
 
-def env_steps_per_second(env_id: str, steps: int = 2000) -> float:
+def env_steps_per_second(env_id: str, steps: int = 2000, **task_kwargs: Any) -> float:
     """Control steps/s of the env alone under random actions (the learner's ceiling)."""
-    env = gym.make(env_id)
+    env = gym.make(env_id, **task_kwargs)
     env.reset(seed=0)
-    rng = np.random.default_rng(0)
+    env.action_space.seed(0)
     start = time.perf_counter()
     for _ in range(steps):
-        *_, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 7).astype(np.float32))
+        *_, terminated, truncated, _ = env.step(env.action_space.sample())
         if terminated or truncated:
             env.reset()
     rate = steps / (time.perf_counter() - start)
@@ -297,7 +298,7 @@ def rslrl_run(
     r = recipe(env_id)
     envs = envs or r.num_envs
     iterations = iterations or r.iterations
-    batch = make_batch(env_id, envs, device=device, allow_cpu=True)
+    batch = make_batch(env_id, envs, device=device, allow_cpu=True, **r.task_kwargs)
     env = RslRlEnv(batch)
     runner = OnPolicyRunner(
         env, {**r.config, "num_steps_per_env": r.num_steps_per_env}, None, str(batch.device)
@@ -305,7 +306,13 @@ def rslrl_run(
     curve: list[dict[str, float]] = []
     train_seconds, done = 0.0, 0
     start = time.perf_counter()
-    record = {"run": run, "env_id": env_id, "device": str(batch.device), "num_envs": envs}
+    record = {
+        "run": run,
+        "env_id": env_id,
+        "task_kwargs": r.task_kwargs,
+        "device": str(batch.device),
+        "num_envs": envs,
+    }
     budget = 60.0 * minutes
     for k in range(10**9 if budget else chunks):
         if budget:
@@ -332,7 +339,7 @@ def rslrl_run(
                 return policy_net(td)[0].numpy()
 
         steps = envs * r.num_steps_per_env * done
-        rate = evaluate(env_id, policy)
+        rate = evaluate(env_id, policy, **r.task_kwargs)
         curve.append({"steps": steps, "success": rate, "seconds": train_seconds})
         print(f"  {steps:>9} steps: {rate:.0%} ({train_seconds:.0f} s)", flush=True)
         write(run, {**record, "curve": curve, "train_seconds": train_seconds})
@@ -343,7 +350,7 @@ def rslrl_run(
         "wall_seconds": time.perf_counter() - start,
         "train_seconds": train_seconds,
         "train_steps_per_s": curve[-1]["steps"] / train_seconds,
-        "env_steps_per_s": env_steps_per_second(env_id),
+        "env_steps_per_s": env_steps_per_second(env_id, **r.task_kwargs),
     }
 
 

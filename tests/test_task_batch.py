@@ -102,6 +102,24 @@ def test_registered_tasks_match_the_cpu_env(task_id: str) -> None:
         cpu_env.close()
 
 
+def test_top_down_axes_match_the_cpu_env() -> None:
+    """`cartesian_axes`: the batch fills the omitted twist entries with zeros, as the CPU env."""
+    axes = "vx,vy,vz,wz"
+    batch = make_batch(
+        "mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.4, cartesian_axes=axes
+    )
+    cpu_env = gym.make("mjkdl/PandaPickCube-v0", time_limit=0.4, cartesian_axes=axes).unwrapped
+    try:
+        assert batch.single_action_space.shape == (5,)
+        actions = np.random.default_rng(6).uniform(-1, 1, (STEPS, WORLDS, 5)).astype(np.float32)
+        gaps, _ = _compare(batch, cpu_env, actions)
+        assert gaps["pos"] < POS_TOL and gaps["joint"] < JOINT_TOL, gaps
+        assert gaps["reward"] < REWARD_TOL and gaps["success"] == 0, gaps
+    finally:
+        batch.close()
+        cpu_env.close()
+
+
 def test_joint_position_mode_matches_and_auto_resets() -> None:
     spec = registry.panda_pick_cube_spec()
     spec.arms[0].actuation = Actuation.JOINT_POSITION

@@ -34,6 +34,24 @@ def test_recipe_trains_end_to_end_and_the_policy_acts() -> None:
     assert bool(torch.isfinite(action).all())
 
 
+def test_the_pick_recipe_acts_top_down_on_both_backends() -> None:
+    """The object tasks' recipes act top-down; a batch made with the recipe's task
+    parameters and the CPU env made with them take the same 5-entry action."""
+    import gymnasium as gym
+
+    from mjkdl.task import make_batch
+
+    r = recipe("mjkdl/PandaPickAndPlace-v0")
+    assert r.task_kwargs == {"cartesian_axes": "vx,vy,vz,wz"}
+    batch = make_batch("mjkdl/PandaPickAndPlace-v0", 1, device="cpu", **r.task_kwargs)
+    env = gym.make("mjkdl/PandaPickAndPlace-v0", **r.task_kwargs)
+    try:
+        assert RslRlEnv(batch).num_actions == 5 == env.action_space.shape[0]
+    finally:
+        batch.close()
+        env.close()
+
+
 def test_recipes_and_unbounded_episodes() -> None:
     assert recipe("mjkdl/PandaPickCube-v0").num_envs == 4096
     assert recipe("mjkdl/SomeNewTask-v0").iterations == DEFAULT_RECIPE.iterations

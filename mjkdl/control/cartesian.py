@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import daqp
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.linalg.lapack import dsyev as _dsyev
 
 from ..errors import SpecError, SpecTypeError, unknown_name
@@ -364,7 +365,7 @@ class CartesianVelocityController:
         self._last_time = math.inf
         self._ready = False
 
-    def solve(self, twist: Sequence[float], dt: float | None = None) -> np.ndarray:
+    def solve(self, twist: ArrayLike, dt: float | None = None) -> np.ndarray:
         """Joint velocities for `twist` (6: linear then angular, along the control frame).
 
         `dt` is the period over which the result will be applied (default: the controller's,
@@ -398,7 +399,7 @@ class CartesianVelocityController:
         np.copyto(self._last, x)
         return x
 
-    def command(self, twist: Sequence[float], dt: float | None = None) -> np.ndarray:
+    def command(self, twist: ArrayLike, dt: float | None = None) -> np.ndarray:
         """Solve for `twist` and write the robot's command; return the joint velocities.
 
         VELOCITY mode writes them to `jnt_vel_cmd`; POSITION mode adds `qd * dt` to

@@ -33,6 +33,7 @@ from .rewards import (
 from .rollout import Episode, ray_collect, run_episode
 from .sensors import intrinsics
 from .spec import (
+    CARTESIAN_AXES,
     Actuation,
     ArmSpec,
     BodyPoseSensor,
@@ -47,6 +48,7 @@ from .view import view
 _register()
 
 __all__ = [
+    "CARTESIAN_AXES",
     "Actuation",
     "ArmSpec",
     "ArrayRule",

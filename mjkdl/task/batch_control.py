@@ -113,6 +113,9 @@ class BatchArm:
             self._sing = (c.singular_damping, c.singular_threshold)
             self._last = torch.zeros(nworld, n, device=dev, dtype=f64)
             self._eye = torch.eye(n, device=dev, dtype=f64)
+            # The action's entries in the twist; the axes it omits stay zero.
+            self._axes = torch.tensor(eff.axes, device=dev, dtype=torch.long)
+            self._full = torch.zeros(nworld, 6, device=dev, dtype=f64)
 
     def reset_rows(self, rows: torch.Tensor, q_cmd: np.ndarray, qd: np.ndarray) -> None:
         """Worlds `rows` start an episode at command `q_cmd` with joint velocities `qd`
@@ -158,7 +161,8 @@ class BatchArm:
         if self.cartesian:
             # In POSITION mode the CPU QP works at the command (what the integration
             # advances and keeps inside the limits), the Jacobian too.
-            qd = self._solve(a.double(), self.q_cmd, period)
+            self._full[:, self._axes] = a.double()
+            qd = self._solve(self._full, self.q_cmd, period)
             self.q_cmd = torch.clamp(self.q_cmd + qd * period, self._lower, self._upper)
             cmd = self.q_cmd.float()
         elif self.arm.actuation is Actuation.JOINT_TORQUE:

@@ -81,12 +81,15 @@ class RslRlEnv(VecEnv):
 
 @dataclass
 class Recipe:
-    """PPO settings for one task: worlds, rollout length, iterations and rsl-rl's config."""
+    """PPO settings for one task: worlds, rollout length, iterations, rsl-rl's config and the
+    task's parameters (`make_batch`'s and `gymnasium.make`'s keywords, e.g. the action's
+    `cartesian_axes`)."""
 
     num_envs: int
     num_steps_per_env: int
     iterations: int
     config: dict[str, Any] = field(default_factory=dict)
+    task_kwargs: dict[str, Any] = field(default_factory=dict)
 
 
 def _config(hidden: tuple[int, ...], lr: float, entropy: float, gamma: float) -> dict[str, Any]:
@@ -119,11 +122,19 @@ def _config(hidden: tuple[int, ...], lr: float, entropy: float, gamma: float) ->
     }
 
 
-# Starting points, not tuned results: no GPU was lent to measure them (docs/task.md).
-DEFAULT_RECIPE = Recipe(4096, 24, 300, _config((256, 128, 64), 1e-3, 5e-3, 0.97))
+# Starting points, not tuned results: no GPU was lent to measure them (docs/task.md). The
+# object tasks act top-down (translation and yaw, the hand kept pointing down), as pick
+# benchmarks do: the experts succeed as often that way, and exploration has 5 entries, not 7.
+TOP_DOWN = {"cartesian_axes": "vx,vy,vz,wz"}
+DEFAULT_RECIPE = Recipe(4096, 24, 300, _config((256, 128, 64), 1e-3, 5e-3, 0.97), TOP_DOWN)
 RECIPES: dict[str, Recipe] = {
     "mjkdl/PandaReach-v0": Recipe(2048, 24, 100, _config((128, 64), 1e-3, 5e-3, 0.97)),
-    "mjkdl/PandaPickCube-v0": Recipe(4096, 24, 400, _config((256, 128, 64), 1e-3, 5e-3, 0.97)),
+    "mjkdl/PandaPickCube-v0": Recipe(
+        4096, 24, 400, _config((256, 128, 64), 1e-3, 5e-3, 0.97), TOP_DOWN
+    ),
+    "mjkdl/PandaPickAndPlace-v0": Recipe(
+        4096, 24, 1200, _config((256, 128, 64), 1e-3, 5e-3, 0.97), TOP_DOWN
+    ),
 }
 
 
@@ -153,13 +164,14 @@ def train(
     **task_kwargs: Any,
 ) -> TrainResult:
     """PPO (rsl-rl) on `task_id`'s recipe, any of its numbers overridden; `task_kwargs` go to
-    the task (`time_limit`, `reward_type`, ...). Returns the runner with the trained policy."""
+    the task (`time_limit`, `reward_type`, ...) over the recipe's own. Returns the runner
+    with the trained policy."""
     r = recipe(task_id)
     envs = num_envs or r.num_envs
     steps = num_steps_per_env or r.num_steps_per_env
     iters = iterations or r.iterations
     torch.manual_seed(seed)
-    batch = make_batch(task_id, envs, device=device, **task_kwargs)
+    batch = make_batch(task_id, envs, device=device, **{**r.task_kwargs, **task_kwargs})
     env = RslRlEnv(batch)
     cfg = {**r.config, "num_steps_per_env": steps, "seed": seed}
     try:

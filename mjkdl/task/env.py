@@ -36,6 +36,7 @@ from .sensors import (
     RelativeReader,
 )
 from .spec import (
+    CARTESIAN_AXES,
     Actuation,
     ArmSpec,
     BodyPoseSensor,
@@ -46,7 +47,6 @@ from .spec import (
     TaskSpec,
 )
 
-_CARTESIAN_LABELS = ("vx", "vy", "vz", "wx", "wy", "wz")
 MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
@@ -136,7 +136,9 @@ class ArmEffector:
         start: int,
     ) -> None:
         self.arm, self.robot, self.gripper, self.controller = arm, robot, gripper, controller
-        n = 6 if controller is not None else robot.n_joints
+        self.axes = [CARTESIAN_AXES.index(a) for a in arm.cartesian_axes]
+        self._twist = np.zeros(6)  # the action's entries, zeros for the axes it omits
+        n = len(self.axes) if controller is not None else robot.n_joints
         self.slice = slice(start, start + n)
         self.grip_index = start + n if gripper is not None else -1
         self.home = None if arm.home is None else np.asarray(arm.home, dtype=float)
@@ -159,7 +161,8 @@ class ArmEffector:
         robot.update()
         a: Any = action[self.slice]
         if self.controller is not None:
-            self.controller.command(a, period)
+            self._twist[self.axes] = a
+            self.controller.command(self._twist, period)
         elif arm is Actuation.JOINT_POSITION:
             robot.jnt_pos_cmd = a
         elif arm is Actuation.JOINT_VELOCITY:
@@ -178,7 +181,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     name per action entry (`"panda.vx"`, ..., `"panda.gripper"`).
 
     The action concatenates, per arm in order, a twist `[vx, vy, vz, wx, wy, wz]` of the TCP
-    along the control frame (Cartesian velocity) or one value per joint (joint modes), then
+    along the control frame (Cartesian velocity; the entries of `ArmSpec.cartesian_axes`,
+    the others zero) or one value per joint (joint modes), then
     the gripper's entry in [0, 1] when it has one; with `TaskSpec.normalize_actions` every
     entry is in [-1, 1] instead, scaled onto those bounds. Actions are clipped into
     `action_space` (a policy's exploration noise past a bound acts at the bound); NaN or
@@ -291,6 +295,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                     raise SpecError(f"{where}.gripper must be a GripperSpec or None")
                 text(arm.gripper.actuator, f"{where}.gripper.actuator")
                 flag(arm.gripper.binary, f"{where}.gripper.binary")
+            _check_axes(arm, where)
             for field in ("max_linear_velocity", "max_angular_velocity"):
                 value = getattr(arm, field)
                 if not _positive(value):
@@ -881,6 +886,30 @@ def _shown_keys(hide: object, every: Mapping[str, spaces.Space]) -> list[str]:
     return [k for k in every if k not in hidden]
 
 
+def _check_axes(arm: ArmSpec, where: str) -> None:
+    """`cartesian_axes`: a tuple of distinct twist entries in `CARTESIAN_AXES` order, only
+    with the Cartesian action."""
+    axes = arm.cartesian_axes
+    field = f"{where}.cartesian_axes"
+    if not isinstance(axes, tuple) or not axes or not all(isinstance(a, str) for a in axes):
+        raise SpecTypeError(
+            f"{field} must be a non-empty tuple of {CARTESIAN_AXES} entries, got {axes!r}"
+        )
+    unknown = [a for a in axes if a not in CARTESIAN_AXES]
+    if unknown:
+        raise SpecError(f"{field}: unknown entries {unknown}; valid: {', '.join(CARTESIAN_AXES)}")
+    order = [CARTESIAN_AXES.index(a) for a in axes]
+    if order != sorted(set(order)):
+        raise SpecError(
+            f"{field} must list distinct entries in the order {CARTESIAN_AXES}, got {axes}"
+        )
+    if axes != CARTESIAN_AXES and arm.actuation is not Actuation.CARTESIAN_VELOCITY:
+        raise SpecError(
+            f"{field} chooses the Cartesian action's entries; this arm's actuation is "
+            f"{arm.actuation.value!r} (use Actuation.CARTESIAN_VELOCITY or leave it unset)"
+        )
+
+
 def _controller(robot: Robot, arm: ArmSpec) -> CartesianVelocityController:
     """The arm's Cartesian controller, its null-space posture at `home` when there is one."""
     return CartesianVelocityController(robot, control_frame=arm.control_frame, posture=arm.home)
@@ -899,8 +928,8 @@ def _action_bounds(
     arm, robot = eff.arm, eff.robot
     if arm.actuation is Actuation.CARTESIAN_VELOCITY:
         lin, ang = arm.max_linear_velocity, arm.max_angular_velocity
-        high = np.array([lin] * 3 + [ang] * 3, dtype=float)
-        low, names = -high, list(_CARTESIAN_LABELS)
+        high = np.array([lin] * 3 + [ang] * 3, dtype=float)[eff.axes]
+        low, names = -high, list(arm.cartesian_axes)
     else:
         joints = robot.joint_names
         if arm.actuation is Actuation.JOINT_POSITION:

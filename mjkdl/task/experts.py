@@ -21,7 +21,7 @@ from ..errors import SpecError, UnknownNameError
 from .env import TaskEnv
 from .goal import GoalTaskEnv
 from .registry import CUBE_HALF, LIFT, TASKS
-from .spec import Actuation
+from .spec import CARTESIAN_AXES, Actuation
 
 _DOWN = np.array([0.0, 0.0, -1.0])
 GRASP_RAISE = 0.004  # m: the TCP over a floor cube's centre at the grasp (fingertips clear)
@@ -44,15 +44,18 @@ class _Cartesian:
         self.scale = np.array(
             [arm.max_linear_velocity] * 3 + [arm.max_angular_velocity] * 3, dtype=float
         )
+        self.axes = [CARTESIAN_AXES.index(a) for a in arm.cartesian_axes]
         self.period = env.control_timestep
         self.goal_keys: list[tuple[str, int]] = []
         if isinstance(env, GoalTaskEnv):
             self.goal_keys = env.observation_layout
 
     def action(self, twist: np.ndarray, close: bool) -> np.ndarray:
-        out = np.empty(7, dtype=np.float32)
-        out[:6] = np.clip(twist / self.scale, -1.0, 1.0)
-        out[6] = 1.0 if close else -1.0
+        """The twist's entries the arm's action holds (`cartesian_axes`), then the gripper."""
+        n = len(self.axes)
+        out = np.empty(n + 1, dtype=np.float32)
+        out[:n] = np.clip(twist / self.scale, -1.0, 1.0)[self.axes]
+        out[n] = 1.0 if close else -1.0
         return out
 
     def named(self, obs: Mapping[str, np.ndarray]) -> Mapping[str, np.ndarray]:

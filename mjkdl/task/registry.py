@@ -6,8 +6,10 @@ All follow dm_robotics_panda: Cartesian velocity of the TCP plus the hand's bina
 Parameters go through `gymnasium.make(id, **parameters)` (docs/task.md lists them);
 `time_limit` (seconds) ends episodes earlier; `actuation="joint_position"` (or
 "joint_velocity", "joint_torque") makes the arm's part of the action one entry per joint,
-each in [-1, 1] scaled onto the joint's range (limits, velocity limits, torque limits).
-Each task is one `TaskSpec` (`panda_*_spec()`), which the batched backend runs too.
+each in [-1, 1] scaled onto the joint's range (limits, velocity limits, torque limits);
+`cartesian_axes="vx,vy,vz,wz"` keeps those twist entries (the others zero: a top-down
+gripper's translation and yaw, as pick benchmarks act). Each task is one `TaskSpec`
+(`panda_*_spec()`), which the batched backend runs too.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from .goal import GoalTaskEnv, reward_type
 from .initializers import PlaceAbove, PoseInitializer, PropPlacer
 from .rewards import Held, LiftReward, Placed, PlaceReward, Reached, ReachReward, SparseReward
 from .spec import (
+    CARTESIAN_AXES,
     Actuation,
     ArmSpec,
     BodyPoseSensor,
@@ -327,6 +330,7 @@ class _Registered(TaskEnv):
         spec.time_limit = given["time_limit"]  # None: the registered TimeLimit alone
         spec.control_timestep = given["control_timestep"]
         spec.arms[0].actuation = actuation(given["actuation"])
+        spec.arms[0].cartesian_axes = cartesian_axes(given["cartesian_axes"])
         if reward_type(reward) == "sparse":
             spec.reward = SparseReward(spec.success)
         size = given["camera_size"]
@@ -370,6 +374,7 @@ class PandaReachEnv(_Registered, TaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         goal_low: Sequence[float] = REACH_GOAL_LOW,
         goal_high: Sequence[float] = REACH_GOAL_HIGH,
         success_distance: float = 0.05,
@@ -407,6 +412,7 @@ class PandaPickCubeEnv(_Registered, TaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         reward_type: str = "dense",
@@ -441,6 +447,7 @@ class PandaReachGoalEnv(_Registered, GoalTaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         goal_low: Sequence[float] = REACH_GOAL_LOW,
         goal_high: Sequence[float] = REACH_GOAL_HIGH,
         success_distance: float = 0.05,
@@ -478,6 +485,7 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
@@ -521,6 +529,7 @@ class PandaPushEnv(_Registered, TaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         goal_low: Sequence[float] = PUSH_GOAL_LOW,
@@ -563,6 +572,7 @@ class PandaPickAndPlaceEnv(_Registered, TaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
@@ -606,6 +616,7 @@ class PandaStackEnv(_Registered, TaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         success_distance: float = STACK_DISTANCE,
@@ -639,6 +650,7 @@ class PandaPushGoalEnv(_Registered, GoalTaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         goal_low: Sequence[float] = PUSH_GOAL_LOW,
@@ -673,6 +685,7 @@ class PandaPickAndPlaceGoalEnv(_Registered, GoalTaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
@@ -708,6 +721,7 @@ class PandaStackGoalEnv(_Registered, GoalTaskEnv):
         time_limit: float | None = None,
         control_timestep: float = 0.1,
         actuation: str = "cartesian_velocity",
+        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         success_distance: float = STACK_DISTANCE,
@@ -740,6 +754,19 @@ def actuation(value: object) -> Actuation:
     if not isinstance(value, str) or value not in ACTUATIONS:
         raise SpecError(f"actuation must be one of {list(ACTUATIONS)}, got {value!r}")
     return Actuation(value)
+
+
+def cartesian_axes(value: object) -> tuple[str, ...]:
+    """`value` ("vx,vy,vz,wz" or a sequence of entries) as `ArmSpec.cartesian_axes`; the
+    env checks the entries."""
+    if isinstance(value, str):
+        return tuple(a.strip() for a in value.split(","))
+    if not isinstance(value, Sequence):
+        raise SpecTypeError(
+            f"cartesian_axes must be a comma-separated string or a sequence of "
+            f"{CARTESIAN_AXES} entries, got {value!r}"
+        )
+    return tuple(value)
 
 
 def _positive(value: object, field: str) -> float:

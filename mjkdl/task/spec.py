@@ -16,6 +16,10 @@ Observation = Mapping[str, "np.ndarray"]
 Initializer = Callable[[Any, "np.random.Generator"], None]
 
 
+CARTESIAN_AXES = ("vx", "vy", "vz", "wx", "wy", "wz")
+"""The entries of a TCP twist, in the order a Cartesian action holds them."""
+
+
 class Actuation(enum.Enum):
     """What an arm's part of the action commands."""
 
@@ -27,7 +31,7 @@ class Actuation(enum.Enum):
     """One torque per joint on top of gravity compensation (TORQUE mode)."""
     CARTESIAN_VELOCITY = "cartesian_velocity"
     """A TCP twist `[vx, vy, vz, wx, wy, wz]` along the control frame, bounded by the arm's
-    maximum velocities."""
+    maximum velocities (`ArmSpec.cartesian_axes` keeps some of its entries)."""
 
 
 @dataclass
@@ -78,6 +82,10 @@ class ArmSpec:
     """The gripper, which adds one action entry; None: no gripper."""
     home: list[float] | None = None
     """Joint positions (chain order) at every reset; None keeps the model's `qpos0`."""
+    cartesian_axes: tuple[str, ...] = CARTESIAN_AXES
+    """The twist entries the Cartesian action holds, in `CARTESIAN_AXES` order; the others
+    are zero. ("vx", "vy", "vz", "wz"): a top-down gripper's translation and yaw, as pick
+    benchmarks act; ("vx", "vy", "vz"): translation alone."""
     max_linear_velocity: float = 0.5
     """Bound of the Cartesian action's linear part, m/s."""
     max_angular_velocity: float = 1.0
