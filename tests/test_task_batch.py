@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("mujoco_warp")
 torch = pytest.importorskip("torch")
 
-from mjkdl.errors import SpecError  # noqa: E402
+from mjkdl.errors import MjkdlError, SpecError, SpecTypeError  # noqa: E402
 from mjkdl.task import make_batch, registry  # noqa: E402
 from mjkdl.task.batch import DeviceUnavailableError  # noqa: E402
 from mjkdl.task.batch_state import UnsupportedFeatureError, mat_to_quat  # noqa: E402
@@ -231,11 +231,16 @@ def test_the_physics_replays_as_a_graph_and_a_failed_capture_only_warns(monkeypa
     assert torch.equal(ref, got)
 
 
-def test_every_restart_is_the_cpu_envs_next_reset() -> None:
-    """Each world's next start is computed ahead (while the device steps); over three
-    episodes a world starts exactly where the CPU env's resets after `reset(seed)` do, and a
-    second `reset(seed)` starts the first episodes again."""
-    batch = make_batch("mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.2)
+@pytest.mark.parametrize("workers", [0, 2], ids=["in-process", "2-workers"])
+def test_every_restart_is_the_cpu_envs_next_reset(workers: int) -> None:
+    """Each world's next start is computed ahead (while the device steps), in this process or
+    by reset workers; over three episodes a world starts exactly where the CPU env's resets
+    after `reset(seed)` do, and a second `reset(seed)` starts the first episodes again."""
+    batch = make_batch(
+        "mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.2, reset_workers=workers
+    )
+    procs = [w._proc for w in batch.starts._workers]
+    assert len(procs) == workers
     cpu_env = gym.make("mjkdl/PandaPickCube-v0", time_limit=0.2).unwrapped
     try:
         first, _ = batch.reset(seed=SEED)
@@ -256,6 +261,25 @@ def test_every_restart_is_the_cpu_envs_next_reset() -> None:
     finally:
         batch.close()
         cpu_env.close()
+    assert [p.poll() for p in procs] == [0] * workers  # the workers ended with the batch
+
+
+def test_a_dead_reset_worker_is_named() -> None:
+    batch = make_batch("mjkdl/PandaReach-v0", 2, device="cpu", time_limit=0.1, reset_workers=1)
+    try:
+        batch.reset(seed=0)
+        batch.starts._workers[0]._proc.kill()
+        with pytest.raises(MjkdlError, match=r"reset worker 0 ended \(exit code -9\)"):
+            batch.step(torch.zeros(2, 7))  # the episodes end: their starts are needed
+    finally:
+        batch.close()
+
+
+def test_reset_workers_need_a_picklable_task() -> None:
+    spec = registry.panda_reach_spec()
+    spec.reward = lambda obs: 0.0
+    with pytest.raises(SpecError, match=r"cannot be pickled.*reset_workers=0"):
+        make_batch(spec, 1, device="cpu", reset_workers=1)
 
 
 def _expert_episode(task_id: str, seed: int) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -375,6 +399,14 @@ def test_cuda_without_a_gpu_names_the_fix() -> None:
 def test_bad_num_envs(num_envs: int, match: str) -> None:
     with pytest.raises(SpecError, match=match):
         make_batch("mjkdl/PandaReach-v0", num_envs, device="cpu")
+
+
+@pytest.mark.parametrize(
+    ("value", "error"), [(-1, SpecError), (1.5, SpecTypeError), (True, SpecTypeError)]
+)
+def test_bad_reset_workers(value: object, error: type) -> None:
+    with pytest.raises(error, match="reset_workers must be"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", reset_workers=value)
 
 
 @pytest.mark.parametrize("field", ["njmax", "nconmax"])

@@ -11,8 +11,9 @@ start is computed ahead, while the device steps (`batch_reset.EpisodeStarts`).
 
 from __future__ import annotations
 
+import functools
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -23,7 +24,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from ..errors import MjkdlError, SpecError, SpecTypeError
 from .batch_cameras import image_bytes
 from .batch_control import BatchArm
-from .batch_reset import EpisodeStarts
+from .batch_reset import EpisodeStarts, check_picklable
 from .batch_sensors import BatchObserver
 from .batch_state import (
     DeviceState,
@@ -61,6 +62,7 @@ def make_batch(
     nconmax: int | None = None,
     njmax: int | None = None,
     max_episode_steps: int | None = None,
+    reset_workers: int = 0,
     **kwargs: Any,
 ) -> BatchEnv:
     """`num_envs` worlds of `task` (a registered id with its parameters as `kwargs`, or a
@@ -69,8 +71,10 @@ def make_batch(
     Without a GPU, `device="cuda..."` raises unless `allow_cpu`, which runs on the CPU with a
     warning. `nconmax`/`njmax` are MuJoCo Warp's contacts and constraint rows per world
     (None: `DEFAULT_NCONMAX`, `DEFAULT_NJMAX`, room for the registered tasks' grasps; a world
-    that overflows them raises `SimulationError`). `max_episode_steps` overrides the
-    registered time limit.
+    that overflows them ends its episode as diverged). `max_episode_steps` overrides the
+    registered time limit. `reset_workers` processes compute the worlds' episode starts in
+    parallel (each builds a copy of the task; 0: this process): on a GPU, where one core
+    resets the finished worlds slower than the device steps them all.
     """
     device = _device(device, allow_cpu)
     if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
@@ -79,13 +83,21 @@ def make_batch(
         raise SpecError(f"num_envs must be a positive integer, got {num_envs}")
     nconmax = DEFAULT_NCONMAX if nconmax is None else _room(nconmax, "nconmax")
     njmax = DEFAULT_NJMAX if njmax is None else _room(njmax, "njmax")
+    if isinstance(reset_workers, bool) or not isinstance(reset_workers, (int, np.integer)):
+        raise SpecTypeError(f"reset_workers must be a whole number, got {reset_workers!r}")
+    if reset_workers < 0:
+        raise SpecError(f"reset_workers must be 0 or more, got {reset_workers}")
     horizon = max_episode_steps
+    maker: Callable[[], TaskEnv]
     if isinstance(task, TaskSpec):
         if kwargs:
             raise SpecError(
                 f"make_batch: parameters {sorted(kwargs)} go with a registered task id, not a "
                 "TaskSpec (set them on the spec)"
             )
+        maker = functools.partial(TaskEnv, task)
+        if reset_workers:
+            check_picklable(maker)
         host = TaskEnv(task)
     elif isinstance(task, str):
         if task not in gym.registry:
@@ -96,15 +108,32 @@ def make_batch(
             made.close()
             raise SpecError(f"make_batch: {task!r} is not an mjkdl task (TaskEnv)")
         host = made
+        maker = functools.partial(_registered, task, kwargs)
         if horizon is None:
             horizon = registered.max_episode_steps
     else:
         raise SpecTypeError(f"make_batch takes a task id or a TaskSpec, got {task!r}")
     try:
-        return BatchEnv(host, num_envs, device, nconmax=nconmax, njmax=njmax, horizon=horizon)
+        return BatchEnv(
+            host,
+            num_envs,
+            device,
+            nconmax=nconmax,
+            njmax=njmax,
+            horizon=horizon,
+            reset_workers=int(reset_workers),
+            maker=maker,
+        )
     except BaseException:
         host.close()
         raise
+
+
+def _registered(task: str, kwargs: dict[str, Any]) -> TaskEnv:
+    """A registered task's env, as `make_batch` builds its host (in a reset worker)."""
+    env = gym.make(task, disable_env_checker=True, **kwargs).unwrapped
+    assert isinstance(env, TaskEnv)
+    return env
 
 
 def _room(value: object, field: str) -> int:
@@ -174,6 +203,8 @@ class BatchEnv(VectorEnv):
         nconmax: int = DEFAULT_NCONMAX,
         njmax: int = DEFAULT_NJMAX,
         horizon: int | None = None,
+        reset_workers: int = 0,
+        maker: Callable[[], TaskEnv] | None = None,
     ) -> None:
         self.host = host
         self.num_envs = num_envs
@@ -211,7 +242,7 @@ class BatchEnv(VectorEnv):
             self._half = torch.as_tensor(0.5 * (high - low), device=dev, dtype=torch.float32)
         self._steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._held = torch.zeros(num_envs, dtype=torch.long, device=dev)
-        self.starts = EpisodeStarts(host, self.state, self.arms, num_envs)
+        self.starts = EpisodeStarts(host, self.state, self.arms, num_envs, reset_workers, maker)
         self.single_observation_space = host.observation_space
         self.single_action_space = host.action_space
         self.observation_space = gym.vector.utils.batch_space(
@@ -391,6 +422,7 @@ class BatchEnv(VectorEnv):
     def close(self, **kwargs: Any) -> None:
         """Release the host env; later calls raise RuntimeError."""
         if not self.closed:
+            self.starts.close()
             self.host.close()
         self.closed = True
 
