@@ -293,12 +293,19 @@ def rslrl_run(
     from tensordict import TensorDict
 
     from mjkdl.task.batch import make_batch
-    from mjkdl.task.batch_ppo import RslRlEnv, recipe
+    from mjkdl.task.batch_ppo import RslRlEnv, auto_reset_workers, recipe
 
     r = recipe(env_id)
     envs = envs or r.num_envs
     iterations = iterations or r.iterations
-    batch = make_batch(env_id, envs, device=device, allow_cpu=True, **r.task_kwargs)
+    batch = make_batch(
+        env_id,
+        envs,
+        device=device,
+        allow_cpu=True,
+        reset_workers=auto_reset_workers(device),
+        **r.task_kwargs,
+    )
     env = RslRlEnv(batch)
     runner = OnPolicyRunner(
         env, {**r.config, "num_steps_per_env": r.num_steps_per_env}, None, str(batch.device)
@@ -321,13 +328,13 @@ def rslrl_run(
             t = time.perf_counter()
             while time.perf_counter() - t < budget / chunks and train_seconds < budget:
                 step = time.perf_counter()
-                runner.learn(num_learning_iterations=1)
+                runner.learn(num_learning_iterations=1, init_at_random_ep_len=done == 0)
                 train_seconds += time.perf_counter() - step
                 done += 1
         else:
             part = iterations * (k + 1) // chunks - done
             t = time.perf_counter()
-            runner.learn(num_learning_iterations=part)
+            runner.learn(num_learning_iterations=part, init_at_random_ep_len=done == 0)
             train_seconds += time.perf_counter() - t
             done += part
         policy_net = runner.get_inference_policy("cpu")

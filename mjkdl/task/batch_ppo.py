@@ -10,6 +10,7 @@ collects rollouts without leaving the device, which is what `BatchEnv` gives. St
 from __future__ import annotations
 
 import copy
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -143,6 +144,14 @@ def recipe(task_id: str) -> Recipe:
     return copy.deepcopy(RECIPES.get(task_id, DEFAULT_RECIPE))
 
 
+def auto_reset_workers(device: str) -> int:
+    """Reset workers for a batch on `device`: on a GPU all cores but two (at most 15), which
+    keep up with thousands of worlds; none on the CPU device, whose physics shares the cores."""
+    if not device.startswith("cuda"):
+        return 0
+    return max(0, min(15, (os.cpu_count() or 1) - 2))
+
+
 @dataclass
 class TrainResult:
     """What `train` did: the runner (its `alg` holds the policy), steps and wall time."""
@@ -161,23 +170,28 @@ def train(
     iterations: int | None = None,
     log_dir: str | None = None,
     seed: int = 0,
+    reset_workers: int | None = None,
     **task_kwargs: Any,
 ) -> TrainResult:
     """PPO (rsl-rl) on `task_id`'s recipe, any of its numbers overridden; `task_kwargs` go to
-    the task (`time_limit`, `reward_type`, ...) over the recipe's own. Returns the runner
-    with the trained policy."""
+    the task (`time_limit`, `reward_type`, ...) over the recipe's own; `reset_workers`
+    as `make_batch`'s (None: `auto_reset_workers(device)`). The worlds start spread over
+    the episode (rsl-rl's `init_at_random_ep_len`). Returns the runner with the trained
+    policy."""
     r = recipe(task_id)
     envs = num_envs or r.num_envs
     steps = num_steps_per_env or r.num_steps_per_env
     iters = iterations or r.iterations
     torch.manual_seed(seed)
-    batch = make_batch(task_id, envs, device=device, **{**r.task_kwargs, **task_kwargs})
+    workers = auto_reset_workers(device) if reset_workers is None else reset_workers
+    kwargs = {**r.task_kwargs, **task_kwargs}
+    batch = make_batch(task_id, envs, device=device, reset_workers=workers, **kwargs)
     env = RslRlEnv(batch)
     cfg = {**r.config, "num_steps_per_env": steps, "seed": seed}
     try:
         runner = OnPolicyRunner(env, cfg, log_dir=log_dir, device=str(batch.device))
         start = time.perf_counter()
-        runner.learn(num_learning_iterations=iters)
+        runner.learn(num_learning_iterations=iters, init_at_random_ep_len=True)
         seconds = time.perf_counter() - start
     finally:
         batch.close()
