@@ -102,24 +102,6 @@ def test_registered_tasks_match_the_cpu_env(task_id: str) -> None:
         cpu_env.close()
 
 
-def test_top_down_axes_match_the_cpu_env() -> None:
-    """`cartesian_axes`: the batch fills the omitted twist entries with zeros, as the CPU env."""
-    axes = "vx,vy,vz,wz"
-    batch = make_batch(
-        "mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.4, cartesian_axes=axes
-    )
-    cpu_env = gym.make("mjkdl/PandaPickCube-v0", time_limit=0.4, cartesian_axes=axes).unwrapped
-    try:
-        assert batch.single_action_space.shape == (5,)
-        actions = np.random.default_rng(6).uniform(-1, 1, (STEPS, WORLDS, 5)).astype(np.float32)
-        gaps, _ = _compare(batch, cpu_env, actions)
-        assert gaps["pos"] < POS_TOL and gaps["joint"] < JOINT_TOL, gaps
-        assert gaps["reward"] < REWARD_TOL and gaps["success"] == 0, gaps
-    finally:
-        batch.close()
-        cpu_env.close()
-
-
 def test_joint_position_mode_matches_and_auto_resets() -> None:
     spec = registry.panda_pick_cube_spec()
     spec.arms[0].actuation = Actuation.JOINT_POSITION
@@ -153,20 +135,25 @@ def test_joint_position_mode_matches_and_auto_resets() -> None:
         cpu_env.close()
 
 
-@pytest.mark.parametrize(
-    "mode", [Actuation.JOINT_VELOCITY, Actuation.JOINT_TORQUE], ids=lambda m: m.value
-)
-def test_joint_velocity_and_torque_modes_match(mode: Actuation) -> None:
+@pytest.mark.parametrize("variant", ["joint_velocity", "joint_torque", "top_down"])
+def test_joint_velocity_torque_and_top_down_actions_match(variant: str) -> None:
+    """The joint velocity and torque modes, and the top-down Cartesian action
+    (`cartesian_axes`: the batch fills the omitted twist entries with zeros, as the CPU env)."""
     spec = registry.panda_pick_cube_spec()
-    spec.arms[0].actuation = mode
+    rng = np.random.default_rng(2)
+    if variant == "top_down":
+        spec.arms[0].cartesian_axes = ("vx", "vy", "vz", "wz")
+        actions = rng.uniform(-1, 1, (STEPS, WORLDS, 5))
+    else:
+        spec.arms[0].actuation = Actuation(variant)
+        # Normalised: 0 is zero velocity, or gravity compensation alone.
+        actions = rng.uniform(-0.05, 0.05, (STEPS, WORLDS, 8))
     spec.time_limit = 0.4
     batch = make_batch(spec, WORLDS, device="cpu")
     cpu_env = TaskEnv(spec)
     try:
-        rng = np.random.default_rng(2)
-        # Normalised: 0 is zero velocity, or gravity compensation alone.
-        actions = rng.uniform(-0.05, 0.05, (STEPS, WORLDS, 8)).astype(np.float32)
-        gaps, _ = _compare(batch, cpu_env, actions)
+        assert batch.single_action_space.shape == actions.shape[2:]
+        gaps, _ = _compare(batch, cpu_env, actions.astype(np.float32))
         assert gaps["pos"] < POS_TOL and gaps["joint"] < JOINT_TOL, gaps
         assert gaps["reward"] < REWARD_TOL and gaps["success"] == 0, gaps
     finally:
