@@ -297,7 +297,8 @@ class BatchEnv(VectorEnv):
         a = self._checked(actions)
         for arm in self.arms:
             arm.apply(a, self._period)
-        self.state.step(self._substeps, meanwhile=self.starts.prefetch)
+        self.state.step(self._substeps)
+        self.starts.prefetch()  # on a GPU, while the physics runs
         s = self.state
         overflowed = s.overflowed()
         diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1)) | overflowed

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import copy
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 import torch
 
-from ..errors import MjkdlError, SimulationError
+from ..errors import MjkdlError
 
 
 class UnsupportedFeatureError(MjkdlError, NotImplementedError):
@@ -64,7 +64,7 @@ def warp_model(model: mujoco.MjModel) -> Any:
     m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
     try:
         out = mjw.put_model(m)
-        out.opt.warn_overflow = 0  # its kernels' prints; DeviceState.step raises instead
+        out.opt.warn_overflow = 0  # its kernels' prints; the batch reports such worlds
         return out
     except (NotImplementedError, ValueError) as err:
         raise UnsupportedFeatureError(
@@ -157,10 +157,10 @@ class DeviceState:
         if saved is not None and keep is not None:
             self.qacc_warmstart[keep] = saved[keep]
 
-    def step(self, substeps: int, meanwhile: Callable[[], None] | None = None) -> None:
+    def step(self, substeps: int) -> None:
         """`substeps` physics steps of every world, then poses and velocities of the new state
-        (the CPU env's refresh after `mj_step`; forces stay those of the last step). The host
-        runs `meanwhile` while a GPU computes, before the step's contacts are checked.
+        (the CPU env's refresh after `mj_step`; forces stay those of the last step). On a GPU
+        it returns once the work is queued.
 
         The first call runs Warp's launches one by one (loading the kernels); later calls
         replay them as one captured graph, the same launches on the same arrays without
@@ -189,15 +189,6 @@ class DeviceState:
             else:
                 self._physics(substeps)
                 self._stepped.add(substeps)
-        if meanwhile is not None:
-            meanwhile()
-        if int(self.nacon[0]) > self.naconmax:
-            raise SimulationError(
-                f"MuJoCo Warp found {int(self.nacon[0])} contacts, more than the "
-                f"{self.naconmax} allocated for all worlds; pass a larger nconmax to make_batch",
-                float(self.time.max()),
-                {"contact overflow": (int(self.nacon[0]), 0)},
-            )
 
     def overflowed(self) -> torch.Tensor:
         """(N,) bool: the worlds that overflowed one of MuJoCo Warp's buffers (contacts,
