@@ -44,7 +44,7 @@ __all__ = ["BatchEnv", "DeviceUnavailableError", "UnsupportedFeatureError", "mak
 MEMORY_SHARE = 0.8  # of the device's free memory a batch may plan to take
 # MuJoCo Warp's buffers per world. Its own defaults (64 constraint rows for a Panda scene)
 # overflow in a grasp: measured peaks over the experts' episodes, PickCube 129 rows and 32
-# contacts, Stack 161 rows and 39 contacts. An overflow raises (`DeviceState.step`).
+# contacts, Stack 161 rows and 39 contacts. A world that overflows ends as diverged.
 DEFAULT_NJMAX = 256
 DEFAULT_NCONMAX = 64
 

@@ -76,6 +76,8 @@ class EpisodeStarts:
         self._rngs: list[np.random.Generator] = []
         self._generation = 0  # seeds given so far: rows computed under older ones are dropped
         self._workers: list[_Worker] = []
+        if workers and maker is None:
+            raise SpecError("reset workers need `maker`, a picklable callable building the task")
         try:
             for k in range(workers):
                 assert maker is not None
