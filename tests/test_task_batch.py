@@ -267,6 +267,12 @@ def test_reset_workers_need_a_picklable_task() -> None:
     spec.reward = lambda obs: 0.0
     with pytest.raises(SpecError, match=r"cannot be pickled.*reset_workers=0"):
         make_batch(spec, 1, device="cpu", reset_workers=1)
+    from mjkdl.task.batch import BatchEnv
+
+    host = TaskEnv(registry.panda_reach_spec())
+    with pytest.raises(SpecError, match="reset workers need `maker`"):
+        BatchEnv(host, 1, "cpu", reset_workers=1)
+    host.close()
 
 
 def _expert_episode(task_id: str, seed: int) -> tuple[np.ndarray, list[np.ndarray]]:
