@@ -319,7 +319,8 @@ def test_an_unknown_parameter_lists_the_valid_ones() -> None:
         gym.make(PICK, goal_low=[0, 0, 0])
     assert str(caught.value).startswith(
         "PandaPickCubeEnv: unknown parameter(s) ['goal_low']; valid: render_mode, time_limit, "
-        "control_timestep, actuation, cube_low, cube_high, reward_type, terminate_on_success, "
+        "control_timestep, actuation, cartesian_axes, cube_low, cube_high, reward_type, "
+        "terminate_on_success, "
     )
 
 
