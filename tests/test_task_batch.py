@@ -336,6 +336,22 @@ def test_a_world_out_of_constraint_rows_diverges_and_the_warning_names_the_fix()
         batch.close()
 
 
+def test_steps_inside_inference_mode_then_a_reset_outside() -> None:
+    """rsl-rl collects rollouts under `torch.inference_mode()`; the batch's own state must
+    stay writable by a reset outside it."""
+    batch = make_batch("mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.2)
+    try:
+        batch.reset(seed=0)
+        with torch.inference_mode():
+            for _ in range(3):  # across an auto-reset
+                batch.step(torch.full((WORLDS, 7), 0.5))
+        obs, _ = batch.reset(seed=0)
+        assert obs["panda_joint_pos"].shape == (WORLDS, 7)
+        batch.step(torch.zeros(WORLDS, 7))
+    finally:
+        batch.close()
+
+
 def test_observations_are_device_tensors_and_the_vector_face() -> None:
     batch = make_batch("mjkdl/PandaReach-v0", 3, device="cpu")
     try:

@@ -307,7 +307,7 @@ class BatchEnv(VectorEnv):
         obs = self.observer.read()
         self._steps += 1
         reward, success, terminated = self._evaluate(obs, ~diverged)
-        self._held = torch.where(success, self._held + 1, torch.zeros_like(self._held))
+        self._held.copy_(torch.where(success, self._held + 1, torch.zeros_like(self._held)))
         spec = self.host.task_spec
         if spec.terminate_on_success:
             ends = (self._held > self._hold_steps) & ~terminated

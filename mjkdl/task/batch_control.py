@@ -163,7 +163,9 @@ class BatchArm:
             # advances and keeps inside the limits), the Jacobian too.
             self._full[:, self._axes] = a.double()
             qd = self._solve(self._full, self.q_cmd, period)
-            self.q_cmd = torch.clamp(self.q_cmd + qd * period, self._lower, self._upper)
+            # In place: a learner may step inside torch.inference_mode, and a tensor made
+            # there could not be written by a reset outside it.
+            self.q_cmd.copy_(torch.clamp(self.q_cmd + qd * period, self._lower, self._upper))
             cmd = self.q_cmd.float()
         elif self.arm.actuation is Actuation.JOINT_TORQUE:
             cmd = a + self.gravity_torques()
@@ -220,7 +222,7 @@ class BatchArm:
             ub = torch.where(clash, pinned, wub)
             lb = torch.where(clash, pinned, wlb)
         qd = _box_qp(H, f, lb, ub, self._eye)
-        self._last = qd
+        self._last.copy_(qd)
         return qd
 
 
