@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -260,6 +263,41 @@ def test_a_dead_reset_worker_is_named() -> None:
             batch.step(torch.zeros(2, 7))  # the episodes end: their starts are needed
     finally:
         batch.close()
+
+
+class _FailsInOtherProcesses:
+    """An initializer that works in the test's process and raises in any other."""
+
+    def __init__(self) -> None:
+        self.pid = os.getpid()
+
+    def __call__(self, env: TaskEnv, rng: np.random.Generator) -> None:
+        if os.getpid() != self.pid:
+            raise ValueError("this initializer runs in the test's process only")
+
+
+def test_a_reset_workers_error_is_raised_with_its_own_message() -> None:
+    """The worker rebuilds the task from this test module (the import path travels with it),
+    and its reset's own error reaches the batch."""
+    spec = registry.panda_reach_spec()
+    spec.initializers = [*spec.initializers, _FailsInOtherProcesses()]
+    with pytest.raises(MjkdlError, match=r"reset worker 0 failed: ValueError: this initializer"):
+        make_batch(spec, 1, device="cpu", reset_workers=1)
+
+
+class ScriptReward:
+    def __call__(self, obs: dict) -> float:
+        return 0.0
+
+
+def test_reset_workers_refuse_what_the_running_script_defines(monkeypatch) -> None:
+    """Pickled by reference to `__main__`, which a worker does not run."""
+    monkeypatch.setattr(ScriptReward, "__module__", "__main__")
+    monkeypatch.setattr(sys.modules["__main__"], "ScriptReward", ScriptReward, raising=False)
+    spec = registry.panda_reach_spec()
+    spec.reward = ScriptReward()
+    with pytest.raises(SpecError, match=r"defined in the running script \(__main__\)"):
+        make_batch(spec, 1, device="cpu", reset_workers=1)
 
 
 def test_reset_workers_need_a_picklable_task() -> None:

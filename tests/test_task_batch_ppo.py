@@ -43,6 +43,10 @@ def test_the_pick_recipe_acts_top_down_on_both_backends() -> None:
 
     r = recipe("mjkdl/PandaPickAndPlace-v0")
     assert r.task_kwargs == {"cartesian_axes": "vx,vy,vz,wz"}
+    # A joint-space action drops the recipe's axes; tasks without a recipe get none.
+    assert r.parameters({"actuation": "joint_position"}) == {"actuation": "joint_position"}
+    assert r.parameters({"time_limit": 5.0}) == {**r.task_kwargs, "time_limit": 5.0}
+    assert DEFAULT_RECIPE.task_kwargs == {}
     batch = make_batch("mjkdl/PandaPickAndPlace-v0", 1, device="cpu", **r.task_kwargs)
     env = gym.make("mjkdl/PandaPickAndPlace-v0", **r.task_kwargs)
     try:

@@ -42,9 +42,10 @@ from .spec import TaskSpec
 __all__ = ["BatchEnv", "DeviceUnavailableError", "UnsupportedFeatureError", "make_batch"]
 
 MEMORY_SHARE = 0.8  # of the device's free memory a batch may plan to take
-# MuJoCo Warp's buffers per world. Its own defaults (64 constraint rows for a Panda scene)
-# overflow in a grasp: measured peaks over the experts' episodes, PickCube 129 rows and 32
-# contacts, Stack 161 rows and 39 contacts. A world that overflows ends as diverged.
+# MuJoCo Warp's buffers: constraint rows per world, and contacts per world pooled over all
+# worlds (nconmax x num_envs). Its own defaults (64 rows for a Panda scene) overflow in a
+# grasp: measured peaks over the experts' episodes, PickCube 129 rows and 32 contacts, Stack
+# 161 rows and 39 contacts. Overflowing worlds end as diverged (the pool: every world).
 DEFAULT_NJMAX = 256
 DEFAULT_NCONMAX = 64
 
@@ -69,9 +70,10 @@ def make_batch(
     `TaskSpec`) on MuJoCo Warp's `device` ("cuda", "cuda:N" or "cpu").
 
     Without a GPU, `device="cuda..."` raises unless `allow_cpu`, which runs on the CPU with a
-    warning. `nconmax`/`njmax` are MuJoCo Warp's contacts and constraint rows per world
-    (None: `DEFAULT_NCONMAX`, `DEFAULT_NJMAX`, room for the registered tasks' grasps; a world
-    that overflows them ends its episode as diverged). `max_episode_steps` overrides the
+    warning. `njmax` is MuJoCo Warp's constraint rows per world, `nconmax` its contacts per
+    world, pooled over all worlds (None: `DEFAULT_NJMAX`, `DEFAULT_NCONMAX`, room for the
+    registered tasks' grasps). A world that overflows its rows ends its episode as diverged;
+    an overflow of the contact pool ends every world's. `max_episode_steps` overrides the
     registered time limit. `reset_workers` processes compute the worlds' episode starts in
     parallel (each builds a copy of the task; 0: this process): on a GPU, where one core
     resets the finished worlds slower than the device steps them all.
@@ -96,8 +98,6 @@ def make_batch(
                 "TaskSpec (set them on the spec)"
             )
         maker = functools.partial(TaskEnv, task)
-        if reset_workers:
-            check_picklable(maker)
         host = TaskEnv(task)
     elif isinstance(task, str):
         if task not in gym.registry:
@@ -108,12 +108,15 @@ def make_batch(
             made.close()
             raise SpecError(f"make_batch: {task!r} is not an mjkdl task (TaskEnv)")
         host = made
-        maker = functools.partial(_registered, task, kwargs)
+        # By its spec: an id registered outside mjkdl is rebuilt without re-registering it.
+        maker = functools.partial(_registered, registered, kwargs)
         if horizon is None:
             horizon = registered.max_episode_steps
     else:
         raise SpecTypeError(f"make_batch takes a task id or a TaskSpec, got {task!r}")
     try:
+        if reset_workers:
+            check_picklable(maker)
         return BatchEnv(
             host,
             num_envs,
@@ -129,9 +132,9 @@ def make_batch(
         raise
 
 
-def _registered(task: str, kwargs: dict[str, Any]) -> TaskEnv:
+def _registered(spec: gym.envs.registration.EnvSpec, kwargs: dict[str, Any]) -> TaskEnv:
     """A registered task's env, as `make_batch` builds its host (in a reset worker)."""
-    env = gym.make(task, disable_env_checker=True, **kwargs).unwrapped
+    env = gym.make(spec, disable_env_checker=True, **kwargs).unwrapped
     assert isinstance(env, TaskEnv)
     return env
 
@@ -183,8 +186,9 @@ class BatchEnv(VectorEnv):
     episode's, `info["final_obs"]` holds the last one for every world (rows of finished
     worlds are meaningful) and `info["_final"]` marks them. `info["is_success"]` and
     `info["diverged"]` are bool tensors; a world diverges when its state stops being finite
-    or when it overflows MuJoCo Warp's contact or constraint buffers (a warning names the
-    fix): its episode ends (`terminated`, reward 0).
+    or when MuJoCo Warp drops its constraints or contacts for lack of room (its rows, or the
+    contact pool all worlds share: then every world; a warning names the fix): its episode
+    ends (`terminated`, reward 0).
 
     The task's reward, success and termination rules (`mjkdl.task.rewards`, the same objects
     the CPU env calls) evaluate every world at once as torch operations on the device, in

@@ -23,6 +23,8 @@ from tensordict import TensorDict
 
 from ..errors import SpecError
 from .batch import BatchEnv, make_batch
+from .registry import actuation
+from .spec import Actuation
 
 
 class RslRlEnv(VecEnv):
@@ -92,6 +94,17 @@ class Recipe:
     config: dict[str, Any] = field(default_factory=dict)
     task_kwargs: dict[str, Any] = field(default_factory=dict)
 
+    def parameters(self, overrides: dict[str, Any]) -> dict[str, Any]:
+        """The task's parameters: the recipe's, then `overrides`. A joint-space `actuation`
+        among them drops the recipe's `cartesian_axes` (they choose Cartesian entries)."""
+        out = dict(self.task_kwargs)
+        if actuation(overrides.get("actuation", "cartesian_velocity")) is not (
+            Actuation.CARTESIAN_VELOCITY
+        ):
+            out.pop("cartesian_axes", None)
+        out.update(overrides)
+        return out
+
 
 def _config(hidden: tuple[int, ...], lr: float, entropy: float, gamma: float) -> dict[str, Any]:
     model = {
@@ -127,7 +140,7 @@ def _config(hidden: tuple[int, ...], lr: float, entropy: float, gamma: float) ->
 # object tasks act top-down (translation and yaw, the hand kept pointing down), as pick
 # benchmarks do: the experts succeed as often that way, and exploration has 5 entries, not 7.
 TOP_DOWN = {"cartesian_axes": "vx,vy,vz,wz"}
-DEFAULT_RECIPE = Recipe(4096, 24, 300, _config((256, 128, 64), 1e-3, 5e-3, 0.97), TOP_DOWN)
+DEFAULT_RECIPE = Recipe(4096, 24, 300, _config((256, 128, 64), 1e-3, 5e-3, 0.97))
 RECIPES: dict[str, Recipe] = {
     "mjkdl/PandaReach-v0": Recipe(2048, 24, 100, _config((128, 64), 1e-3, 5e-3, 0.97)),
     "mjkdl/PandaPickCube-v0": Recipe(
@@ -184,7 +197,7 @@ def train(
     iters = iterations or r.iterations
     torch.manual_seed(seed)
     workers = auto_reset_workers(device) if reset_workers is None else reset_workers
-    kwargs = {**r.task_kwargs, **task_kwargs}
+    kwargs = r.parameters(task_kwargs)
     batch = make_batch(task_id, envs, device=device, reset_workers=workers, **kwargs)
     env = RslRlEnv(batch)
     cfg = {**r.config, "num_steps_per_env": steps, "seed": seed}

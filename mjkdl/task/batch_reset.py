@@ -13,6 +13,7 @@ steps thousands of worlds faster than one core resets the ones that finish.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import subprocess
@@ -91,6 +92,8 @@ class EpisodeStarts:
 
     def seed(self, seeds: Sequence[int]) -> None:
         """World `i`'s episodes from now on are those of a CPU env reset with `seeds[i]`."""
+        while self._asked.any():  # take in the replies first: a worker blocked sending one
+            self._collect(block=True)  # would not read what comes next
         self._generation += 1
         self._ready[:] = False
         self._asked[:] = False
@@ -134,9 +137,11 @@ class EpisodeStarts:
             self._ask(ids)  # the workers compute these worlds' next starts meanwhile
 
     def close(self) -> None:
-        """Stop the workers."""
+        """Stop the workers: their pipes closed, each ends; then wait for them all."""
         for w in self._workers:
-            w.close()
+            w.hang_up()
+        for w in self._workers:
+            w.join()
         self._workers = []
 
     # ------------------------------------------------------------------ rows
@@ -191,7 +196,13 @@ class _Worker:
         os.close(up_w)
         self.outbox = Connection(down_w, readable=False)
         self.inbox = Connection(up_r, writable=False)
-        self.send(("make", maker))
+        try:
+            # The task unpickles in the worker after it takes this process's import path.
+            self.send(("make", list(sys.path), pickle.dumps(maker)))
+        except BaseException:
+            self.hang_up()
+            self.join()
+            raise
 
     def ready(self) -> None:
         """Wait until the worker has built its env."""
@@ -220,9 +231,12 @@ class _Worker:
             "in this process"
         )
 
-    def close(self) -> None:
+    def hang_up(self) -> None:
+        """Close the pipes: the worker ends at its next read or write."""
         for conn in (self.outbox, self.inbox):
             conn.close()
+
+    def join(self) -> None:
         try:
             self._proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
@@ -231,14 +245,20 @@ class _Worker:
 
 
 def check_picklable(maker: Callable[[], TaskEnv]) -> None:
-    """Refuse a task the reset workers cannot rebuild (a lambda or local function in it)."""
+    """Refuse a task the reset workers cannot rebuild: a lambda or local function in it, or
+    anything of the running script (`__main__`, which a worker does not run)."""
     try:
-        pickle.dumps(maker)
+        data = pickle.dumps(maker)
     except (pickle.PicklingError, AttributeError, TypeError) as err:
-        raise SpecError(
-            f"reset_workers rebuild the task in other processes, and it cannot be pickled "
-            f"({err}); use module-level functions in the TaskSpec, or reset_workers=0"
-        ) from None
+        why = f"it cannot be pickled ({err})"
+    else:
+        if b"__main__" not in data:
+            return
+        why = "it uses something defined in the running script (__main__)"
+    raise SpecError(
+        f"reset_workers rebuild the task in other processes, and {why}; define the task's "
+        "functions (and register its id) in an importable module, or use reset_workers=0"
+    )
 
 
 def _worker(argv: list[str]) -> None:
@@ -246,32 +266,31 @@ def _worker(argv: list[str]) -> None:
     inbox = Connection(int(argv[0]), writable=False)
     outbox = Connection(int(argv[1]), readable=False)
     try:
-        _, maker = inbox.recv()
-        env = maker()
+        _, path, maker = inbox.recv()
+        sys.path[:] = path
+        env = pickle.loads(maker)()
         env.reset(seed=0)
-    except Exception as err:  # reported to the parent, which raises it
-        outbox.send(("error", f"{type(err).__name__}: {err}"))
-        return
-    outbox.send(("ready", None))
-    rngs: dict[int, np.random.Generator] = {}
-    generation = 0
-    while True:
-        try:
+        outbox.send(("ready", None))
+        rngs: dict[int, np.random.Generator] = {}
+        generation = 0
+        while True:
             kind, gen, payload = inbox.recv()
-        except EOFError:  # the batch closed
-            env.close()
-            return
-        if kind == "seed":
-            generation, rngs = gen, {i: np_random(s)[0] for i, s in payload.items()}
-            continue
-        if gen != generation:
-            continue
-        starts = []
-        for i in payload:
-            env.np_random = rngs[i]
-            env.reset()
-            starts.append(start_of(env))
-        fields = {f: np.stack([s[0][f] for s in starts]) for f in FIELDS}
-        q_cmd = [np.stack([s[1][j] for s in starts]) for j in range(len(env.effectors))]
-        qd = [np.stack([s[2][j] for s in starts]) for j in range(len(env.effectors))]
-        outbox.send(("rows", (gen, payload, fields, q_cmd, qd)))
+            if kind == "seed":
+                generation, rngs = gen, {i: np_random(s)[0] for i, s in payload.items()}
+                continue
+            if gen != generation:
+                continue
+            starts = []
+            for i in payload:
+                env.np_random = rngs[i]
+                env.reset()
+                starts.append(start_of(env))
+            fields = {f: np.stack([s[0][f] for s in starts]) for f in FIELDS}
+            q_cmd = [np.stack([s[1][j] for s in starts]) for j in range(len(env.effectors))]
+            qd = [np.stack([s[2][j] for s in starts]) for j in range(len(env.effectors))]
+            outbox.send(("rows", (gen, payload, fields, q_cmd, qd)))
+    except (EOFError, BrokenPipeError):  # the batch closed
+        return
+    except Exception as err:  # reported to the parent, which raises it
+        with contextlib.suppress(OSError):
+            outbox.send(("error", f"{type(err).__name__}: {err}"))

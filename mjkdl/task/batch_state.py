@@ -92,6 +92,7 @@ class DeviceState:
         with wp.ScopedDevice(self._wp_device):
             self.model = warp_model(model)
             self.data = mjw.put_data(model, data, nworld=nworld, nconmax=nconmax, njmax=njmax)
+            wp.synchronize_device()  # the uploads are done before torch reads the arrays
         d = self.data
         t = wp.to_torch
         self.time = t(d.time)
@@ -141,8 +142,10 @@ class DeviceState:
                 return
             torch_stream = torch.cuda.current_stream(self._warp_stream.device)
             self._warp_stream.wait_stream(torch_stream)
-            yield
-            torch_stream.wait_stream(self._warp_stream)
+            try:
+                yield
+            finally:
+                torch_stream.wait_stream(self._warp_stream)
 
     def tcp_of(self, arm: str) -> Tcp:
         """The TCP of arm `arm` (registered by the observer)."""
@@ -160,7 +163,7 @@ class DeviceState:
     def step(self, substeps: int) -> None:
         """`substeps` physics steps of every world, then poses and velocities of the new state
         (the CPU env's refresh after `mj_step`; forces stay those of the last step). On a GPU
-        it returns once the work is queued.
+        a replayed graph returns once it is queued.
 
         The first call runs Warp's launches one by one (loading the kernels); later calls
         replay them as one captured graph, the same launches on the same arrays without
@@ -173,7 +176,8 @@ class DeviceState:
                 wp.capture_launch(graph)
             elif substeps in self._stepped and self._capture:
                 try:
-                    with wp.ScopedCapture() as capture:
+                    # The first call loaded every kernel the step uses.
+                    with wp.ScopedCapture(force_module_load=False) as capture:
                         self._physics(substeps)
                 except Exception as err:  # a capture failure costs speed, never the run
                     self._capture = False
@@ -191,9 +195,9 @@ class DeviceState:
                 self._stepped.add(substeps)
 
     def overflowed(self) -> torch.Tensor:
-        """(N,) bool: the worlds that overflowed one of MuJoCo Warp's buffers (contacts,
-        constraint rows, ...) since their last reset; MuJoCo Warp dropped what did not fit,
-        so their physics is wrong."""
+        """(N,) bool: the worlds that overflowed one of MuJoCo Warp's buffers since their last
+        reset (their constraint rows; the contact pool, which flags every world; ...): MuJoCo
+        Warp dropped what did not fit, so their physics is wrong."""
         return (self.overflow & self._room) != 0
 
     def overflow_message(self, rows: torch.Tensor) -> str:
@@ -208,7 +212,8 @@ class DeviceState:
             f"MuJoCo Warp ran out of room in {len(worlds)} of {self.nworld} worlds (world {w}: "
             f"{', '.join(which)}) and dropped contacts or constraints; those worlds' episodes "
             f"end as diverged. Pass make_batch a larger njmax (constraint rows per world, now "
-            f"{self.njmax}) or nconmax (contacts per world, now {self.nconmax})"
+            f"{self.njmax}) or nconmax (contacts per world, pooled over the worlds, now "
+            f"{self.nconmax})"
         )
 
     def _physics(self, substeps: int) -> None:
