@@ -136,7 +136,7 @@ class ArmEffector:
         start: int,
     ) -> None:
         self.arm, self.robot, self.gripper, self.controller = arm, robot, gripper, controller
-        self.axes = [CARTESIAN_AXES.index(a) for a in arm.cartesian_axes]
+        self.axes = np.array([CARTESIAN_AXES.index(a) for a in arm.cartesian_axes], np.intp)
         self._twist = np.zeros(6)  # the action's entries, zeros for the axes it omits
         n = len(self.axes) if controller is not None else robot.n_joints
         self.slice = slice(start, start + n)

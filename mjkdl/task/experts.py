@@ -21,7 +21,7 @@ from ..errors import SpecError, UnknownNameError
 from .env import TaskEnv
 from .goal import GoalTaskEnv
 from .registry import CUBE_HALF, LIFT, TASKS
-from .spec import CARTESIAN_AXES, Actuation
+from .spec import Actuation
 
 _DOWN = np.array([0.0, 0.0, -1.0])
 GRASP_RAISE = 0.004  # m: the TCP over a floor cube's centre at the grasp (fingertips clear)
@@ -44,7 +44,7 @@ class _Cartesian:
         self.scale = np.array(
             [arm.max_linear_velocity] * 3 + [arm.max_angular_velocity] * 3, dtype=float
         )
-        self.axes = [CARTESIAN_AXES.index(a) for a in arm.cartesian_axes]
+        self.axes = env.effectors[0].axes
         self.period = env.control_timestep
         self.goal_keys: list[tuple[str, int]] = []
         if isinstance(env, GoalTaskEnv):
