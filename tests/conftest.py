@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -12,6 +14,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -96,14 +99,114 @@ def menagerie(name: str) -> str:
     return mjk.menagerie.model_path(name)
 
 
-def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:
-    """Say how many tests skipped for want of Menagerie models, and why: a run without them
-    still looks green, yet much of the suite did not run."""
-    reasons = [
-        str(report.longrepr[2])
+# ---------------------------------------------------------------------- extras
+
+
+@dataclass(frozen=True)
+class Extra:
+    """An optional dependency group: the modules a test needs from it, and how to install it."""
+
+    name: str
+    modules: tuple[str, ...]
+    install: str
+
+    @property
+    def reason(self) -> str:
+        """The skip reason: the same words for every test, so the summary can group them."""
+        return f"needs the {self.name} extra: {self.install}"
+
+
+EXTRAS = {
+    extra.name: extra
+    for extra in (
+        Extra("rl", ("torch", "stable_baselines3", "sb3_contrib"), 'pip install -e ".[rl]"'),
+        Extra("warp", ("torch", "warp", "mujoco_warp"), 'pip install -e ".[warp]"'),
+        Extra("warp-rl", ("torch", "mujoco_warp", "rsl_rl"), 'pip install -e ".[warp-rl]"'),
+        Extra("franka", ("pylibfranka", "franky", "panda_py"), 'pip install -e ".[franka]"'),
+        Extra(
+            "lerobot",
+            ("lerobot",),
+            'pip install -e ".[lerobot]" in an environment of its own (lerobot 0.4 pins '
+            "torch < 2.11)",
+        ),
+        Extra(
+            "robomimic",
+            ("robomimic", "torchvision"),
+            "pip install robomimic==0.3.0 torch torchvision six -e . in an environment of its "
+            "own (.ci/run)",
+        ),
+    )
+}
+# Extras that must be installed where this is set (a comma-separated list, or "all"): their
+# tests fail instead of skipping. CI sets it after installing them.
+_REQUIRED = {n for n in os.environ.get("MJKDL_REQUIRE_EXTRAS", "").split(",") if n}
+_EXTRA_SKIP = re.compile(r"needs the (\S+) extra: ")
+
+
+def _extra(name: str) -> Extra:
+    try:
+        return EXTRAS[name]
+    except KeyError:
+        raise KeyError(f"no extra {name!r} in conftest.EXTRAS; known: {sorted(EXTRAS)}") from None
+
+
+def extra_missing(name: str) -> str | None:
+    """Why extra `name` is unusable here (its skip reason), or None when all its modules import."""
+    extra = _extra(name)
+    if all(importlib.util.find_spec(module) is not None for module in extra.modules):
+        return None
+    return extra.reason
+
+
+def needs_extra(name: str) -> None:
+    """Skip the calling test (or, at module level, its module) unless extra `name` is
+    installed; fail instead where MJKDL_REQUIRE_EXTRAS names it."""
+    reason = extra_missing(name)
+    if reason is None:
+        return
+    if name in _REQUIRED or "all" in _REQUIRED:
+        pytest.fail(f"{reason}, and MJKDL_REQUIRE_EXTRAS asks for its tests to run", pytrace=False)
+    pytest.skip(reason, allow_module_level=True)
+
+
+def import_extra(name: str, module: str) -> ModuleType:
+    """`module` of extra `name`, imported; skips as `needs_extra` does when it is missing."""
+    needs_extra(name)
+    return importlib.import_module(module)
+
+
+def _skip_reasons(terminalreporter) -> list[tuple[str, str]]:
+    """(node id, reason) of every skipped test and module."""
+    return [
+        (report.nodeid, str(report.longrepr[2]))
         for report in terminalreporter.stats.get("skipped", [])
-        if isinstance(report.longrepr, tuple) and _MENAGERIE_SKIP in str(report.longrepr[2])
+        if isinstance(report.longrepr, tuple)
     ]
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:
+    """Say what did not run: tests skipped for want of an extra, one line per extra with its
+    install line, and for want of Menagerie models. A run without them still looks green, yet
+    part of the suite did not run. Where MJKDL_EXTRA_SKIPS names a file, the node ids skipped
+    for an extra are written there (CI reruns them after installing the extras)."""
+    skipped = _skip_reasons(terminalreporter)
+    by_extra: dict[str, list[str]] = {}
+    for nodeid, reason in skipped:
+        found = _EXTRA_SKIP.search(reason)
+        if found:
+            by_extra.setdefault(found.group(1), []).append(nodeid)
+    if os.environ.get("MJKDL_EXTRA_SKIPS"):
+        ids = sorted({nodeid for ids in by_extra.values() for nodeid in ids})
+        Path(os.environ["MJKDL_EXTRA_SKIPS"]).write_text("".join(f"{i}\n" for i in ids))
+    if by_extra:
+        terminalreporter.write_sep("=", "extras not installed", yellow=True)
+        for name in sorted(by_extra):
+            count = len(by_extra[name])
+            terminalreporter.write_line(
+                f"{name}: {count} skipped (tests, or whole test files); to run them: "
+                f"{_extra(name).install}"
+            )
+    reasons = [reason for _, reason in skipped if _MENAGERIE_SKIP in reason]
     if not reasons:
         return
     models = sorted({r.split("'")[1] for r in reasons})
@@ -348,6 +451,6 @@ def _text(output: bytes | str | None) -> str:
 def franka_server() -> Iterator[str]:
     """The address of a lockstep simulated Franka arm for one test module (mjkdl's own
     clients, tests/test_hw_*.py)."""
-    pytest.importorskip("pylibfranka")
+    needs_extra("franka")
     with franka_sim("--lockstep", "--command-timeout", "10") as sim:
         yield sim.host

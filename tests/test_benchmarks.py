@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import ROOT, menagerie
+from conftest import ROOT, menagerie, needs_extra
 
 BENCHMARKS = ROOT / "benchmarks"
 NUMBER = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
@@ -90,6 +90,8 @@ def run_benchmark(name: str, *args: str) -> str:
     ],
 )
 def test_benchmark_runs_and_prints_its_figures(name, args, figure) -> None:
+    if name == "batch":
+        needs_extra("warp")
     out = run_benchmark(name, *args)
     found = re.search(figure + r"\s*" + NUMBER, out)
     assert found, f"no {figure!r} followed by a number in the output of {name}:\n{out}"
@@ -109,7 +111,7 @@ def test_benchmark_runs_and_prints_its_figures(name, args, figure) -> None:
     ],
 )
 def test_learning_runs_and_saves_its_curve(run, args, figure, tmp_path) -> None:
-    pytest.importorskip("stable_baselines3", reason="needs the rl extra")
+    needs_extra("rl")
     out = run_benchmark("learning", run, *args, "--results", str(tmp_path))
     assert re.search(figure + NUMBER + " s wall", out), out
     curve = __import__("json").loads((tmp_path / f"{run}.json").read_text())["curve"]

@@ -15,7 +15,7 @@ import imageio_ffmpeg
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from conftest import menagerie
+from conftest import EXTRAS, menagerie
 from demo_envs import CAMERA
 from test_demos_hdf5 import PICK, REACH, cli
 
@@ -35,7 +35,7 @@ def lerobot_imports() -> bool:
 
 NO_LEROBOT = pytest.mark.skipif(
     not REQUIRE_LEROBOT and not lerobot_imports(),
-    reason="lerobot 0.4 does not install beside this torch (it pins torch < 2.11)",
+    reason=EXTRAS["lerobot"].reason,
 )
 WRITERS = ["pyarrow", pytest.param("lerobot", marks=NO_LEROBOT)]
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import ROOT, menagerie
+from conftest import EXTRAS, ROOT, menagerie
 from test_demos_hdf5 import PICK
 
 from mjkdl.demos import DemoFile, collect
@@ -36,7 +36,7 @@ if REQUIRE_ROBOMIMIC or robomimic_imports():
 
 pytestmark = pytest.mark.skipif(
     not REQUIRE_ROBOMIMIC and not robomimic_imports(),
-    reason="robomimic 0.3.0 (with torch and torchvision) is not installed here",
+    reason=EXTRAS["robomimic"].reason,
 )
 LOW_DIM = ["panda_tcp_pos", "panda_tcp_quat", "panda_gripper", "cube_rel"]
 IMAGES = {"camera_names": ["wrist"], "camera_size": [48, 48]}

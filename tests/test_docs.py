@@ -2,6 +2,9 @@
 and the layer pages), in order, in one namespace per page, print what the pages say.
 
 A ```text block that directly follows a ```python block is the output that block must print.
+A block whose first line is `# needs the NAME extra ...` runs only where that extra is
+installed; without it the other blocks still run and are checked, and the test then skips,
+naming the extra.
 `...` matches any text within it. Numbers are checked as numbers: a decimal number (``0.700``)
 within one unit of its last printed digit, a number in e-notation (``1e-09``, an error or a
 drift) as an upper bound within a factor of 10; integers and other text match exactly. The
@@ -27,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from conftest import extra_missing, needs_extra
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIAL = ROOT / "docs" / "tutorial.md"
@@ -39,6 +43,7 @@ CHECKED_NUMBER = re.compile(
     r"(?<![\w.])[-+]?(?:\d+\.\d+(?:[eE][-+]?\d+)?|\d+[eE][-+]?\d+)(?![\w.])"
 )
 ANY_NUMBER = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
+NEEDS_EXTRA = re.compile(r"# needs the (\S+) extra")
 
 
 @dataclass
@@ -46,6 +51,7 @@ class Block:
     line: int
     code: str
     expected: str | None  # the ```text block right after it, if any
+    extra: str | None = None  # the optional dependency group it needs ("# needs the warp extra")
 
 
 def blocks(text: str) -> list[Block]:
@@ -56,7 +62,8 @@ def blocks(text: str) -> list[Block]:
         language, body = match.group(1), match.group(2)
         line = text.count("\n", 0, match.start()) + 1
         if language == "python":
-            found.append(Block(line, body, None))
+            needs = NEEDS_EXTRA.match(body)
+            found.append(Block(line, body, None, needs.group(1) if needs else None))
         elif language == "text" and found and found[-1].expected is None:
             between = text[end_of_previous : match.start()]
             if end_of_previous >= 0 and not between.strip():
@@ -144,7 +151,10 @@ def assert_blocks_run(path: Path, at_least: int) -> dict[str, object]:
     namespace: dict[str, object] = {}
     found = blocks(path.read_text())
     assert len(found) >= at_least
+    unrun = [block for block in found if block.extra and extra_missing(block.extra)]
     for block in found:
+        if block in unrun:
+            continue
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
             exec(compile(block.code, f"{path}:{block.line}", "exec"), namespace)
@@ -153,6 +163,9 @@ def assert_blocks_run(path: Path, at_least: int) -> dict[str, object]:
                 f"{path.name} line {block.line} printed:\n{out.getvalue()}"
                 f"\nexpected:\n{block.expected}"
             )
+    for block in unrun:  # after the others ran and matched: skip (or fail) naming the extra
+        assert block.extra is not None
+        needs_extra(block.extra)
     return namespace
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from conftest import needs_extra
 
 from mjkdl.errors import MjkdlError
 from mjkdl.hw.connection import ArmConnection
@@ -14,7 +15,7 @@ from mjkdl.hw.faults import (
     translate,
 )
 
-pytest.importorskip("pylibfranka")
+needs_extra("franka")
 
 NOBODY = "127.0.0.97"  # a loopback address nothing listens on (the tests' servers use others)
 

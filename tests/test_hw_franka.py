@@ -3,7 +3,6 @@ against `python -m mjkdl.hw.franka_sim` (lockstep) in another process."""
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 import textwrap
@@ -13,6 +12,7 @@ from collections.abc import Iterator
 import mujoco
 import numpy as np
 import pytest
+from conftest import needs_extra
 
 import mjkdl as mjk
 from mjkdl.hw.connection import ArmConnection
@@ -26,8 +26,7 @@ HOME = np.array([0.0, -0.785398, 0.0, -2.356194, 0.0, 1.570796, 0.785398])  # th
 def arm(franka_server: str, request: pytest.FixtureRequest) -> Iterator[FrankaArm]:
     """The handle through each client: pylibfranka (libfranka 0.21, protocol 10) and panda-py
     (libfranka 0.9.2, protocol 5, the Panda's default)."""
-    if importlib.util.find_spec(request.param.replace("-", "_")) is None:
-        pytest.skip("pip install mjkdl[franka]")
+    needs_extra("franka")
     with FrankaArm(franka_server, client=request.param) as arm:
         yield arm
 

@@ -5,22 +5,19 @@ process (lockstep, empty scene) so the test can push its hand; the client in its
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import threading
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from conftest import _franka_host
+from conftest import _franka_host, needs_extra
 from test_hw_franka_sim_arm import push_at_ee
 from test_hw_franka_sim_server import client
 
 from mjkdl.hw.franka_sim import FrankaSimServer
 
-pytestmark = pytest.mark.skipif(
-    importlib.util.find_spec("pylibfranka") is None, reason="pip install mjkdl[franka]"
-)
+needs_extra("franka")
 
 PUSH = np.array([8.0, -5.0, -10.0])  # N on the hand at the EE point, base frame
 

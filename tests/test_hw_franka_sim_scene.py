@@ -3,13 +3,11 @@ in the loop, and the task expert driving the arm through the network in the empt
 
 from __future__ import annotations
 
-import importlib.util
-
 import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
-from conftest import franka_sim
+from conftest import franka_sim, needs_extra
 
 import mjkdl.task  # noqa: F401  (registers the tasks)
 from mjkdl.errors import SpecError
@@ -40,13 +38,11 @@ def test_an_unknown_scene_names_the_ones_there_are() -> None:
         FrankaSimServer("127.0.0.1", scene="shelf")
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec("pylibfranka") is None, reason="pip install mjkdl[franka]"
-)
 def test_the_pick_cube_expert_succeeds_through_the_network() -> None:
     """gym.make(robot_ip=...): the arm is the server's (lockstep, empty scene), the floor and
     the cube the env's; the scripted expert lifts the cube, and the arm feels no contact (the
     env's floor and cube are not the server's)."""
+    needs_extra("franka")
     with franka_sim("--lockstep", "--command-timeout", "10", "--scene", "empty") as sim:
         env = gym.make("mjkdl/PandaPickCube-v0", robot_ip=sim.host)
         try:

@@ -4,7 +4,6 @@ lockstep (deterministic: every state waits for its command, whatever the machine
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import re
@@ -21,7 +20,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import FRANKA_EXAMPLES, FrankaSim, franka_sim, run_franka_example
+from conftest import FRANKA_EXAMPLES, FrankaSim, franka_sim, needs_extra, run_franka_example
 
 from mjkdl.errors import SpecError
 from mjkdl.hw.franka_sim import AddressInUseError, FrankaSimServer, wire
@@ -31,15 +30,7 @@ from mjkdl.hw.franka_sim.scene import CUBE_AT, START_Q, franka_scene
 
 # pylibfranka and franky both bind a `Duration`: only one of them loads per process, so the
 # test process loads neither; the clients run in their own.
-pytestmark = pytest.mark.skipif(
-    importlib.util.find_spec("pylibfranka") is None, reason="pip install mjkdl[franka]"
-)
-needs_franky = pytest.mark.skipif(
-    importlib.util.find_spec("franky") is None, reason="pip install mjkdl[franka]"
-)
-needs_panda_py = pytest.mark.skipif(
-    importlib.util.find_spec("panda_py") is None, reason="pip install mjkdl[franka]"
-)
+needs_extra("franka")
 
 PYLIBFRANKA = FRANKA_EXAMPLES / "pylibfranka"
 FRANKY = FRANKA_EXAMPLES / "franky"
@@ -233,7 +224,6 @@ def test_pick_the_cube_through_the_protocol(server, sim_arm):
     assert abs(float(width) - 0.04) < 0.003, lifted  # the fingers press 1 mm into it
 
 
-@needs_franky
 def test_franky_read_example(server):
     # the example prints the state every 50 ms until stopped
     out = run_franka_example(FRANKY / "read.py", "--host", server, timeout=8, stop=True)
@@ -241,7 +231,6 @@ def test_franky_read_example(server):
     assert "FlipDirection.Negative" in out, out  # joint 4 is negative on both arms
 
 
-@needs_franky
 def test_franky_linear_example_ends_where_it_began_its_line(server):
     out = run_franka_example(FRANKY / "linear.py", "--host", server)
     assert "Error" not in out and "Exception" not in out, out
@@ -425,7 +414,6 @@ def test_the_same_arc_under_the_robots_cartesian_impedance(server, sim_arm):
     np.testing.assert_allclose(moved, [0.3, 0.0, -0.3], atol=2e-3)
 
 
-@needs_franky
 def test_franky_velocity_control_example(server, sim_arm):
     out = run_franka_example(FRANKY / "velocity_control.py", "--host", server)
     assert "Cartesian velocity control stopped." in out and "Exception" not in out, out
@@ -484,7 +472,6 @@ print(json.dumps(out))
 """
 
 
-@needs_panda_py
 @pytest.mark.skipif(
     shutil.which("cc") is None and shutil.which("gcc") is None,
     reason="the server compiles panda-py's model library with a C compiler (apt-get install gcc)",
@@ -548,7 +535,6 @@ def test_panda_py_model_and_controllers_on_the_served_model_library(sim, sim_arm
     assert any("robot protocol 5" in line for line in sim.log)
 
 
-@needs_panda_py
 def test_without_a_c_compiler_panda_py_gets_libfrankas_error_and_the_log_the_fix(
     tmp_path, monkeypatch
 ):

@@ -4,22 +4,19 @@ tests/test_viewer.py does), and a clear error where there is no display."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, _franka_host, franka_sim
+from conftest import ROOT, _franka_host, franka_sim, needs_extra
 from test_hw_franka_sim_server import client
 from test_viewer import display, tool  # noqa: F401  (the display fixture)
 
 from mjkdl.hw.franka_sim.scene import START_Q
 
-pytestmark = pytest.mark.skipif(
-    importlib.util.find_spec("pylibfranka") is None, reason="pip install mjkdl[franka]"
-)
+needs_extra("franka")
 
 
 @pytest.mark.usefixtures("display")

@@ -8,9 +8,9 @@ import sys
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import import_extra
 
-pytest.importorskip("mujoco_warp")
-torch = pytest.importorskip("torch")
+torch = import_extra("warp", "torch")
 
 from mjkdl.errors import MjkdlError, SpecError, SpecTypeError  # noqa: E402
 from mjkdl.task import make_batch, registry  # noqa: E402

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from conftest import import_extra
 
-pytest.importorskip("mujoco_warp")
-pytest.importorskip("rsl_rl")
-torch = pytest.importorskip("torch")
+torch = import_extra("warp-rl", "torch")
 
 from tensordict import TensorDict  # noqa: E402
 

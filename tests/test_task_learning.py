@@ -6,12 +6,12 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import menagerie
+from conftest import import_extra, menagerie
 
 import mjkdl.task  # noqa: F401  (registers the tasks)
 from mjkdl.task.registry import TASKS
 
-sb3 = pytest.importorskip("stable_baselines3", reason="needs the rl extra: pip install -e '.[rl]'")
+sb3 = import_extra("rl", "stable_baselines3")
 
 
 @pytest.fixture(autouse=True)

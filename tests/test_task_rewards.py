@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import import_extra
 
 import mjkdl as mjk
 from mjkdl.task import (
@@ -273,7 +274,7 @@ def test_place_reward_formula_takes_batches() -> None:
 def test_every_rule_evaluates_batches_as_it_evaluates_one_world() -> None:
     """`evaluate` on (N, k) torch tensors (the batched backend's call) gives, world by world,
     what the CPU env's call gives on that world's NumPy observation."""
-    torch = pytest.importorskip("torch")
+    torch = import_extra("warp", "torch")
     from mjkdl.task.goal import GoalReward
     from mjkdl.task.rewards import batchable
 

@@ -86,10 +86,24 @@ __all__ = [
 ]
 
 
+_LAZY = ("make_batch", "BatchEnv")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
+
+
 def __getattr__(name: str) -> object:
     """`make_batch` and `BatchEnv` (MuJoCo Warp, torch: the `warp` extra) load on first use."""
-    if name in ("make_batch", "BatchEnv"):
-        from . import batch
-
+    if name in _LAZY:
+        try:
+            from . import batch
+        except ModuleNotFoundError as missing:
+            if missing.name not in ("torch", "warp", "mujoco_warp"):
+                raise
+            raise ImportError(
+                f"mjkdl.task.{name} needs the warp extra ({missing.name} is not installed): "
+                "pip install 'mjkdl[warp]'"
+            ) from None
         return getattr(batch, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
