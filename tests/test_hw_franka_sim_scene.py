@@ -13,6 +13,7 @@ from conftest import franka_sim
 
 import mjkdl.task  # noqa: F401  (registers the tasks)
 from mjkdl.errors import SpecError
+from mjkdl.hw.faults import ReflexError
 from mjkdl.hw.franka_sim import FrankaSimServer
 from mjkdl.hw.franka_sim.scene import SCENES, franka_scene
 from mjkdl.scene import Env
@@ -70,3 +71,25 @@ def test_the_pick_cube_expert_succeeds_through_the_network() -> None:
         finally:
             env.close()
     assert not any("reflex" in line for line in sim.log), sim.log[-5:]
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("pylibfranka") is None, reason="pip install mjkdl[franka]"
+)
+def test_the_loop_against_the_pick_scene_names_the_empty_one() -> None:
+    """The server's own floor, table and cube push its arm where the env's scene has nothing:
+    the Cartesian reflex that follows is raised naming `--scene empty`, the server logs it."""
+    with franka_sim("--lockstep", "--command-timeout", "10", "--scene", "pick") as sim:
+        env = gym.make("mjkdl/PandaPickCube-v0", robot_ip=sim.host)
+        try:
+            obs, _ = env.reset(seed=0)
+            expert = expert_for(env)
+            expert.reset()
+            with pytest.raises(ReflexError) as caught:
+                for _ in range(100):
+                    obs, *_ = env.step(expert(obs))
+        finally:
+            env.close()
+        sim.wait_for("for hardware in the loop (robot_ip=) serve --scene empty")
+    text = str(caught.value)
+    assert '["cartesian_reflex"]' in text and "serve `--scene empty`" in text, text

@@ -177,7 +177,7 @@ class ArmConnection:
                 self._fault = translate(msg[1], msg[2], self.address)
             elif msg[0] == "watchdog":
                 warnings.warn(
-                    f"the arm at {self.address} was brought to rest: no command came for "
+                    f"the arm at {self.address} is brought to rest: no command came for "
                     f"{msg[1]:.3f} s (watchdog={self.watchdog} s); send commands more often "
                     "or connect with a longer watchdog; the next command starts a new motion",
                     WatchdogWarning,
@@ -485,8 +485,6 @@ class _Loop:
             else:
                 robot.control_joint_position(tick, limit_rate=False, cutoff_frequency=1000.0)
         self.publish(robot.read_once(), IDLE)
-        if self.watchdog_fired and not self.stop_asked():
-            self.send("watchdog", self.watchdog_fired)
 
     def tick(self, rs: Any, period: Any) -> Any:
         """The command for this tick of the motion under way, from the state `rs` that came
@@ -514,6 +512,8 @@ class _Loop:
             self.stopping = True
         if not self.stopping and now - self.last_new > self.watchdog:
             self.stopping, self.watchdog_fired = True, now - self.last_new
+            # said now, not once at rest: the user's next call reports the stall
+            self.send("watchdog", self.watchdog_fired)
         stopping, finished = self.stopping, False
         if self.hold:  # the motion's first ticks stand still at its start
             self.hold -= 1

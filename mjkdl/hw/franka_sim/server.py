@@ -83,7 +83,8 @@ class FrankaSimServer:
         self.lockstep = lockstep
         self.command_timeout = command_timeout
         # the ports first: a taken address fails before the scene is built
-        self._robot_listener = self._listen(robot_port)
+        self._robot_listener: socket.socket | None = self._listen(robot_port)
+        self._robot_port = self._robot_listener.getsockname()[1]
         try:
             self._gripper_listener = self._listen(gripper_port)
         except AddressInUseError:
@@ -140,7 +141,7 @@ class FrankaSimServer:
             "franka_sim: %s on %s (robot port %d, hand port %d), %s, scene %s",
             self.arm.limits.name,
             self.host,
-            self._robot_listener.getsockname()[1],
+            self._robot_port,
             self._gripper_listener.getsockname()[1],
             "lockstep" if self.lockstep else "realtime 1 kHz",
             self.scene,
@@ -199,6 +200,11 @@ class FrankaSimServer:
                     n for n, on in zip(wire.ERRORS, self.arm.last_motion_errors, strict=True) if on
                 ]
                 log.warning("franka_sim: reflex, the arm stopped: %s", ", ".join(names))
+                if self.scene != "empty":
+                    log.warning(
+                        "franka_sim: for hardware in the loop (robot_ip=) serve --scene empty: "
+                        "this scene's own objects push the arm where the client's scene has none"
+                    )
             self._move_reply(self._motion_id, status)
             self._motion_id = None
             log.info(
@@ -302,7 +308,9 @@ class FrankaSimServer:
 
     # -- TCP ----------------------------------------------------------------------------------
     def _poll(self, timeout: float, udp: bool = False) -> None:
-        socks = [self._robot_listener, self._gripper_listener]
+        socks = [self._gripper_listener]
+        if self._robot_listener is not None:
+            socks.append(self._robot_listener)
         socks += [p.sock for p in self._pending]
         socks += [p.sock for p in (self.robot, self.gripper) if p is not None]
         if udp:
@@ -362,6 +370,10 @@ class FrankaSimServer:
                 log.info("franka_sim: robot client %s:%d %s", *peer.address, why)
             self.robot = None
             self._motion_id = None
+            try:  # the next client may come
+                self._robot_listener = self._listen(self._robot_port)
+            except AddressInUseError as err:
+                log.error("franka_sim: no further clients: %s", err)
         elif peer is self.gripper:
             self.hand.abort()
             self.gripper = None
@@ -487,6 +499,12 @@ class FrankaSimServer:
         peer.udp = (peer.address[0], udp_port)
         self._pending.remove(peer)
         self.robot = peer
+        # The robot serves one client: while this one holds it, the port refuses others, so
+        # libfranka's own error names the cause ("Connection to FCI refused"), where a
+        # connection accepted and then dropped reads "TCP connection got interrupted".
+        assert self._robot_listener is not None
+        self._robot_listener.close()
+        self._robot_listener = None
         self._state = np.zeros(1, dtype=protocol.state)
         log.info(
             "franka_sim: client %s:%d connected (robot protocol %d, %s)",
@@ -589,7 +607,8 @@ class FrankaSimServer:
         self._pending.clear()
         self.robot = self.gripper = None
         for sock in (self._robot_listener, self._gripper_listener, self._udp):
-            sock.close()
+            if sock is not None:
+                sock.close()
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
