@@ -42,6 +42,7 @@ from ._check import integer, names
 from .env import TaskEnv
 from .goal import GoalTaskEnv, reward_type
 from .initializers import PlaceAbove, PoseInitializer, PropPlacer
+from .randomization import Randomization
 from .rewards import Held, LiftReward, Placed, PlaceReward, Reached, ReachReward, SparseReward
 from .spec import (
     CARTESIAN_AXES,
@@ -328,6 +329,7 @@ SHARED_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("camera_size", (128, 128), "(height, width) of those images"),
     Parameter("camera_depth", False, "each camera's `{name}_depth` too"),
     Parameter("hide_observations", HIDDEN, "observations rewards see but the agent does not"),
+    Parameter("randomization", None, "what varies per episode (a `Randomization` or its dict)"),
     Parameter("render_camera", "front", "the camera `render()` shows"),
     Parameter("render_width", 640, "`render()`'s width"),
     Parameter("render_height", 480, "`render()`'s height"),
@@ -389,6 +391,7 @@ class _Registered(TaskEnv):
         spec.hide = p["hide_observations"]
         spec.time_limit = p["time_limit"]  # None: the registered TimeLimit alone
         spec.control_timestep = p["control_timestep"]
+        spec.randomization = Randomization.coerce(p["randomization"])
         spec.arms[0].actuation = actuation(p["actuation"])
         spec.arms[0].cartesian_axes = cartesian_axes(p["cartesian_axes"])
         if goal is None and reward_type(p["reward_type"]) == "sparse":
