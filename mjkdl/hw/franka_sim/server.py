@@ -29,6 +29,7 @@ from .arm import DT, LOST_CYCLES_LIMIT, SimulatedArm
 from .gripper import SimulatedHand
 from .limits import MODELS
 from .model_library import ModelLibraryError, model_library
+from .reality import Reality, reality_from
 from .scene import franka_scene
 
 log = logging.getLogger("mjkdl.hw.franka_sim")
@@ -57,7 +58,9 @@ class _Peer:
 
 class FrankaSimServer:
     """A simulated Franka arm (and hand) at `host`, speaking protocols 10 and 5; `scene`: what
-    it shares its world with (`scene.SCENES`: "pick", or "empty" for hardware in the loop)."""
+    it shares its world with (`scene.SCENES`: "pick", or "empty" for hardware in the loop);
+    `reality`: how its arm differs from the nominal simulation (`reality.Reality`, a preset's
+    name or a JSON file; None: not at all)."""
 
     def __init__(
         self,
@@ -69,10 +72,12 @@ class FrankaSimServer:
         robot_port: int = wire.ROBOT_PORT,
         gripper_port: int = wire.GRIPPER_PORT,
         scene: str = "pick",
+        reality: str | Reality | None = None,
     ) -> None:
         if model not in MODELS:
             raise SpecError(f"model {model!r}: the simulator knows {sorted(MODELS)}")
         spec = franka_scene(scene)  # a bad name fails before the ports are taken
+        the_reality = reality_from(reality)
         if viewer:
             try:
                 require_display()
@@ -90,7 +95,7 @@ class FrankaSimServer:
         except AddressInUseError:
             self._robot_listener.close()
             raise
-        self.arm = SimulatedArm(spec, MODELS[model])
+        self.arm = SimulatedArm(spec, MODELS[model], the_reality)
         self.hand = SimulatedHand(self.arm.env)
         self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._udp.bind((host, 0))
@@ -138,13 +143,14 @@ class FrankaSimServer:
     # -- the loop ----------------------------------------------------------------------------
     def serve_forever(self) -> None:
         log.info(
-            "franka_sim: %s on %s (robot port %d, hand port %d), %s, scene %s",
+            "franka_sim: %s on %s (robot port %d, hand port %d), %s, scene %s, reality %s",
             self.arm.limits.name,
             self.host,
             self._robot_port,
             self._gripper_listener.getsockname()[1],
             "lockstep" if self.lockstep else "realtime 1 kHz",
             self.scene,
+            self.arm.reality.name,
         )
         next_tick = time.perf_counter()
         try:
