@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 from conftest import franka_sim
@@ -81,6 +82,43 @@ def test_the_client_reads_the_state_late_and_noisy() -> None:
     finally:
         arm.env.close()
         noisy.env.close()
+
+
+def test_the_training_arm_already_has_the_identified_link_masses() -> None:
+    """Gaz et al.'s link masses (their supplementary material, table VIII; the authors'
+    DynPars2VREP.m) are Menagerie's: a "real" preset has no masses of its own to change."""
+    arm = SimulatedArm(franka_scene("empty"), PANDA)
+    try:
+        m = arm.env.model
+        masses = [m.body(f"link{i}").mass[0] for i in range(1, 8)]
+        gaz = [4.970684, 0.646926, 3.228604, 3.587895, 1.225946, 1.666555, 0.735522]
+        np.testing.assert_allclose(masses, gaz, atol=1e-9)
+    finally:
+        arm.env.close()
+
+
+def test_a_load_in_the_hand_weighs_on_the_joints_as_a_point_mass_there() -> None:
+    plain = SimulatedArm(franka_scene("empty"), PANDA)
+    loaded = SimulatedArm(
+        franka_scene("empty"), PANDA, Reality(load_mass=1.5, load_com=(0.02, 0.0, 0.1))
+    )
+    try:
+        m0, d0, m1, d1 = plain.env.model, plain.env.data, loaded.env.model, loaded.env.data
+        hand = m1.body("hand").id
+        assert m1.body_mass[hand] == pytest.approx(m0.body_mass[hand] + 1.5, abs=1e-12)
+        assert m1.body_subtreemass[1] == pytest.approx(m0.body_subtreemass[1] + 1.5, abs=1e-9)
+        # the load's point, in the world: the flange (the hand turned +45°) at (0.02, 0, 0.1)
+        rot = d1.xmat[hand].reshape(3, 3)
+        c45 = np.cos(np.pi / 4)
+        point = d1.xpos[hand] + rot @ np.array([0.02 * c45, 0.02 * c45, 0.1])
+        jac = np.zeros((3, m1.nv))
+        mujoco.mj_jac(m1, d1, jac, None, point, hand)
+        extra = d1.qfrc_bias - d0.qfrc_bias  # at rest, the same joints: gravity alone
+        np.testing.assert_allclose(extra, jac.T @ np.array([0.0, 0.0, 9.81 * 1.5]), atol=1e-9)
+        assert loaded.hand.m_ee == plain.hand.m_ee  # the robot is not told of it
+    finally:
+        plain.env.close()
+        loaded.env.close()
 
 
 def test_presets_and_files_and_their_errors(tmp_path: Path) -> None:

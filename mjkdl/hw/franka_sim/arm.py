@@ -14,7 +14,7 @@ from mjkdl.spec import CtrlMode, SceneSpec, ToolFrameSpec
 
 from . import wire
 from .limits import ArmLimits
-from .reality import Reality, StateLag, reality_from
+from .reality import Reality, StateLag, add_load, reality_from
 from .scene import ARM_JOINTS, HAND_TCP, START_Q, arm_urdf, hand_inertia
 
 DT = 0.001
@@ -80,6 +80,9 @@ class SimulatedArm:
         self._tcp_of_flange = np.linalg.inv(_hand_tcp())  # mjkdl's TCP → the flange
         mass_diag = np.diag(self.robot.mass_matrix())
         self._mass_diag = mass_diag
+        if self.reality.load_mass:  # after what the robot knows of itself (URDF, hand, model)
+            add_load(m, m.body("hand").id, self.reality.load_mass, self.reality.load_com)
+            mujoco.mj_forward(m, d)
         # user settings (TCP service)
         self.K_theta = JOINT_STIFFNESS.copy()
         self.K_x = CARTESIAN_STIFFNESS.copy()

@@ -1,8 +1,11 @@
 """A "real" arm for rehearsals: how the served arm differs from the nominal simulation.
 
 `Reality` describes the differences the simulator puts between its arm and the training
-simulation: joint friction (the identified model of Gaz et al., below), noise on the measured
-joint positions and velocities, and a latency of the state the client reads. The server takes
+simulation: joint friction (the identified model of Gaz et al., below), a load in the hand
+the robot is not told of, noise on the measured joint positions and velocities, and a latency
+of the state the client reads. Link masses, centres of mass and inertias are those Gaz et al.
+identified already in the training simulation (Menagerie's Panda takes them from franka_ros's
+`inertial.yaml`), so no preset changes them. The server takes
 one with `--reality NAME` (a preset of `REALITIES`) or `--reality FILE` (JSON of the fields).
 
 The preset "panda-gaz2019" is the Panda's joint friction identified in C. Gaz, M. Cognetti,
@@ -18,12 +21,14 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
+import pinocchio as pin
 
 from mjkdl.errors import SpecError, SpecTypeError, unknown_name
 
@@ -55,7 +60,10 @@ GAZ2019_FRICTION = JointFriction(
 class Reality:
     """How the served arm differs from the nominal simulation (the defaults: not at all).
 
-    `friction`: joint friction the arm's joints lose (None: none); `q_noise` (rad) and
+    `friction`: joint friction the arm's joints lose (None: none); `load_mass` (kg) at
+    `load_com` (m, in the flange frame, as libfranka's `setLoad` takes it): a load the hand
+    carries that the robot's model does not know (its controller sags under it unless the
+    client sets it); `q_noise` (rad) and
     `dq_noise` (rad/s): standard deviations of Gaussian noise on the measured `q`/`theta`
     and `dq`/`dtheta` the client reads (from a generator seeded with `seed`); `state_latency`:
     whole robot cycles (1 ms) the measured state the client reads lags the arm.
@@ -63,6 +71,8 @@ class Reality:
 
     name: str = "nominal"
     friction: JointFriction | None = None
+    load_mass: float = 0.0
+    load_com: tuple[float, float, float] = (0.0, 0.0, 0.0)
     q_noise: float = 0.0
     dq_noise: float = 0.0
     state_latency: int = 0
@@ -71,12 +81,15 @@ class Reality:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise SpecTypeError(f"reality.name must be a non-empty string, got {self.name!r}")
-        for field_name in ("q_noise", "dq_noise"):
+        com = np.asarray(self.load_com, dtype=float)
+        if com.shape != (3,) or not np.all(np.isfinite(com)):
+            raise SpecError(f"reality.load_com must be 3 finite numbers (m), got {self.load_com!r}")
+        for field_name in ("load_mass", "q_noise", "dq_noise"):
             v = getattr(self, field_name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise SpecError(f"reality.{field_name} must be a finite number, got {v!r}")
             if v < 0:
-                raise SpecError(f"reality.{field_name} must be >= 0 (a deviation), got {v!r}")
+                raise SpecError(f"reality.{field_name} must be >= 0, got {v!r}")
         for field_name in ("state_latency", "seed"):
             v = getattr(self, field_name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
@@ -146,6 +159,37 @@ def reality_from(value: str | Reality | None) -> Reality:
     if not isinstance(data, Mapping):
         raise SpecError(f"--reality {path}: the JSON must be an object of Reality's fields")
     return Reality.from_dict({"name": path.stem, **data}, f"--reality {path}")
+
+
+def add_load(model: mujoco.MjModel, body: int, mass: float, com: Sequence[float]) -> None:
+    """Add a point `mass` at `com` (flange frame) to the Franka hand `body` of `model`: its
+    mass, centre of mass and inertia (parallel axes, then principal axes) as one body."""
+    flange_to_hand = pin.utils.rotate("z", np.pi / 4)  # the hand is the flange turned -45°
+    p = flange_to_hand @ np.asarray(com, dtype=float)
+    m0, c0 = float(model.body_mass[body]), model.body_ipos[body].copy()
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, model.body_iquat[body])
+    r = rot.reshape(3, 3)
+    total = m0 + mass
+    c = (m0 * c0 + mass * p) / total
+
+    def steiner(m: float, d: np.ndarray) -> np.ndarray:
+        return m * (float(d @ d) * np.eye(3) - np.outer(d, d))
+
+    inertia = r @ np.diag(model.body_inertia[body]) @ r.T + steiner(m0, c0 - c)
+    inertia += steiner(mass, p - c)
+    values, axes = np.linalg.eigh(inertia)
+    if np.linalg.det(axes) < 0:
+        axes[:, 0] *= -1.0
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, axes.flatten())
+    model.body_mass[body] = total
+    model.body_ipos[body] = c
+    model.body_inertia[body] = values
+    model.body_iquat[body] = quat
+    model.body_sameframe[body] = 0  # the inertial frame left the body's
+    model.body_simple[body] = 0
+    mujoco.mj_setConst(model, mujoco.MjData(model))  # subtree masses and the like
 
 
 class StateLag:
