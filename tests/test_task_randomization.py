@@ -30,6 +30,7 @@ PHYSICS = {
     "actuator_gain": [0.8, 1.2],
     "gravity": [-0.3, 0.3],
     "camera_pos": [-0.01, 0.01, ["front"]],
+    "camera_euler": [-2.0, 2.0, ["front"]],
     "camera_fovy": [-3.0, 3.0],
     "light_diffuse": [0.6, 1.0],
     "geom_rgba": [0.2, 0.9, ["cube"]],
@@ -42,6 +43,9 @@ def test_each_episode_draws_from_the_nominal_model_and_a_seed_draws_the_same() -
     m = u.scene.model
     cube = m.body("cube").id
     mass, inertia, gravity = m.body_mass[cube], m.body_inertia[cube].copy(), m.opt.gravity.copy()
+    front, box = m.camera("front").id, m.geom(m.body_geomadr[cube]).id
+    cam_pos, cam_quat, fovy = m.cam_pos[front].copy(), m.cam_quat[front].copy(), m.cam_fovy.copy()
+    diffuse = m.light_diffuse.copy()
     try:
         obs3, _ = env.reset(seed=3)
         d3 = u.randomization_draw
@@ -51,6 +55,15 @@ def test_each_episode_draws_from_the_nominal_model_and_a_seed_draws_the_same() -
         np.testing.assert_array_equal(m.body_inertia[cube], inertia * scale)
         np.testing.assert_array_equal(m.opt.gravity, gravity + np.array(d3.gravity))
         assert len(d3.joint_damping.ids) == m.njnt and d3.action_latency == 0
+        # what is seen: the front camera's pose and every camera's view, lights, the cube
+        np.testing.assert_array_equal(m.cam_pos[front], cam_pos + d3.camera_pos.values[0])
+        np.testing.assert_array_equal(m.cam_fovy, fovy + d3.camera_fovy.values[:, 0])
+        turned = 2 * np.degrees(np.arccos(min(1.0, abs(float(m.cam_quat[front] @ cam_quat)))))
+        assert 0.0 < turned <= 2.0 * np.sqrt(3) + 1e-9  # degrees: at most 2 about each axis
+        # (MuJoCo keeps lights and colours in float32)
+        np.testing.assert_allclose(m.light_diffuse, diffuse * d3.light_diffuse.values, rtol=1e-6)
+        np.testing.assert_allclose(m.geom_rgba[box, :3], d3.geom_rgba.values[0], rtol=1e-6)
+        assert np.all((d3.geom_rgba.values >= 0.2) & (d3.geom_rgba.values <= 0.9))
         env.reset(seed=4)
         assert u.randomization_draw.to_dict() != d3.to_dict()
         assert m.body_mass[cube] == mass * u.randomization_draw.body_mass.values[0, 0]

@@ -49,6 +49,7 @@ _ELEMENTS: dict[str, tuple[mujoco.mjtObj, str, int]] = {
     "joint_frictionloss": (mujoco.mjtObj.mjOBJ_JOINT, "scale", 1),
     "actuator_gain": (mujoco.mjtObj.mjOBJ_ACTUATOR, "scale", 1),
     "camera_pos": (mujoco.mjtObj.mjOBJ_CAMERA, "offset", 3),
+    "camera_euler": (mujoco.mjtObj.mjOBJ_CAMERA, "offset", 3),
     "camera_fovy": (mujoco.mjtObj.mjOBJ_CAMERA, "offset", 1),
     "light_pos": (mujoco.mjtObj.mjOBJ_LIGHT, "offset", 3),
     "light_diffuse": (mujoco.mjtObj.mjOBJ_LIGHT, "scale", 1),
@@ -77,7 +78,8 @@ class Randomization:
     entry's half range: in [-1, 1] units for normalised actions).
     Observation: `observation_noise` (observation key -> standard deviation added to what the
     agent sees; rewards and success see the true values). Visual: `camera_pos` (m),
-    `camera_fovy` (degrees), `light_pos` (m), `light_diffuse` (scale), `geom_rgba` (each RGB
+    `camera_euler` (degrees about the camera's own x, y, z axes, in turn), `camera_fovy`
+    (degrees), `light_pos` (m), `light_diffuse` (scale), `geom_rgba` (each RGB
     channel drawn in the range).
     """
 
@@ -93,6 +95,7 @@ class Randomization:
     action_noise: float = 0.0
     observation_noise: Mapping[str, float] = field(default_factory=dict)
     camera_pos: Uniform | None = None
+    camera_euler: Uniform | None = None
     camera_fovy: Uniform | None = None
     light_pos: Uniform | None = None
     light_diffuse: Uniform | None = None
@@ -208,6 +211,7 @@ class Draw:
     joint_frictionloss: Sample | None = None
     actuator_gain: Sample | None = None
     camera_pos: Sample | None = None
+    camera_euler: Sample | None = None
     camera_fovy: Sample | None = None
     light_pos: Sample | None = None
     light_diffuse: Sample | None = None
@@ -293,6 +297,14 @@ def apply(draw: Draw, model: mujoco.MjModel, scratch: mujoco.MjData) -> Saved:
     if draw.camera_pos is not None:
         ids = list(draw.camera_pos.ids)
         write("cam_pos", ids, model.cam_pos[ids] + draw.camera_pos.values)
+    if draw.camera_euler is not None:
+        ids = list(draw.camera_euler.ids)
+        turned = np.empty((len(ids), 4))
+        turn = np.empty(4)
+        for row, (cam, euler) in enumerate(zip(ids, draw.camera_euler.values, strict=True)):
+            mujoco.mju_euler2Quat(turn, np.radians(euler), "xyz")
+            mujoco.mju_mulQuat(turned[row], model.cam_quat[cam], turn)
+        write("cam_quat", ids, turned)
     if draw.camera_fovy is not None:
         ids = list(draw.camera_fovy.ids)
         write("cam_fovy", ids, model.cam_fovy[ids] + draw.camera_fovy.values[:, 0])
@@ -417,7 +429,10 @@ class Randomizer:
         self._half = np.where(np.isfinite(half), half, 1.0)
         self.draw = Draw()
         self._noise = np.random.default_rng(0)
-        self._queue: list[np.ndarray] = []
+        # the actions on their way (latency + 1 slots, the oldest next) and the noisy one
+        self._ring: np.ndarray | None = None
+        self._slot = 0
+        self._noisy = np.empty(len(action_low))
 
     def restore(self, model: mujoco.MjModel) -> None:
         """The nominal model again (before a reset's initializers settle anything)."""
@@ -429,7 +444,7 @@ class Randomizer:
         self.draw = self.description.draw(model, rng)
         self._noise = np.random.default_rng(rng.integers(2**63))
         self._saved = apply(self.draw, model, self._scratch)
-        self._queue = []
+        self._ring = None
         return self.draw
 
     def action(self, a: np.ndarray) -> np.ndarray:
@@ -437,13 +452,21 @@ class Randomizer:
         until then), with the episode's action noise, within the action's bounds."""
         lat = self.draw.action_latency
         if lat:
-            if not self._queue:
-                self._queue = [a.copy()] * lat
-            self._queue.append(a.copy())
-            a = self._queue.pop(0)
-        if self.draw.action_noise > 0.0:
-            noise = self._noise.normal(0.0, self.draw.action_noise, a.shape) * self._half
-            a = np.clip(a + noise, self._low, self._high)
+            if self._ring is None:  # the episode's first action fills the way
+                self._ring, self._slot = np.tile(a, (lat + 1, 1)), 0
+            ring = self._ring
+            ring[self._slot] = a
+            self._slot = (self._slot + 1) % (lat + 1)
+            a = ring[self._slot]  # written `lat` steps ago
+        std = self.draw.action_noise
+        if std > 0.0:
+            noisy = self._noisy
+            self._noise.standard_normal(out=noisy)
+            noisy *= std
+            noisy *= self._half
+            noisy += a
+            np.clip(noisy, self._low, self._high, out=noisy)
+            return noisy
         return a
 
     def observe(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
