@@ -18,6 +18,7 @@ from mjkdl.hw.franka_sim import FrankaSimServer
 from mjkdl.hw.franka_sim.scene import SCENES, franka_scene
 from mjkdl.scene import Env
 from mjkdl.task.experts import expert_for
+from mjkdl.task.registry import PANDA_HOME
 
 
 def _geom_bodies(kind: str) -> set[str]:
@@ -78,7 +79,9 @@ def test_the_pick_cube_expert_succeeds_through_the_network() -> None:
 )
 def test_the_loop_against_the_pick_scene_names_the_empty_one() -> None:
     """The server's own floor, table and cube push its arm where the env's scene has nothing:
-    the Cartesian reflex that follows is raised naming `--scene empty`, the server logs it."""
+    the Cartesian reflex that follows is raised naming `--scene empty`, the server logs it.
+    The reflex ends the motion, not the connection (panda-py, the Panda's client, raises
+    libfranka's errors as RuntimeError): the next reset brings the arm home."""
     with franka_sim("--lockstep", "--command-timeout", "10", "--scene", "pick") as sim:
         env = gym.make("mjkdl/PandaPickCube-v0", robot_ip=sim.host)
         try:
@@ -88,6 +91,8 @@ def test_the_loop_against_the_pick_scene_names_the_empty_one() -> None:
             with pytest.raises(ReflexError) as caught:
                 for _ in range(100):
                     obs, *_ = env.step(expert(obs))
+            obs, _ = env.reset(seed=1)
+            np.testing.assert_allclose(obs["panda_joint_pos"], PANDA_HOME, atol=2e-3)
         finally:
             env.close()
         sim.wait_for("for hardware in the loop (robot_ip=) serve --scene empty")

@@ -450,7 +450,7 @@ class _Loop:
             try:
                 self.motion()
             except Exception as err:  # a reflex ends the motion, not the connection
-                if type(err).__name__ != "ControlException":
+                if not _motion_fault(err):
                     raise
                 self.send("fault", type(err).__name__, str(err))
                 self.publish(self.robot.read_once(), IDLE)
@@ -552,6 +552,12 @@ class _Loop:
         np.less(self._scratch, bound, out=self._still)
         v = self._still_view
         return bool(v[0] and v[1] and v[2] and v[3] and v[4] and v[5] and v[6])
+
+
+def _motion_fault(err: Exception) -> bool:
+    """Whether `err` ended the motion only (a reflex, a refused Move): libfranka's
+    ControlException, which panda-py raises as a plain RuntimeError with libfranka's text."""
+    return type(err).__name__ == "ControlException" or "libfranka: Move command" in str(err)
 
 
 _ZERO = np.zeros(7)
