@@ -4,6 +4,7 @@ in the loop, and the task expert driving the arm through the network in the empt
 from __future__ import annotations
 
 import importlib.util
+import time
 
 import gymnasium as gym
 import mujoco
@@ -14,9 +15,11 @@ from conftest import franka_sim
 import mjkdl.task  # noqa: F401  (registers the tasks)
 from mjkdl.errors import SpecError
 from mjkdl.hw.faults import ReflexError
+from mjkdl.hw.franka import FrankaArm
 from mjkdl.hw.franka_sim import FrankaSimServer
 from mjkdl.hw.franka_sim.scene import SCENES, franka_scene
 from mjkdl.scene import Env
+from mjkdl.spec import CtrlMode
 from mjkdl.task.experts import expert_for
 from mjkdl.task.registry import PANDA_HOME
 
@@ -98,3 +101,30 @@ def test_the_loop_against_the_pick_scene_names_the_empty_one() -> None:
         sim.wait_for("for hardware in the loop (robot_ip=) serve --scene empty")
     text = str(caught.value)
     assert '["cartesian_reflex"]' in text and "serve `--scene empty`" in text, text
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("pylibfranka") is None, reason="pip install mjkdl[franka]"
+)
+def test_after_a_reflex_the_arm_stays_at_rest_until_the_user_saw_it() -> None:
+    """The commands a loop sends between the reflex and the moment it learns of it were meant
+    for the stopped motion: none of them starts a new one (the arm would drive on, up to the
+    watchdog, into what stopped it); a command sent after the `ReflexError` does."""
+    with (
+        franka_sim("--lockstep", "--command-timeout", "10", "--scene", "pick") as sim,
+        FrankaArm(sim.host, client="pylibfranka", collision_thresholds=(10.0, 10.0)) as arm,
+    ):
+        arm.ctrl_mode = CtrlMode.VELOCITY
+        arm.jnt_vel_cmd = np.array([0.0, 0.6, 0.0, 0.0, 0.0, 0.0, 0.0])  # down to the table
+        with pytest.raises(ReflexError, match="joint_reflex"):
+            for _ in range(6000):
+                arm.step()
+        time.sleep(0.5)
+        started = [line for line in sim.log if "motion started" in line]
+        assert len(started) == 1, sim.log[-6:]
+        arm.update()
+        assert np.abs(arm.jnt_vel_msr).max() < 0.01
+        arm.jnt_vel_cmd = np.array([0.0, -0.3, 0.0, 0.0, 0.0, 0.0, 0.0])  # back up
+        for _ in range(50):
+            arm.step()
+        assert sum("motion started" in line for line in sim.log) == 2, sim.log[-6:]

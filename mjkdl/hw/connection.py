@@ -44,8 +44,8 @@ _CHILD = (
 )
 
 POSITION, VELOCITY, TORQUE = 0, 1, 2
-# The command block: [seq, mode, stop, cmd x7]
-_C_SEQ, _C_MODE, _C_STOP, _C_CMD = 0, 1, 2, 3
+# The command block: [seq, mode, stop, acknowledged faults, seq when acknowledged, cmd x7]
+_C_SEQ, _C_MODE, _C_STOP, _C_ACK, _C_ACK_SEQ, _C_CMD = 0, 1, 2, 3, 4, 5
 _C_LEN = _C_CMD + 7
 # The state block: [seq, time, status, success_rate, ticks, late, q, dq, tau_J, tau_ext,
 # F_ext(6)]; late counts the ticks that came more than one robot cycle after the previous one.
@@ -114,6 +114,7 @@ class ArmConnection:
         self.watchdog = float(watchdog)
         self._closed = False
         self._fault: HardwareError | None = None
+        self._faults = 0  # the faults the loop reported
         self._events = _Events()
         # The blocks live in a memory-mapped file both processes map. The child is a fresh
         # interpreter (not multiprocessing's spawn, which re-runs an unguarded user script).
@@ -175,6 +176,7 @@ class ArmConnection:
                 return
             if msg[0] == "fault":
                 self._fault = translate(msg[1], msg[2], self.address)
+                self._faults += 1
             elif msg[0] == "watchdog":
                 warnings.warn(
                     f"the arm at {self.address} is brought to rest: no command came for "
@@ -189,6 +191,9 @@ class ArmConnection:
         self._poll()
         if self._fault is not None:
             fault, self._fault = self._fault, None
+            # Seen: the loop may start motions again, on commands sent from now on only.
+            self._cmd[_C_ACK_SEQ] = self._cmd[_C_SEQ]
+            self._cmd[_C_ACK] = self._faults
             raise fault
 
     # ------------------------------------------------------------------ commands and state
@@ -388,6 +393,7 @@ class _Loop:
         self.mode = POSITION
         self.ticks = 0.0
         self.late = 0.0
+        self.faults = 0.0  # motions ended by a fault, which the user's loop must see first
         # the motion under way
         self.motion_mode = POSITION
         self.started = False
@@ -443,6 +449,14 @@ class _Loop:
     def run(self) -> None:
         """Idle until a command comes, run its motion, and again, until asked to stop."""
         while not self.stop_asked():
+            c = self._c
+            if c[_C_ACK] < self.faults:  # the user's loop has not seen the last fault yet
+                self.take_command()  # what it sends meanwhile was meant for the stopped motion
+                self.publish(self.robot.read_once(), IDLE)
+                time.sleep(0.002)
+                continue
+            if self.seen < c[_C_ACK_SEQ]:  # nor what it had sent before it saw the fault
+                self.seen = c[_C_ACK_SEQ]
             if not self.take_command():
                 self.publish(self.robot.read_once(), IDLE)
                 time.sleep(0.002)
@@ -452,6 +466,7 @@ class _Loop:
             except Exception as err:  # a reflex ends the motion, not the connection
                 if not _motion_fault(err):
                     raise
+                self.faults += 1.0
                 self.send("fault", type(err).__name__, str(err))
                 self.publish(self.robot.read_once(), IDLE)
 
