@@ -55,13 +55,14 @@ _ELEMENTS: dict[str, tuple[mujoco.mjtObj, str, int]] = {
     "light_diffuse": (mujoco.mjtObj.mjOBJ_LIGHT, "scale", 1),
     "geom_rgba": (mujoco.mjtObj.mjOBJ_GEOM, "value", 3),
 }
-_KIND_NAMES = {
-    mujoco.mjtObj.mjOBJ_BODY: "body",
-    mujoco.mjtObj.mjOBJ_GEOM: "geom",
-    mujoco.mjtObj.mjOBJ_JOINT: "joint",
-    mujoco.mjtObj.mjOBJ_ACTUATOR: "actuator",
-    mujoco.mjtObj.mjOBJ_CAMERA: "camera",
-    mujoco.mjtObj.mjOBJ_LIGHT: "light",
+# kind -> (its name in messages, the MjModel field counting its elements)
+_KINDS = {
+    mujoco.mjtObj.mjOBJ_BODY: ("body", "nbody"),
+    mujoco.mjtObj.mjOBJ_GEOM: ("geom", "ngeom"),
+    mujoco.mjtObj.mjOBJ_JOINT: ("joint", "njnt"),
+    mujoco.mjtObj.mjOBJ_ACTUATOR: ("actuator", "nu"),
+    mujoco.mjtObj.mjOBJ_CAMERA: ("camera", "ncam"),
+    mujoco.mjtObj.mjOBJ_LIGHT: ("light", "nlight"),
 }
 
 
@@ -386,15 +387,8 @@ def _ids(
     model: mujoco.MjModel, kind: mujoco.mjtObj, names: tuple[str, ...], field: str
 ) -> list[int]:
     """The ids of `names` (every element of the kind when empty; bodies: not the world)."""
-    what = _KIND_NAMES[kind]
-    count = {
-        mujoco.mjtObj.mjOBJ_BODY: model.nbody,
-        mujoco.mjtObj.mjOBJ_GEOM: model.ngeom,
-        mujoco.mjtObj.mjOBJ_JOINT: model.njnt,
-        mujoco.mjtObj.mjOBJ_ACTUATOR: model.nu,
-        mujoco.mjtObj.mjOBJ_CAMERA: model.ncam,
-        mujoco.mjtObj.mjOBJ_LIGHT: model.nlight,
-    }[kind]
+    what, counter = _KINDS[kind]
+    count = int(getattr(model, counter))
     if not names:
         return list(range(1 if kind == mujoco.mjtObj.mjOBJ_BODY else 0, count))
     out = []
