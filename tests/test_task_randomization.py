@@ -12,7 +12,8 @@ import h5py
 import numpy as np
 import pytest
 
-import mjkdl.task  # noqa: F401  (registers the tasks)
+import mjkdl
+import mjkdl.task
 from mjkdl.demos import DemoFile, collect, replay
 from mjkdl.errors import SpecError, SpecTypeError, UnknownNameError
 from mjkdl.task import TaskEnv
@@ -74,6 +75,26 @@ def test_each_episode_draws_from_the_nominal_model_and_a_seed_draws_the_same() -
             np.testing.assert_array_equal(again[key], obs3[key])
         # the draw is plain data: through JSON and back it is the same
         assert Draw.from_dict(json.loads(json.dumps(d3.to_dict()))).to_dict() == d3.to_dict()
+    finally:
+        env.close()
+
+
+def test_a_rebuilt_scene_is_randomised_from_its_own_nominal_model() -> None:
+    env = gym.make(PICK, randomization={"body_mass": [0.5, 1.5, ["cube"]], "gravity": [-1, 1]})
+    u = env.unwrapped
+    try:
+        env.reset(seed=0)
+        u.scene.add_object(
+            mjkdl.SceneObject(name="block", shape=mjkdl.Shape.BOX, size=[0.03] * 3, mass=0.2,
+                              pos=[0.0, 0.6, 0.1])
+        )  # fmt: skip
+        m = u.scene.model
+        nominal_mass, nominal_g = m.body("cube").mass[0], m.opt.gravity.copy()
+        env.reset(seed=1)
+        draw = u.randomization_draw
+        assert m is u.scene.model
+        assert m.body("cube").mass[0] == nominal_mass * draw.body_mass.values[0, 0]
+        np.testing.assert_array_equal(m.opt.gravity, nominal_g + np.array(draw.gravity))
     finally:
         env.close()
 

@@ -416,6 +416,8 @@ class Randomizer:
     ) -> None:
         description.check(model, observation_keys)
         self.description = description
+        self._keys = list(observation_keys)
+        self._model = model
         self._saved: Saved = []
         self._scratch = mujoco.MjData(model)
         self._low, self._high = action_low, action_high
@@ -429,8 +431,13 @@ class Randomizer:
         self._noisy = np.empty(len(action_low))
 
     def restore(self, model: mujoco.MjModel) -> None:
-        """The nominal model again (before a reset's initializers settle anything)."""
-        undo(self._saved, model, self._scratch)
+        """The nominal model again (before a reset's initializers settle anything); a scene
+        rebuilt since (`Scene.add_object`) is compiled afresh, nominal, and checked again."""
+        if model is self._model:
+            undo(self._saved, model, self._scratch)
+        else:
+            self.description.check(model, self._keys)
+            self._model, self._scratch = model, mujoco.MjData(model)
         self._saved = []
 
     def reset(self, model: mujoco.MjModel, rng: np.random.Generator) -> Draw:
