@@ -47,6 +47,11 @@ def test_each_episode_draws_from_the_nominal_model_and_a_seed_draws_the_same() -
     front, box = m.camera("front").id, m.geom(m.body_geomadr[cube]).id
     cam_pos, cam_quat, fovy = m.cam_pos[front].copy(), m.cam_quat[front].copy(), m.cam_fovy.copy()
     diffuse = m.light_diffuse.copy()
+    plain = gym.make(PICK)  # the robot's servos in their mode, as every episode has them
+    plain.reset(seed=0)
+    gain = plain.unwrapped.scene.model.actuator_gainprm.copy()
+    bias = plain.unwrapped.scene.model.actuator_biasprm.copy()
+    plain.close()
     try:
         obs3, _ = env.reset(seed=3)
         d3 = u.randomization_draw
@@ -56,6 +61,10 @@ def test_each_episode_draws_from_the_nominal_model_and_a_seed_draws_the_same() -
         np.testing.assert_array_equal(m.body_inertia[cube], inertia * scale)
         np.testing.assert_array_equal(m.opt.gravity, gravity + np.array(d3.gravity))
         assert len(d3.joint_damping.ids) == m.njnt and d3.action_latency == 0
+        # every actuator's gain and feedback by its factor (the arm's position servos)
+        k = d3.actuator_gain.values[0, 0]
+        np.testing.assert_allclose(m.actuator_gainprm[0, 0], gain[0, 0] * k, rtol=1e-15)
+        np.testing.assert_allclose(m.actuator_biasprm[0, 1:3], bias[0, 1:3] * k, rtol=1e-15)
         # what is seen: the front camera's pose and every camera's view, lights, the cube
         np.testing.assert_array_equal(m.cam_pos[front], cam_pos + d3.camera_pos.values[0])
         np.testing.assert_array_equal(m.cam_fovy, fovy + d3.camera_fovy.values[:, 0])

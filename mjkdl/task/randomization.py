@@ -72,8 +72,9 @@ class Randomization:
 
     Physics: `body_mass` (scale of mass and inertia), `body_com` (m, each axis),
     `geom_friction` (scale of the sliding friction), `joint_damping`, `joint_armature`,
-    `joint_frictionloss` (scales), `actuator_gain` (scale of a servo's gain, `gainprm[0]`, and
-    of its position feedback, `biasprm[1]`), `gravity` (m/s², added to each axis). Control:
+    `joint_frictionloss` (scales), `actuator_gain` (scale of an actuator's gain `gainprm[0]` and
+    of its position and velocity feedback `biasprm[1:3]`: a servo's stiffness and damping, a
+    motor's strength, together), `gravity` (m/s², added to each axis). Control:
     `action_latency` (whole control steps the action is applied late, drawn in [low, high]),
     `action_noise` (standard deviation added to every action entry, as a fraction of the
     entry's half range: in [-1, 1] units for normalised actions).
@@ -294,7 +295,8 @@ def apply(draw: Draw, model: mujoco.MjModel, scratch: mujoco.MjData) -> Saved:
     if draw.actuator_gain is not None:
         ids, scale = list(draw.actuator_gain.ids), draw.actuator_gain.values[:, 0]
         write("actuator_gainprm", (ids, 0), model.actuator_gainprm[ids, 0] * scale)
-        write("actuator_biasprm", (ids, 1), model.actuator_biasprm[ids, 1] * scale)
+        feedback = (ids, slice(1, 3))
+        write("actuator_biasprm", feedback, model.actuator_biasprm[feedback] * scale[:, None])
     if draw.camera_pos is not None:
         ids = list(draw.camera_pos.ids)
         write("cam_pos", ids, model.cam_pos[ids] + draw.camera_pos.values)
