@@ -12,8 +12,9 @@ works on the measured state. `ext_trq_msr` and `ext_wrench_msr` are the arm's es
 the external torques and of the wrench at its end effector.
 
 `fk_frame()` is the hand body's frame (Menagerie's `hand`, mjkdl's tip; the TCP when `tool`
-sets one); libfranka's frames differ: the flange F is the hand turned +45° about z, and `O_T_EE` (the hand's TCP between
-the fingertips, libfranka's default F_T_EE) lies 0.1034 m out along the hand's z.
+sets one); libfranka's frames differ: the flange F is the hand turned +45° about z, and
+`O_T_EE` (the hand's TCP between the fingertips, libfranka's default F_T_EE) lies 0.1034 m
+out along the hand's z.
 `frame(name)` gives each of them by name (`FRAMES`).
 
 The 1 kHz loop itself runs in a process of its own (`connection`), rate-limited and guarded
