@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import textwrap
@@ -80,3 +81,19 @@ def test_the_batch_without_the_warp_extra_names_it() -> None:
         "ImportError mjkdl.task.make_batch needs the warp extra (torch is not installed): "
         "pip install 'mjkdl[warp]'"
     )
+
+
+def test_tests_need_extras_through_conftest_only() -> None:
+    """A test that imports or looks for an extra's module by itself skips with words of its
+    own, which the summary cannot group and CI's second pass cannot require: every test says
+    it through `conftest.needs_extra` / `import_extra` instead."""
+    modules = "|".join(map(re.escape, EXTRA_MODULES))
+    own = re.compile(r"""(importorskip|find_spec)\(\s*["'](""" + modules + r""")["']""")
+    found = [
+        f"{path.name}:{text.count(chr(10), 0, hit.start()) + 1}: {hit.group(0)}"
+        for path in sorted((ROOT / "tests").glob("*.py"))
+        if path.name not in ("conftest.py", "test_extras.py")
+        for text in [path.read_text()]
+        for hit in own.finditer(text)
+    ]
+    assert not found, f"use conftest.needs_extra/import_extra: {found}"

@@ -61,6 +61,13 @@ def test_bad_addresses_and_watchdogs_are_refused_before_connecting() -> None:
             "no other client is connected",
         ),
         (
+            "NetworkException",
+            "libfranka: Connection to FCI refused. Please install FCI feature or enable FCI "
+            "mode in Desk.",
+            ArmConnectionError,
+            "the robot takes one client at a time",
+        ),
+        (
             "RealtimeException",
             "libfranka: unable to set realtime scheduling",
             HardwareError,

@@ -3,11 +3,14 @@ against `python -m mjkdl.hw.franka_sim` (lockstep) in another process."""
 
 from __future__ import annotations
 
+import json
+import os
 import subprocess
 import sys
 import textwrap
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -16,7 +19,7 @@ from conftest import needs_extra
 
 import mjkdl as mjk
 from mjkdl.hw.connection import ArmConnection
-from mjkdl.hw.faults import WatchdogWarning
+from mjkdl.hw.faults import ArmConnectionError, WatchdogWarning
 from mjkdl.hw.franka import FrankaArm
 
 HOME = np.array([0.0, -0.785398, 0.0, -2.356194, 0.0, 1.570796, 0.785398])  # the server's
@@ -114,11 +117,116 @@ def test_the_watchdog_brings_the_arm_to_rest_when_the_loop_stops(
             arm.step()
         state = arm.link.connection.state()
         assert state.moving and state.dq[6] > 0.4
+        arm.update()
+        before = arm.jnt_pos_msr[6]
         time.sleep(1.0)  # the user's loop stalls; the watchdog finishes the motion
         state = arm.link.connection.state()
         assert not state.moving and np.abs(state.dq).max() < 0.01
+        # The first call after the stall reports it, and the ports read the arm at rest where
+        # the watchdog stopped it (not the state before the stall).
         with pytest.warns(WatchdogWarning, match=r"no command came for 0\.1\d* s"):
-            arm.link.connection.check()
+            arm.update()
+        assert np.abs(arm.jnt_vel_msr).max() < 0.01
+        np.testing.assert_allclose(arm.jnt_pos_msr, arm.link.connection.state().q, atol=1e-12)
+        # it ran on at 0.5 rad/s for 0.1 s of wall clock (fewer ticks of a loaded lockstep arm)
+        assert arm.jnt_pos_msr[6] - before > 0.01
+
+
+def test_the_stall_is_reported_at_the_first_call_while_the_arm_still_brakes(
+    franka_server: str,
+) -> None:
+    with FrankaArm(franka_server, client="pylibfranka", watchdog=0.1) as arm:
+        arm.ctrl_mode = mjk.CtrlMode.VELOCITY
+        arm.jnt_vel_cmd = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+        for _ in range(400):
+            arm.step()
+        conn = arm.link.connection
+        deadline = time.monotonic() + 5.0
+        while conn.state().dq[6] > 0.9 and time.monotonic() < deadline:  # the loop stalls
+            time.sleep(0.001)
+        with pytest.warns(WatchdogWarning, match="is brought to rest"):
+            arm.update()  # the first call after the watchdog fired, not the next step()
+        assert arm.jnt_vel_msr[6] < 0.9  # the ports read the braking arm
+
+
+def test_a_second_client_is_refused_by_name(franka_server: str) -> None:
+    with FrankaArm(franka_server, client="pylibfranka") as arm:
+        arm.update()
+        with pytest.raises(ArmConnectionError) as caught:
+            ArmConnection(franka_server, "panda", client="pylibfranka")
+    text = str(caught.value)
+    assert "libfranka: Connection to FCI refused" in text, text
+    assert "the robot takes one client at a time" in text, text
+    with FrankaArm(franka_server, client="pylibfranka") as again:  # served once the first left
+        again.update()
+        assert again.jnt_pos_msr.shape == (7,)
+
+
+def test_the_flange_and_o_t_ee_by_name_are_libfranka_s(franka_server: str) -> None:
+    with FrankaArm(franka_server, client="pylibfranka") as arm:
+        arm.update()
+        q = arm.jnt_pos_msr.copy()
+        hand, flange, ee = arm.fk_frame(), arm.frame("flange"), arm.frame("O_T_EE")
+        with pytest.raises(mjk.SpecError, match=r"frame: no frame 'tcp'; FrankaArm names"):
+            arm.frame("tcp")
+        with pytest.raises(mjk.SpecError, match="frame: q"):
+            arm.frame("flange", np.zeros(6))
+    assert np.linalg.norm(ee.translation - hand.translation) == pytest.approx(0.1034, abs=1e-12)
+    assert np.allclose(flange.translation, hand.translation, atol=1e-12)
+    # libfranka's own O_T_EE and F_T_EE at the same joints (the arm at rest)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import json, pylibfranka as plf\n"
+            f"s = plf.Robot({franka_server!r}, plf.RealtimeConfig.kIgnore).read_once()\n"
+            "print(json.dumps([list(s.q), list(s.O_T_EE), list(s.F_T_EE)]))",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    ).stdout
+    q_lf, o_t_ee, f_t_ee = (np.array(v) for v in json.loads(out.splitlines()[-1]))
+    np.testing.assert_allclose(q_lf, q, atol=1e-9)
+    o_t_ee, f_t_ee = o_t_ee.reshape(4, 4, order="F"), f_t_ee.reshape(4, 4, order="F")
+    # (the server's pose comes from its own model and tick: equal to 2e-5)
+    np.testing.assert_allclose(ee.homogeneous, o_t_ee, atol=2e-5)
+    np.testing.assert_allclose(flange.homogeneous, o_t_ee @ np.linalg.inv(f_t_ee), atol=2e-5)
+
+
+@pytest.mark.parametrize(
+    ("code", "expected"),
+    [
+        ("import pylibfranka as f; f.Robot(IP)", "RealtimeException"),
+        ("import pylibfranka as f; f.Robot(IP, f.RealtimeConfig.kIgnore); print('ok')", "ok"),
+        (
+            "import franky as f; f.Robot(IP, realtime_config=f.RealtimeConfig.Ignore); print('ok')",
+            "ok",
+        ),
+    ],
+)
+def test_the_documented_realtime_setting_connects_without_preempt_rt(
+    franka_server: str, code: str, expected: str
+) -> None:
+    """The vendors' examples enforce real-time scheduling; on a kernel without PREEMPT_RT (this
+    machine's) they stop with RealtimeException, with the setting docs/hardware.md names they
+    connect."""
+    if expected != "ok" and os.path.exists("/sys/kernel/realtime"):
+        pytest.skip("a PREEMPT_RT kernel")
+    done = subprocess.run(
+        [sys.executable, "-c", code.replace("IP", repr(franka_server))],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    out = done.stdout + done.stderr
+    if expected == "ok":
+        assert out.strip().splitlines()[-1] == "ok", out
+    else:
+        assert "RealtimeException: libfranka: Running kernel does not have realtime" in out, out
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "hardware.md").read_text()
+    assert "RealtimeConfig.kIgnore" in docs and "realtime_config=RealtimeConfig.Ignore" in docs
 
 
 def test_ctrl_c_stops_the_arm_and_closes_the_connection(franka_server: str) -> None:

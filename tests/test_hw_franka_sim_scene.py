@@ -3,6 +3,8 @@ in the loop, and the task expert driving the arm through the network in the empt
 
 from __future__ import annotations
 
+import time
+
 import gymnasium as gym
 import mujoco
 import numpy as np
@@ -11,10 +13,14 @@ from conftest import franka_sim, needs_extra
 
 import mjkdl.task  # noqa: F401  (registers the tasks)
 from mjkdl.errors import SpecError
+from mjkdl.hw.faults import ReflexError
+from mjkdl.hw.franka import FrankaArm
 from mjkdl.hw.franka_sim import FrankaSimServer
 from mjkdl.hw.franka_sim.scene import SCENES, franka_scene
 from mjkdl.scene import Env
+from mjkdl.spec import CtrlMode
 from mjkdl.task.experts import expert_for
+from mjkdl.task.registry import PANDA_HOME
 
 
 def _geom_bodies(kind: str) -> set[str]:
@@ -66,3 +72,52 @@ def test_the_pick_cube_expert_succeeds_through_the_network() -> None:
         finally:
             env.close()
     assert not any("reflex" in line for line in sim.log), sim.log[-5:]
+
+
+def test_the_loop_against_the_pick_scene_names_the_empty_one() -> None:
+    """The server's own floor, table and cube push its arm where the env's scene has nothing:
+    the Cartesian reflex that follows is raised naming `--scene empty`, the server logs it.
+    The reflex ends the motion, not the connection (panda-py, the Panda's client, raises
+    libfranka's errors as RuntimeError): the next reset brings the arm home."""
+    needs_extra("franka")
+    with franka_sim("--lockstep", "--command-timeout", "10", "--scene", "pick") as sim:
+        env = gym.make("mjkdl/PandaPickCube-v0", robot_ip=sim.host)
+        try:
+            obs, _ = env.reset(seed=0)
+            expert = expert_for(env)
+            expert.reset()
+            with pytest.raises(ReflexError) as caught:
+                for _ in range(100):
+                    obs, *_ = env.step(expert(obs))
+            obs, _ = env.reset(seed=1)
+            np.testing.assert_allclose(obs["panda_joint_pos"], PANDA_HOME, atol=2e-3)
+        finally:
+            env.close()
+        sim.wait_for("for hardware in the loop (robot_ip=) serve --scene empty")
+    text = str(caught.value)
+    assert '["cartesian_reflex"]' in text and "serve `--scene empty`" in text, text
+
+
+def test_after_a_reflex_the_arm_stays_at_rest_until_the_user_saw_it() -> None:
+    """The commands a loop sends between the reflex and the moment it learns of it were meant
+    for the stopped motion: none of them starts a new one (the arm would drive on, up to the
+    watchdog, into what stopped it); a command sent after the `ReflexError` does."""
+    needs_extra("franka")
+    with (
+        franka_sim("--lockstep", "--command-timeout", "10", "--scene", "pick") as sim,
+        FrankaArm(sim.host, client="pylibfranka", collision_thresholds=(10.0, 10.0)) as arm,
+    ):
+        arm.ctrl_mode = CtrlMode.VELOCITY
+        arm.jnt_vel_cmd = np.array([0.0, 0.6, 0.0, 0.0, 0.0, 0.0, 0.0])  # down to the table
+        with pytest.raises(ReflexError, match="joint_reflex"):
+            for _ in range(6000):
+                arm.step()
+        time.sleep(0.5)
+        started = [line for line in sim.log if "motion started" in line]
+        assert len(started) == 1, sim.log[-6:]
+        arm.update()
+        assert np.abs(arm.jnt_vel_msr).max() < 0.01
+        arm.jnt_vel_cmd = np.array([0.0, -0.3, 0.0, 0.0, 0.0, 0.0, 0.0])  # back up
+        for _ in range(50):
+            arm.step()
+        assert sum("motion started" in line for line in sim.log) == 2, sim.log[-6:]

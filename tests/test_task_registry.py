@@ -717,3 +717,39 @@ def test_reset_takes_the_options_gymnasiums_vector_envs_pass() -> None:
     again, _ = envs.reset(options={"reset_mask": np.array([False, True])})
     np.testing.assert_array_equal(again["cube_pose"][0], first["cube_pose"][0])  # kept
     envs.close()
+
+
+def test_the_shared_parameters_are_declared_once_and_documented() -> None:
+    """Each class takes its own keywords only; the shared ones come from one table, which the
+    docs' table and the unknown-parameter message follow."""
+    import inspect
+    from pathlib import Path
+
+    from mjkdl.task.registry import SHARED_PARAMETERS, TASKS
+
+    shared = [p.name for p in SHARED_PARAMETERS]
+    assert len(shared) == 17 and len(set(shared)) == 17
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "task.md").read_text()
+    rows = [line for line in docs.splitlines() if line.startswith("| `")]
+    for name in shared:
+        assert any(f"`{name}`" in row.split("|")[1] for row in rows), name
+    for env_id, cls in TASKS.items():
+        own = list(inspect.signature(cls.__init__).parameters)[1:-1]
+        assert own[0] == "render_mode" and not set(own) & set(shared), env_id
+        taken = cls.shared_parameters()
+        goal = env_id.endswith("Goal-v0")
+        assert ("terminate_on_success" in taken) is not goal, env_id
+        assert taken["reward_type"] == ("sparse" if goal else "dense"), env_id
+    assert TASKS["mjkdl/PandaPickCube-v0"].shared_parameters()["terminate_on_success"] is True
+    assert TASKS["mjkdl/PandaPickCubeGoal-v0"].parameter_names()[:8] == [
+        "render_mode",
+        "time_limit",
+        "control_timestep",
+        "actuation",
+        "cartesian_axes",
+        "cube_low",
+        "cube_high",
+        "target_low",
+    ]
+    with pytest.raises(SpecError, match=r"unknown parameter\(s\) \['terminate_on_success'\]"):
+        gym.make(PICK_GOAL, terminate_on_success=True)

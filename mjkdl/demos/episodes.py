@@ -121,7 +121,10 @@ def run_episode(
         if recorder is not None:
             recorder.close()
     success = success_of(info)
-    data = buffer.finish(seed, success) if buffer is not None else None
+    data = None
+    if buffer is not None:
+        draw = getattr(env.unwrapped, "randomization_draw", None)
+        data = buffer.finish(seed, success, "" if draw is None else json.dumps(draw.to_dict()))
     return EpisodeResult(seed, success, total, steps, bool(info.get("diverged", False)), data)
 
 

@@ -74,6 +74,8 @@ class EpisodeData:
     model_hash: str = ""
     final_obs: dict[str, np.ndarray] = field(default_factory=dict)
     model_mjb: bytes = field(default=b"", repr=False)
+    randomization: str = ""
+    """The episode's domain-randomisation draw (`Draw.to_dict()` as JSON); "": none."""
 
     @property
     def num_samples(self) -> int:
@@ -111,8 +113,9 @@ class EpisodeBuffer:
         self.dones.append(bool(done))
         self.final_obs = dict(obs)
 
-    def finish(self, seed: int, success: bool) -> EpisodeData:
-        """The episode as arrays, with the scene's model for `model_file`/`model_hash`."""
+    def finish(self, seed: int, success: bool, randomization: str = "") -> EpisodeData:
+        """The episode as arrays, with the scene's model for `model_file`/`model_hash` (the
+        nominal one: `randomization` is the episode's draw on it, as JSON)."""
         n = len(self.actions)
         xml, fingerprint, mjb = scene_model(self.scene)
         return EpisodeData(
@@ -127,6 +130,7 @@ class EpisodeBuffer:
             model_hash=fingerprint,
             final_obs=dict(self.final_obs),
             model_mjb=mjb,
+            randomization=randomization,
         )
 
 
@@ -400,6 +404,8 @@ class EpisodeWriter(Closable):
         g.attrs["model_file"] = ep.model_file
         g.attrs["model_hash"] = ep.model_hash
         g.attrs["success"] = bool(ep.success)
+        if ep.randomization:
+            g.attrs["randomization"] = ep.randomization
         g.attrs["num_samples"] = ep.num_samples  # last: a demo without it is unfinished
 
     def close(self) -> None:
@@ -573,6 +579,7 @@ class DemoFile(Closable):
                 success=bool(g.attrs.get("success", False)),
                 model_file=str(g.attrs.get("model_file", "")),
                 model_hash=str(g.attrs.get("model_hash", "")),
+                randomization=str(g.attrs.get("randomization", "")),
                 final_obs={k: v[-1] for k, v in g["next_obs"].items()} if "next_obs" in g else {},
             )
         except (KeyError, OSError) as err:

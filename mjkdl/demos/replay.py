@@ -3,6 +3,7 @@ states set one by one (the camera observations rendered again)."""
 
 from __future__ import annotations
 
+import json
 import os
 import warnings
 from collections.abc import Iterator, Sequence
@@ -111,8 +112,24 @@ def _state(scene: Any, out: np.ndarray) -> np.ndarray:
     return out
 
 
-def _replay_actions(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResult:
+def _reset(env: gym.Env, demo: Demo) -> None:
+    """Reset as the demo was, its randomisation draw included (the same seed draws it again
+    from the same description: a different one is refused by name)."""
     env.reset(seed=demo.seed)
+    if not demo.randomization:
+        return
+    draw = getattr(env.unwrapped, "randomization_draw", None)
+    recorded = json.loads(demo.randomization)
+    if draw is None or draw.to_dict() != recorded:
+        raise SpecError(
+            f"{demo.name}: recorded with a domain-randomisation draw this env does not make "
+            f"(its draw: {None if draw is None else draw.to_dict()}); make the env with the "
+            "randomization= the demos were recorded with (data.attrs['env_args'])"
+        )
+
+
+def _replay_actions(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResult:
+    _reset(env, demo)
     scene = scene_of(env)
     state = np.empty(demo.states.shape[1])
     worst, first = 0.0, -1
@@ -149,7 +166,7 @@ def _replay_actions(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResu
 
 
 def _replay_states(env: gym.Env, demo: Demo, video: Video | None) -> ReplayResult:
-    env.reset(seed=demo.seed)
+    _reset(env, demo)
     scene = scene_of(env)
     model, data = scene.model, scene.data
     cameras = {

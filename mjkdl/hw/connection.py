@@ -44,8 +44,8 @@ _CHILD = (
 )
 
 POSITION, VELOCITY, TORQUE = 0, 1, 2
-# The command block: [seq, mode, stop, cmd x7]
-_C_SEQ, _C_MODE, _C_STOP, _C_CMD = 0, 1, 2, 3
+# The command block: [seq, mode, stop, acknowledged faults, seq when acknowledged, cmd x7]
+_C_SEQ, _C_MODE, _C_STOP, _C_ACK, _C_ACK_SEQ, _C_CMD = 0, 1, 2, 3, 4, 5
 _C_LEN = _C_CMD + 7
 # The state block: [seq, time, status, success_rate, ticks, late, q, dq, tau_J, tau_ext,
 # F_ext(6)]; late counts the ticks that came more than one robot cycle after the previous one.
@@ -114,6 +114,7 @@ class ArmConnection:
         self.watchdog = float(watchdog)
         self._closed = False
         self._fault: HardwareError | None = None
+        self._faults = 0  # the faults the loop reported
         self._events = _Events()
         # The blocks live in a memory-mapped file both processes map. The child is a fresh
         # interpreter (not multiprocessing's spawn, which re-runs an unguarded user script).
@@ -175,9 +176,10 @@ class ArmConnection:
                 return
             if msg[0] == "fault":
                 self._fault = translate(msg[1], msg[2], self.address)
+                self._faults += 1
             elif msg[0] == "watchdog":
                 warnings.warn(
-                    f"the arm at {self.address} was brought to rest: no command came for "
+                    f"the arm at {self.address} is brought to rest: no command came for "
                     f"{msg[1]:.3f} s (watchdog={self.watchdog} s); send commands more often "
                     "or connect with a longer watchdog; the next command starts a new motion",
                     WatchdogWarning,
@@ -189,6 +191,9 @@ class ArmConnection:
         self._poll()
         if self._fault is not None:
             fault, self._fault = self._fault, None
+            # Seen: the loop may start motions again, on commands sent from now on only.
+            self._cmd[_C_ACK_SEQ] = self._cmd[_C_SEQ]
+            self._cmd[_C_ACK] = self._faults
             raise fault
 
     # ------------------------------------------------------------------ commands and state
@@ -388,6 +393,7 @@ class _Loop:
         self.mode = POSITION
         self.ticks = 0.0
         self.late = 0.0
+        self.faults = 0.0  # motions ended by a fault, which the user's loop must see first
         # the motion under way
         self.motion_mode = POSITION
         self.started = False
@@ -443,6 +449,14 @@ class _Loop:
     def run(self) -> None:
         """Idle until a command comes, run its motion, and again, until asked to stop."""
         while not self.stop_asked():
+            c = self._c
+            if c[_C_ACK] < self.faults:  # the user's loop has not seen the last fault yet
+                self.take_command()  # what it sends meanwhile was meant for the stopped motion
+                self.publish(self.robot.read_once(), IDLE)
+                time.sleep(0.002)
+                continue
+            if self.seen < c[_C_ACK_SEQ]:  # nor what it had sent before it saw the fault
+                self.seen = c[_C_ACK_SEQ]
             if not self.take_command():
                 self.publish(self.robot.read_once(), IDLE)
                 time.sleep(0.002)
@@ -450,8 +464,9 @@ class _Loop:
             try:
                 self.motion()
             except Exception as err:  # a reflex ends the motion, not the connection
-                if type(err).__name__ != "ControlException":
+                if not _motion_fault(err):
                     raise
+                self.faults += 1.0
                 self.send("fault", type(err).__name__, str(err))
                 self.publish(self.robot.read_once(), IDLE)
 
@@ -485,8 +500,6 @@ class _Loop:
             else:
                 robot.control_joint_position(tick, limit_rate=False, cutoff_frequency=1000.0)
         self.publish(robot.read_once(), IDLE)
-        if self.watchdog_fired and not self.stop_asked():
-            self.send("watchdog", self.watchdog_fired)
 
     def tick(self, rs: Any, period: Any) -> Any:
         """The command for this tick of the motion under way, from the state `rs` that came
@@ -514,6 +527,8 @@ class _Loop:
             self.stopping = True
         if not self.stopping and now - self.last_new > self.watchdog:
             self.stopping, self.watchdog_fired = True, now - self.last_new
+            # said now, not once at rest: the user's next call reports the stall
+            self.send("watchdog", self.watchdog_fired)
         stopping, finished = self.stopping, False
         if self.hold:  # the motion's first ticks stand still at its start
             self.hold -= 1
@@ -552,6 +567,12 @@ class _Loop:
         np.less(self._scratch, bound, out=self._still)
         v = self._still_view
         return bool(v[0] and v[1] and v[2] and v[3] and v[4] and v[5] and v[6])
+
+
+def _motion_fault(err: Exception) -> bool:
+    """Whether `err` ended the motion only (a reflex, a refused Move): libfranka's
+    ControlException, which panda-py raises as a plain RuntimeError with libfranka's text."""
+    return type(err).__name__ == "ControlException" or "libfranka: Move command" in str(err)
 
 
 _ZERO = np.zeros(7)

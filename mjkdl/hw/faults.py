@@ -39,6 +39,13 @@ def translate(kind: str, message: str, address: str) -> HardwareError:
             "versions; install the client release that matches the robot's system version "
             "(pylibfranka for FR3, panda-python for Panda)"
         )
+    if "refused" in message.lower():
+        return ArmConnectionError(
+            f"{text}: the robot takes one client at a time: close the other client connected to "
+            "it (another program, a FrankaArm or env still open); otherwise check that the "
+            "arm (or `python -m mjkdl.hw.franka_sim`) runs at this address with FCI activated "
+            "in Desk"
+        )
     if kind == "NetworkException" or "connection" in message.lower():
         return ArmConnectionError(
             f"{text}: check that the arm (or `python -m mjkdl.hw.franka_sim`) is running and "

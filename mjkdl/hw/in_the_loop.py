@@ -40,8 +40,15 @@ from .connection import (
     VELOCITY,
     ArmConnection,
 )
-from .faults import ArmConnectionError
+from .faults import ArmConnectionError, ReflexError
 
+# What a reflex in the loop most often means: the arm touched something of the arm's world
+# that this scene does not simulate (the simulator's default scene has a floor, table, cube).
+_LOOP_REFLEX = (
+    "In the loop the arm may touch only what this scene simulates: against "
+    "`python -m mjkdl.hw.franka_sim`, serve `--scene empty` (its default `--scene pick` has a "
+    "floor, a table and a cube of its own that push the arm where this scene has nothing)"
+)
 _RESYNC = 0.05  # s: how far the arm may run ahead before the simulation skips to its state
 
 
@@ -143,15 +150,28 @@ class ArmLink:
         model, data = self.scene.model, self.scene.data
         dt = model.opt.timestep
         conn = self.connection
-        for k in range(n):
-            conn.check()
-            self._send((k + 1) / n)
-            mujoco.mj_step(model, data)
-            self._arm_time += dt
-            s = conn.wait_until(self._arm_time)
-            if s[_S_TIME] > self._arm_time + _RESYNC:
-                self._arm_time = float(s[_S_TIME])
-            self._mirror(s)
+        try:
+            for k in range(n):
+                conn.check()
+                self._send((k + 1) / n)
+                mujoco.mj_step(model, data)
+                self._arm_time += dt
+                s = conn.wait_until(self._arm_time)
+                if s[_S_TIME] > self._arm_time + _RESYNC:
+                    self._arm_time = float(s[_S_TIME])
+                self._mirror(s)
+        except ReflexError as err:
+            raise ReflexError(f"{err}. {_LOOP_REFLEX}") from err
+
+    def refresh(self) -> None:
+        """Report what the loop said since the last call (a fault raises, a stall warns) and
+        mirror the arm's latest state: the measured ports read it whatever the user's loop did
+        meanwhile (a stall the watchdog ended leaves the arm at rest elsewhere)."""
+        conn = self.connection
+        conn.check()
+        s = conn.read()
+        self._arm_time = float(s[_S_TIME])
+        self._mirror(s)
 
     def move_to(self, q: np.ndarray, timeout: float = 30.0) -> None:
         """Bring the arm to joint positions `q` (rate-limited) and the simulated arm with it;

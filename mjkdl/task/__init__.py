@@ -15,6 +15,7 @@ from .initializers import (
     PoseInitializer,
     PropPlacer,
 )
+from .randomization import Draw, Randomization, Uniform
 from .registry import register as _register
 from .rewards import (
     ArrayRule,
@@ -55,6 +56,7 @@ __all__ = [
     "BodyPoseSensor",
     "CameraSensor",
     "ContactSensor",
+    "Draw",
     "Episode",
     "GoalReward",
     "GoalTaskEnv",
@@ -69,6 +71,7 @@ __all__ = [
     "Placed",
     "PoseInitializer",
     "PropPlacer",
+    "Randomization",
     "ReachReward",
     "Reached",
     "RelativePositionSensor",
@@ -76,6 +79,7 @@ __all__ = [
     "SparseReward",
     "TaskEnv",
     "TaskSpec",
+    "Uniform",
     "distance",
     "height",
     "intrinsics",

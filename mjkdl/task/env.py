@@ -23,6 +23,7 @@ from ..scene import MAX_STEPS, Env
 from ..spec import CtrlMode, SceneSpec
 from ..validate import flag, real, real_array, text, vector
 from ._check import integer, names
+from .randomization import Draw, Randomizer
 from .rewards import check_positions
 
 if TYPE_CHECKING:
@@ -409,6 +410,16 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         self._held = 0
         self._needs_reset = True
         self._diverged: str | None = None
+        self._randomizer = None
+        if spec.randomization is not None:  # checked against this model and observations
+            bounds = (self._action_low, self._action_high)
+            keys = list(self._shown)
+            self._randomizer = Randomizer(spec.randomization, scene.model, *bounds, keys)
+
+    @property
+    def randomization_draw(self) -> Draw | None:
+        """This episode's draw of `TaskSpec.randomization` (None without one)."""
+        return None if self._randomizer is None else self._randomizer.draw
 
     def _bind(self) -> spaces.Dict:
         """Observation sources and the render camera on the scene's current model; the
@@ -559,6 +570,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         scene = self.scene
         if scene.model is not self._model:
             self._follow_rebuild()
+        if self._randomizer is not None:
+            self._randomizer.restore(scene.model)
         scene.reset()
         for eff in self._effectors:
             eff.new_episode(scene)
@@ -567,6 +580,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             self.hardware.move_to(self.hardware.robot.jnt_pos_msr if home is None else home)
         for init in self.task_spec.initializers:
             init(self, self.np_random)
+        if self._randomizer is not None:  # after the placements: they stay those of the seed
+            self._randomizer.reset(scene.model, self.np_random)
         mujoco.mj_forward(scene.model, scene.data)
         for eff in self._effectors:
             eff.robot.sync_commands()
@@ -590,6 +605,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if self._diverged is not None:
             raise RuntimeError(f"the simulation diverged ({self._diverged}); call reset()")
         a = self._checked_action(action)
+        if self._randomizer is not None:
+            a = self._randomizer.action(a)
         if self.scene.model is not self._model:
             self._follow_rebuild()
         for eff in self._effectors:
@@ -631,9 +648,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
     def _shown_part(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """What the agent gets of an observation: all but `TaskSpec.hide`, in order."""
-        if len(self._shown) == len(obs):
-            return obs
-        return {k: obs[k] for k in self._shown}
+        shown = obs if len(self._shown) == len(obs) else {k: obs[k] for k in self._shown}
+        return shown if self._randomizer is None else self._randomizer.observe(shown)
 
     def _success(self, obs: dict[str, np.ndarray]) -> bool:
         fn = self.task_spec.success

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Mapping, Sequence
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -41,6 +42,7 @@ from ._check import integer, names
 from .env import TaskEnv
 from .goal import GoalTaskEnv, reward_type
 from .initializers import PlaceAbove, PoseInitializer, PropPlacer
+from .randomization import Randomization
 from .rewards import Held, LiftReward, Placed, PlaceReward, Reached, ReachReward, SparseReward
 from .spec import (
     CARTESIAN_AXES,
@@ -302,59 +304,120 @@ def _pair(value: object, field: str) -> list[float]:
     return vector(value, 2, field).tolist()
 
 
+@dataclass(frozen=True)
+class Parameter:
+    """A keyword every registered task takes: its default and what it does (docs/task.md's
+    table and the unknown-parameter error read these)."""
+
+    name: str
+    default: Any
+    doc: str
+    before_own: bool = False  # listed before the task's own parameters (the episode's)
+
+
+# The parameters every registered task shares, declared once; each task's class takes only
+# its own (`gym.make(id, **parameters)`). The goal variants take all but
+# `terminate_on_success` and default to `reward_type="sparse"` (as HER expects).
+SHARED_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("time_limit", None, "seconds before `truncated`", before_own=True),
+    Parameter("control_timestep", 0.1, "seconds per step", before_own=True),
+    Parameter("actuation", "cartesian_velocity", "the arm's part of the action", before_own=True),
+    Parameter("cartesian_axes", CARTESIAN_AXES, "the twist entries acted on", before_own=True),
+    Parameter("reward_type", "dense", '"dense" or "sparse"'),
+    Parameter("terminate_on_success", False, "end the episode once success holds"),
+    Parameter("camera_names", (), "scene cameras added as `{name}_rgb` observations"),
+    Parameter("camera_size", (128, 128), "(height, width) of those images"),
+    Parameter("camera_depth", False, "each camera's `{name}_depth` too"),
+    Parameter("hide_observations", HIDDEN, "observations rewards see but the agent does not"),
+    Parameter("randomization", None, "what varies per episode (a `Randomization` or its dict)"),
+    Parameter("render_camera", "front", "the camera `render()` shows"),
+    Parameter("render_width", 640, "`render()`'s width"),
+    Parameter("render_height", 480, "`render()`'s height"),
+    Parameter("render_shadows", False, "shadows and reflections in `render()`"),
+    Parameter("robot_ip", None, "a Franka arm at this address in the loop (docs/hardware.md)"),
+    Parameter("haptic", False, "with robot_ip: the simulated contacts on the arm"),
+)
+_GOAL_DEFAULTS = {"reward_type": "sparse"}
+_NOT_FOR_GOALS = ("terminate_on_success",)
+
+
 class _Registered(TaskEnv):
-    """Parameters shared by the registered tasks, checked with messages that name them."""
+    """A registered task: its own parameters in its constructor, the shared ones
+    (`SHARED_PARAMETERS`) checked and applied here, with messages that name them."""
+
+    _defaults: ClassVar[Mapping[str, Any]] = {}  # a task's own defaults of shared parameters
 
     @classmethod
-    def _refuse_unknown(cls, unknown: Mapping[str, Any]) -> None:
-        if unknown:
-            valid = [p for p in inspect.signature(cls.__init__).parameters][1:-1]
-            raise SpecError(
-                f"{cls.__name__}: unknown parameter(s) {sorted(unknown)}; valid: "
-                f"{', '.join(valid)} (and gymnasium.make's own, e.g. max_episode_steps)"
-            )
+    def shared_parameters(cls) -> dict[str, Any]:
+        """The shared parameters this task takes, with its defaults."""
+        goal = issubclass(cls, GoalTaskEnv)
+        out = {
+            p.name: p.default for p in SHARED_PARAMETERS if not (goal and p.name in _NOT_FOR_GOALS)
+        }
+        if goal:
+            out.update(_GOAL_DEFAULTS)
+        out.update(cls._defaults)
+        return out
+
+    @classmethod
+    def parameter_names(cls) -> list[str]:
+        """Every keyword the task takes, in the order the error messages list them."""
+        own = [p for p in inspect.signature(cls.__init__).parameters][1:-1]
+        shared = cls.shared_parameters()
+        first = [p.name for p in SHARED_PARAMETERS if p.before_own and p.name in shared]
+        rest = [p.name for p in SHARED_PARAMETERS if not p.before_own and p.name in shared]
+        return [own[0], *first, *own[1:], *rest]
 
     def _finish(
         self,
         spec: TaskSpec,
+        render_mode: str | None,
         given: Mapping[str, Any],
-        reward: str,
-        goal: Mapping[str, Any] | None = None,
+        goal: dict[str, Any] | None = None,
     ) -> None:
-        """Apply the parameters every registered task shares (`given`: the constructor's
-        arguments by name) to `spec`, then build the env (goal-conditioned with `goal`)."""
-        unknown = dict(given["unknown"])
-        hardware = {k: unknown.pop(k) for k in _HARDWARE if k in unknown}  # see TaskEnv
-        self._refuse_unknown(unknown)
-        spec.hide = given["hide_observations"]
-        spec.time_limit = given["time_limit"]  # None: the registered TimeLimit alone
-        spec.control_timestep = given["control_timestep"]
-        spec.arms[0].actuation = actuation(given["actuation"])
-        spec.arms[0].cartesian_axes = cartesian_axes(given["cartesian_axes"])
-        if reward_type(reward) == "sparse":
+        """Apply the shared parameters `given` (the constructor's `**shared`) to `spec`, then
+        build the env (goal-conditioned with `goal`: its keys, threshold)."""
+        shared = self.shared_parameters()
+        unknown = sorted(set(given) - set(shared))
+        if unknown:
+            raise SpecError(
+                f"{type(self).__name__}: unknown parameter(s) {unknown}; valid: "
+                f"{', '.join(self.parameter_names())} (and gymnasium.make's own, e.g. "
+                "max_episode_steps)"
+            )
+        p = {**shared, **given}
+        if goal is None:
+            spec.terminate_on_success = flag(p["terminate_on_success"], "terminate_on_success")
+        spec.hide = p["hide_observations"]
+        spec.time_limit = p["time_limit"]  # None: the registered TimeLimit alone
+        spec.control_timestep = p["control_timestep"]
+        spec.randomization = Randomization.coerce(p["randomization"])
+        spec.arms[0].actuation = actuation(p["actuation"])
+        spec.arms[0].cartesian_axes = cartesian_axes(p["cartesian_axes"])
+        if goal is None and reward_type(p["reward_type"]) == "sparse":
             spec.reward = SparseReward(spec.success)
-        size = given["camera_size"]
+        size = p["camera_size"]
         if isinstance(size, (str, bytes)) or not isinstance(size, Sequence):
             raise SpecTypeError(f"camera_size must be (height, width), got {size!r}")
         if len(size) != 2:
             raise SpecError(f"camera_size must be (height, width), got {size!r}")
         h, w = integer(size[0], "camera_size[0]"), integer(size[1], "camera_size[1]")
-        cams = names(given["camera_names"], "camera_names", "camera")
-        depth = flag(given["camera_depth"], "camera_depth")
+        cams = names(p["camera_names"], "camera_names", "camera")
+        depth = flag(p["camera_depth"], "camera_depth")
         spec.sensors = [
             *spec.sensors,
             *(CameraSensor(c, width=w, height=h, depth=depth) for c in cams),
         ]
-        render = {k: given[k] for k in _RENDER}
-        render.update(hardware)
+        env = {k: p[k] for k in (*_RENDER, *_HARDWARE)}
         if goal is None:
-            TaskEnv.__init__(self, spec, given["render_mode"], **render)
+            TaskEnv.__init__(self, spec, render_mode, **env)
         else:
-            GoalTaskEnv.__init__(self, spec, given["render_mode"], **goal, **render)  # type: ignore[arg-type]
+            goal["reward_type"] = p["reward_type"]
+            GoalTaskEnv.__init__(self, spec, render_mode, **goal, **env)  # type: ignore[arg-type]
 
 
 _RENDER = ("render_camera", "render_width", "render_height", "render_shadows")
-_HARDWARE = ("robot_ip", "haptic")  # every registered task takes them (TaskEnv's)
+_HARDWARE = ("robot_ip", "haptic")  # TaskEnv's: the arm in the loop
 
 
 class PandaReachEnv(_Registered, TaskEnv):
@@ -364,72 +427,44 @@ class PandaReachEnv(_Registered, TaskEnv):
     episode goes on unless `terminate_on_success`. `reward_type`: "dense" (`ReachReward`) or
     "sparse" (1 on success steps). `camera_names` (of "front", "wrist") add `{name}_rgb`
     observations of `camera_size` (height, width), and with `camera_depth` each camera's
-    `{name}_depth` (float32 metres along the optical axis, the same render).
+    `{name}_depth` (float32 metres along the optical axis, the same render). The shared
+    parameters: `SHARED_PARAMETERS`.
     """
 
     def __init__(
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         goal_low: Sequence[float] = REACH_GOAL_LOW,
         goal_high: Sequence[float] = REACH_GOAL_HIGH,
         success_distance: float = 0.05,
-        reward_type: str = "dense",
-        terminate_on_success: bool = False,
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
         spec = panda_reach_spec(
             goal_low, goal_high, _positive(success_distance, "success_distance")
         )
-        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
-        self._finish(spec, locals(), reward_type)
+        self._finish(spec, render_mode, shared)
 
 
 class PandaPickCubeEnv(_Registered, TaskEnv):
     """`mjkdl/PandaPickCube-v0`: lift a cube 5 cm between the Panda's fingers and hold it.
 
     Success: the cube at least 5 cm above its resting height while both fingers touch it;
-    the episode ends once that has held for 0.5 s (`terminate_on_success`). `reward_type`:
-    "dense" (`LiftReward`: reach, grasp, lift, hold) or "sparse".
+    the episode ends once that has held for 0.5 s (`terminate_on_success`, True here).
+    `reward_type`: "dense" (`LiftReward`: reach, grasp, lift, hold) or "sparse".
     """
+
+    _defaults: ClassVar[Mapping[str, Any]] = {"terminate_on_success": True}
 
     def __init__(
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
-        reward_type: str = "dense",
-        terminate_on_success: bool = True,
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
-        spec = panda_pick_cube_spec(cube_low, cube_high)
-        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
-        self._finish(spec, locals(), reward_type)
+        self._finish(panda_pick_cube_spec(cube_low, cube_high), render_mode, shared)
 
 
 class PandaReachGoalEnv(_Registered, GoalTaskEnv):
@@ -444,29 +479,16 @@ class PandaReachGoalEnv(_Registered, GoalTaskEnv):
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         goal_low: Sequence[float] = REACH_GOAL_LOW,
         goal_high: Sequence[float] = REACH_GOAL_HIGH,
         success_distance: float = 0.05,
-        reward_type: str = "sparse",
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
         spec = panda_reach_spec(goal_low, goal_high, threshold)
         goal: dict[str, Any] = {"achieved": "panda_tcp_pos", "desired": "goal_pose"}
-        goal.update(goal_keys=("goal_rel",), threshold=threshold, reward_type=reward_type)
-        self._finish(spec, locals(), "dense", goal)
+        goal.update(goal_keys=("goal_rel",), threshold=threshold)
+        self._finish(spec, render_mode, shared, goal)
 
 
 class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
@@ -482,25 +504,12 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
         target_high: Sequence[float] = TARGET_HIGH,
         success_distance: float = 0.03,
-        reward_type: str = "sparse",
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
         lo, hi = _box3(target_low, target_high, "target")
@@ -509,9 +518,8 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
         spec.sensors = [*spec.sensors, BodyPoseSensor("target")]
         spec.initializers = [*spec.initializers, PropPlacer(["target"], lo, hi, random_yaw=False)]
         spec.terminate_on_success = False
-        goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "target_pose"}
-        goal.update(threshold=threshold, reward_type=reward_type)
-        self._finish(spec, locals(), "dense", goal)
+        goal = {"achieved": "cube_pose", "desired": "target_pose", "threshold": threshold}
+        self._finish(spec, render_mode, shared, goal)
 
 
 class PandaPushEnv(_Registered, TaskEnv):
@@ -526,36 +534,16 @@ class PandaPushEnv(_Registered, TaskEnv):
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         goal_low: Sequence[float] = PUSH_GOAL_LOW,
         goal_high: Sequence[float] = PUSH_GOAL_HIGH,
         success_distance: float = PUSH_DISTANCE,
-        reward_type: str = "dense",
-        terminate_on_success: bool = False,
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
-        spec = panda_push_spec(
-            cube_low,
-            cube_high,
-            goal_low,
-            goal_high,
-            _positive(success_distance, "success_distance"),
-        )
-        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
-        self._finish(spec, locals(), reward_type)
+        threshold = _positive(success_distance, "success_distance")
+        spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold)
+        self._finish(spec, render_mode, shared)
 
 
 class PandaPickAndPlaceEnv(_Registered, TaskEnv):
@@ -569,36 +557,16 @@ class PandaPickAndPlaceEnv(_Registered, TaskEnv):
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
         target_high: Sequence[float] = TARGET_HIGH,
         success_distance: float = PLACE_DISTANCE,
-        reward_type: str = "dense",
-        terminate_on_success: bool = False,
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
-        spec = panda_pick_and_place_spec(
-            cube_low,
-            cube_high,
-            target_low,
-            target_high,
-            _positive(success_distance, "success_distance"),
-        )
-        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
-        self._finish(spec, locals(), reward_type)
+        threshold = _positive(success_distance, "success_distance")
+        spec = panda_pick_and_place_spec(cube_low, cube_high, target_low, target_high, threshold)
+        self._finish(spec, render_mode, shared)
 
 
 class PandaStackEnv(_Registered, TaskEnv):
@@ -613,30 +581,13 @@ class PandaStackEnv(_Registered, TaskEnv):
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         success_distance: float = STACK_DISTANCE,
-        reward_type: str = "dense",
-        terminate_on_success: bool = False,
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
-        spec = panda_stack_spec(
-            cube_low, cube_high, _positive(success_distance, "success_distance")
-        )
-        spec.terminate_on_success = flag(terminate_on_success, "terminate_on_success")
-        self._finish(spec, locals(), reward_type)
+        threshold = _positive(success_distance, "success_distance")
+        self._finish(panda_stack_spec(cube_low, cube_high, threshold), render_mode, shared)
 
 
 class PandaPushGoalEnv(_Registered, GoalTaskEnv):
@@ -647,31 +598,17 @@ class PandaPushGoalEnv(_Registered, GoalTaskEnv):
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         goal_low: Sequence[float] = PUSH_GOAL_LOW,
         goal_high: Sequence[float] = PUSH_GOAL_HIGH,
         success_distance: float = PUSH_DISTANCE,
-        reward_type: str = "sparse",
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
         spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold)
-        goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "goal_pose"}
-        goal.update(threshold=threshold, reward_type=reward_type)
-        self._finish(spec, locals(), "dense", goal)
+        goal = {"achieved": "cube_pose", "desired": "goal_pose", "threshold": threshold}
+        self._finish(spec, render_mode, shared, goal)
 
 
 class PandaPickAndPlaceGoalEnv(_Registered, GoalTaskEnv):
@@ -682,31 +619,17 @@ class PandaPickAndPlaceGoalEnv(_Registered, GoalTaskEnv):
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         target_low: Sequence[float] = TARGET_LOW,
         target_high: Sequence[float] = TARGET_HIGH,
         success_distance: float = PLACE_DISTANCE,
-        reward_type: str = "sparse",
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
         spec = panda_pick_and_place_spec(cube_low, cube_high, target_low, target_high, threshold)
-        goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "target_pose"}
-        goal.update(threshold=threshold, reward_type=reward_type)
-        self._finish(spec, locals(), "dense", goal)
+        goal = {"achieved": "cube_pose", "desired": "target_pose", "threshold": threshold}
+        self._finish(spec, render_mode, shared, goal)
 
 
 class PandaStackGoalEnv(_Registered, GoalTaskEnv):
@@ -718,29 +641,15 @@ class PandaStackGoalEnv(_Registered, GoalTaskEnv):
         self,
         render_mode: str | None = None,
         *,
-        time_limit: float | None = None,
-        control_timestep: float = 0.1,
-        actuation: str = "cartesian_velocity",
-        cartesian_axes: str | Sequence[str] = CARTESIAN_AXES,
         cube_low: Sequence[float] = CUBE_LOW,
         cube_high: Sequence[float] = CUBE_HIGH,
         success_distance: float = STACK_DISTANCE,
-        reward_type: str = "sparse",
-        camera_names: Sequence[str] = (),
-        camera_size: Sequence[int] = (128, 128),
-        camera_depth: bool = False,
-        hide_observations: Sequence[str] = HIDDEN,
-        render_camera: str = "front",
-        render_width: int = 640,
-        render_height: int = 480,
-        render_shadows: bool = False,
-        **unknown: Any,
+        **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
         spec = panda_stack_spec(cube_low, cube_high, threshold)
-        goal: dict[str, Any] = {"achieved": "cube_pose", "desired": "target_pose"}
-        goal.update(threshold=threshold, reward_type=reward_type)
-        self._finish(spec, locals(), "dense", goal)
+        goal = {"achieved": "cube_pose", "desired": "target_pose", "threshold": threshold}
+        self._finish(spec, render_mode, shared, goal)
 
 
 ACTUATIONS = tuple(a.value for a in Actuation)

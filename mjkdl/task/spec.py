@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ..spec import SceneSpec, ToolFrameSpec
+from .randomization import Randomization
 
 if TYPE_CHECKING:
     import numpy as np
@@ -206,3 +207,6 @@ class TaskSpec:
     hide: Sequence[str] = ()
     """Observation keys left out of what `reset` and `step` return (rewards, success and
     termination still see them), e.g. joint torques in N·m that swamp a learner's inputs."""
+    randomization: Randomization | None = None
+    """What varies per episode (`mjkdl.task.randomization`): drawn at every reset from the
+    env's generator; None: the nominal model every episode."""

@@ -46,6 +46,13 @@ def main(argv: list[str] | None = None) -> int:
         help="pick: a floor, a table and a cube; empty: the arm alone, for hardware in the loop "
         "(the client's scene simulates the rest) (default %(default)s)",
     )
+    parser.add_argument(
+        "--reality",
+        default=None,
+        help="how the arm differs from the nominal simulation: a preset (nominal, "
+        "panda-gaz2019: the Panda's identified joint friction) or a JSON file of "
+        "mjkdl.hw.franka_sim.reality.Reality's fields (default: nominal)",
+    )
     parser.add_argument("--viewer", action="store_true", help="show the scene in MuJoCo's viewer")
     parser.add_argument(
         "--command-timeout",
@@ -63,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
             viewer=args.viewer,
             command_timeout=args.command_timeout,
             scene=args.scene,
+            reality=args.reality,
         )
     except MjkdlError as err:
         print(f"franka_sim: {err}", file=sys.stderr)

@@ -14,6 +14,7 @@ from mjkdl.spec import CtrlMode, SceneSpec, ToolFrameSpec
 
 from . import wire
 from .limits import ArmLimits
+from .reality import Reality, StateLag, add_load, reality_from
 from .scene import ARM_JOINTS, HAND_TCP, START_Q, arm_urdf, hand_inertia
 
 DT = 0.001
@@ -50,10 +51,15 @@ def _from_col(values: np.ndarray) -> np.ndarray:
 
 
 class SimulatedArm:
-    """Menagerie's Panda in an mjkdl `Env`, driven as the robot drives itself."""
+    """Menagerie's Panda in an mjkdl `Env`, driven as the robot drives itself; `reality`:
+    how it differs from the nominal simulation (joint friction, the measured state's noise
+    and latency)."""
 
-    def __init__(self, spec: SceneSpec, limits: ArmLimits) -> None:
+    def __init__(self, spec: SceneSpec, limits: ArmLimits, reality: Reality | None = None) -> None:
         self.limits = limits
+        self.reality = reality_from(reality)
+        self._friction = self.reality.friction
+        self._lag = StateLag(self.reality)
         self.env = Env.build(spec)
         self.robot: Robot = self.env.create_robot(
             "link0", "hand", tool=ToolFrameSpec(tcp_pos=[0.0, 0.0, HAND_TCP])
@@ -74,6 +80,9 @@ class SimulatedArm:
         self._tcp_of_flange = np.linalg.inv(_hand_tcp())  # mjkdl's TCP → the flange
         mass_diag = np.diag(self.robot.mass_matrix())
         self._mass_diag = mass_diag
+        if self.reality.load_mass:  # after what the robot knows of itself (URDF, hand, model)
+            add_load(m, m.body("hand").id, self.reality.load_mass, self.reality.load_com)
+            mujoco.mj_forward(m, d)
         # user settings (TCP service)
         self.K_theta = JOINT_STIFFNESS.copy()
         self.K_x = CARTESIAN_STIFFNESS.copy()
@@ -96,6 +105,7 @@ class SimulatedArm:
         self.event = ""  # "finished" or "reflex" after the cycle that ended a motion
         q = self.q
         self.q_d = q.copy()
+        self._seen_q, self._seen_dq = self._lag.read(q, self.dq)  # what the client reads
         self.dq_d = np.zeros(7)
         self.ddq_d = np.zeros(7)
         self._dq_c_prev = np.zeros(7)
@@ -220,10 +230,12 @@ class SimulatedArm:
                 self._command(cmd, q)
         tau = self._control(q, dq)
         self._check_measured(q, dq)
-        self.robot.jnt_trq_cmd = tau
+        # The torque sensor reads `tau`; the link gets it less what its joint loses to friction.
+        self.robot.jnt_trq_cmd = tau if self._friction is None else tau - self._friction.torque(dq)
         self.robot.update()
         self.robot.step()
         self._measure(tau)
+        self._seen_q, self._seen_dq = self._lag.read(self.q, self.dq)
 
     def _command(self, cmd: np.void, q: np.ndarray) -> None:
         gen = self.generator
@@ -440,7 +452,7 @@ class SimulatedArm:
     # -- the state the robot sends --------------------------------------------------------------
     def write_state(self, s: np.ndarray, message_id: int) -> None:
         """Fill the RobotState record `s` (a length-1 structured array)."""
-        q, dq = self.q, self.dq
+        q = self.q
         s["message_id"] = message_id
         s["O_T_EE"] = _col(self.O_T_EE)
         s["O_T_EE_d"] = _col(self.O_T_EE_d)
@@ -462,11 +474,11 @@ class SimulatedArm:
         s["tau_J"] = self.tau_J
         s["tau_J_d"] = self.tau_J_d
         s["dtau_J"] = self.dtau_J
-        s["q"] = q
-        s["theta"] = q
+        s["q"] = self._seen_q
+        s["theta"] = self._seen_q
         s["q_d"] = self.q_d
-        s["dq"] = dq
-        s["dtheta"] = dq
+        s["dq"] = self._seen_dq
+        s["dtheta"] = self._seen_dq
         s["dq_d"] = self.dq_d
         s["ddq_d"] = self.ddq_d
         s["joint_contact"] = np.abs(self.tau_ext) > self.torque_lower

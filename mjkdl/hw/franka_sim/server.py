@@ -29,6 +29,7 @@ from .arm import DT, LOST_CYCLES_LIMIT, SimulatedArm
 from .gripper import SimulatedHand
 from .limits import MODELS
 from .model_library import ModelLibraryError, model_library
+from .reality import Reality, reality_from
 from .scene import franka_scene
 
 log = logging.getLogger("mjkdl.hw.franka_sim")
@@ -57,7 +58,9 @@ class _Peer:
 
 class FrankaSimServer:
     """A simulated Franka arm (and hand) at `host`, speaking protocols 10 and 5; `scene`: what
-    it shares its world with (`scene.SCENES`: "pick", or "empty" for hardware in the loop)."""
+    it shares its world with (`scene.SCENES`: "pick", or "empty" for hardware in the loop);
+    `reality`: how its arm differs from the nominal simulation (`reality.Reality`, a preset's
+    name or a JSON file; None: not at all)."""
 
     def __init__(
         self,
@@ -69,10 +72,12 @@ class FrankaSimServer:
         robot_port: int = wire.ROBOT_PORT,
         gripper_port: int = wire.GRIPPER_PORT,
         scene: str = "pick",
+        reality: str | Reality | None = None,
     ) -> None:
         if model not in MODELS:
             raise SpecError(f"model {model!r}: the simulator knows {sorted(MODELS)}")
         spec = franka_scene(scene)  # a bad name fails before the ports are taken
+        the_reality = reality_from(reality)
         if viewer:
             try:
                 require_display()
@@ -83,13 +88,14 @@ class FrankaSimServer:
         self.lockstep = lockstep
         self.command_timeout = command_timeout
         # the ports first: a taken address fails before the scene is built
-        self._robot_listener = self._listen(robot_port)
+        self._robot_listener: socket.socket | None = self._listen(robot_port)
+        self._robot_port = self._robot_listener.getsockname()[1]
         try:
             self._gripper_listener = self._listen(gripper_port)
         except AddressInUseError:
             self._robot_listener.close()
             raise
-        self.arm = SimulatedArm(spec, MODELS[model])
+        self.arm = SimulatedArm(spec, MODELS[model], the_reality)
         self.hand = SimulatedHand(self.arm.env)
         self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._udp.bind((host, 0))
@@ -137,13 +143,14 @@ class FrankaSimServer:
     # -- the loop ----------------------------------------------------------------------------
     def serve_forever(self) -> None:
         log.info(
-            "franka_sim: %s on %s (robot port %d, hand port %d), %s, scene %s",
+            "franka_sim: %s on %s (robot port %d, hand port %d), %s, scene %s, reality %s",
             self.arm.limits.name,
             self.host,
-            self._robot_listener.getsockname()[1],
+            self._robot_port,
             self._gripper_listener.getsockname()[1],
             "lockstep" if self.lockstep else "realtime 1 kHz",
             self.scene,
+            self.arm.reality.name,
         )
         next_tick = time.perf_counter()
         try:
@@ -199,6 +206,11 @@ class FrankaSimServer:
                     n for n, on in zip(wire.ERRORS, self.arm.last_motion_errors, strict=True) if on
                 ]
                 log.warning("franka_sim: reflex, the arm stopped: %s", ", ".join(names))
+                if self.scene != "empty":
+                    log.warning(
+                        "franka_sim: for hardware in the loop (robot_ip=) serve --scene empty: "
+                        "this scene's own objects push the arm where the client's scene has none"
+                    )
             self._move_reply(self._motion_id, status)
             self._motion_id = None
             log.info(
@@ -302,7 +314,9 @@ class FrankaSimServer:
 
     # -- TCP ----------------------------------------------------------------------------------
     def _poll(self, timeout: float, udp: bool = False) -> None:
-        socks = [self._robot_listener, self._gripper_listener]
+        socks = [self._gripper_listener]
+        if self._robot_listener is not None:
+            socks.append(self._robot_listener)
         socks += [p.sock for p in self._pending]
         socks += [p.sock for p in (self.robot, self.gripper) if p is not None]
         if udp:
@@ -362,6 +376,10 @@ class FrankaSimServer:
                 log.info("franka_sim: robot client %s:%d %s", *peer.address, why)
             self.robot = None
             self._motion_id = None
+            try:  # the next client may come
+                self._robot_listener = self._listen(self._robot_port)
+            except AddressInUseError as err:
+                log.error("franka_sim: no further clients: %s", err)
         elif peer is self.gripper:
             self.hand.abort()
             self.gripper = None
@@ -487,6 +505,12 @@ class FrankaSimServer:
         peer.udp = (peer.address[0], udp_port)
         self._pending.remove(peer)
         self.robot = peer
+        # The robot serves one client: while this one holds it, the port refuses others, so
+        # libfranka's own error names the cause ("Connection to FCI refused"), where a
+        # connection accepted and then dropped reads "TCP connection got interrupted".
+        assert self._robot_listener is not None
+        self._robot_listener.close()
+        self._robot_listener = None
         self._state = np.zeros(1, dtype=protocol.state)
         log.info(
             "franka_sim: client %s:%d connected (robot protocol %d, %s)",
@@ -589,7 +613,8 @@ class FrankaSimServer:
         self._pending.clear()
         self.robot = self.gripper = None
         for sock in (self._robot_listener, self._gripper_listener, self._udp):
-            sock.close()
+            if sock is not None:
+                sock.close()
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
