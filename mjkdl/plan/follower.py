@@ -11,6 +11,10 @@ then applies τ_d + K e + D ė, and the robot's gravity feed-forward supplies g(
 TORQUE mode: computed torque, τ = M(q) (q̈_d + Kp e + Kd ė) + h(q, q̇) + damping q̇, the gains
 those of a critically damped `bandwidth` in every joint.
 
+Settling: `run` goes on holding the goal after the trajectory's end until every joint is
+within `settle_tolerance` of it (or `settle` seconds have passed), so the arm stops on the goal
+rather than wherever the servos' lag left it; `final_error` says how far it ended.
+
 Watching: with `max_tracking_error` (rad) or `max_contact_force` (N) set, the follower stops
 the arm (holds it where it is measured) when a joint lags the trajectory by more, or when a
 contact of the arm's bodies with anything (other than `allowed_contacts`) pushes harder;
@@ -33,6 +37,11 @@ from ..robot import Robot
 from ..spec import CtrlMode
 from .trajectory import JointTrajectory
 
+# `run` holds the goal after the trajectory's end until every joint is this close (rad), for
+# at most SETTLE seconds.
+SETTLE_TOLERANCE = 0.001
+SETTLE = 1.0
+
 
 @dataclass(frozen=True)
 class FollowerStop:
@@ -53,6 +62,7 @@ class TrajectoryFollower:
     `max_tracking_error` (rad, any joint), `max_contact_force` (N, normal force of one
     contact): stop the arm beyond them (None: not watched); `allowed_contacts`: pairs of
     body names whose contacts are expected (fingers and a grasped cube).
+    `settle_tolerance` (rad): how close to the goal `run` waits for the arm to come.
     Per step: `robot.update()`, `follower.command()`, `robot.step()` — or `run(trajectory)`.
     """
 
@@ -65,9 +75,11 @@ class TrajectoryFollower:
         max_tracking_error: float | None = None,
         max_contact_force: float | None = None,
         allowed_contacts: Sequence[tuple[str, str]] = (),
+        settle_tolerance: float = SETTLE_TOLERANCE,
     ) -> None:
         if not isinstance(robot, Robot):
             raise SpecTypeError(f"TrajectoryFollower: robot must be a Robot, got {robot!r}")
+        self._settle_tolerance = _number(settle_tolerance, "settle_tolerance", positive=True)
         self._robot = robot
         self._n = robot.n_joints
         self._max_error = (
@@ -92,6 +104,7 @@ class TrajectoryFollower:
         self._q, self._qd, self._qdd = np.zeros(self._n), np.zeros(self._n), np.zeros(self._n)
         self._u = np.zeros(self._n)
         self.max_error = 0.0  # largest joint error (rad) seen since `start`
+        self.final_error = math.nan  # largest joint distance (rad) from the goal after `run`
 
     @property
     def trajectory(self) -> JointTrajectory | None:
@@ -237,10 +250,17 @@ class TrajectoryFollower:
                 return
 
     def run(
-        self, trajectory: JointTrajectory, after_step: Callable[[], None] | None = None
+        self,
+        trajectory: JointTrajectory,
+        after_step: Callable[[], None] | None = None,
+        *,
+        settle: float = SETTLE,
     ) -> float:
         """Play `trajectory` to its end, or until the follower stops the arm (update,
-        command, step); the largest joint error."""
+        command, step), then hold the goal until every joint is within `settle_tolerance`
+        of it or `settle` seconds have passed; the largest joint error while playing
+        (`final_error`: the distance from the goal at the end)."""
+        settle = _number(settle, "settle")
         self.start(trajectory)
         robot = self._robot
         while not self.finished:
@@ -249,7 +269,18 @@ class TrajectoryFollower:
             robot.step()
             if after_step is not None:
                 after_step()
+        goal = trajectory.positions[-1]
+        until = robot.scene.time() + settle
         robot.update()
+        while self.stop is None and robot.scene.time() < until:
+            if np.abs(robot.jnt_pos_msr - goal).max() <= self._settle_tolerance:
+                break
+            self.command()
+            robot.step()
+            if after_step is not None:
+                after_step()
+            robot.update()
+        self.final_error = float(np.abs(robot.jnt_pos_msr - goal).max())
         return self.max_error
 
 

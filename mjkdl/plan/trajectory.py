@@ -8,7 +8,8 @@ accelerations jump at its grid points; a polynomial through them would ring past
 A `TimeParametrizer` times a path of joint waypoints under per-joint velocity and acceleration
 limits with TOPP-RA, toppra's algorithm solved in closed form for box limits (the same path
 velocities as toppra's, 3-5x faster; tests compare the two): a cubic spline through the
-waypoints is followed as fast as the limits allow, at rest at both ends.
+waypoints is followed as fast as the limits allow, at rest at both ends (the last knot's
+velocity and acceleration zero: a follower holding the goal holds no braking acceleration).
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ class JointTrajectory:
 
     Arrays: `times` (k,), `positions`, `velocities`, `accelerations` (k, n). `sample(t)`
     interpolates between the knots (cubic Hermite positions and velocities, linear
-    accelerations); before 0 and after `duration` it holds the ends.
+    accelerations); before 0 and after `duration` it holds the end positions at rest (zero
+    velocity and acceleration), so a follower sampling past the end holds the goal.
     """
 
     times: np.ndarray
@@ -88,13 +90,13 @@ class JointTrajectory:
     def sample_into(self, t: float, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> None:
         """`sample(t)` written into the given arrays (a control loop allocates nothing)."""
         times: list[float] = self._list  # type: ignore[attr-defined]
-        if not t > 0.0:  # NaN too: the start
-            np.copyto(q, self.positions[0])
-            np.copyto(qd, self.velocities[0])
-            np.copyto(qdd, self.accelerations[0])
-            return
         last = len(times) - 1
-        if t >= times[last]:
+        if not t >= 0.0 or t > times[last]:  # NaN too: before the start or past the end, at rest
+            np.copyto(q, self.positions[0] if not t > 0.0 else self.positions[last])
+            qd[:] = 0.0
+            qdd[:] = 0.0
+            return
+        if t == times[last]:
             np.copyto(q, self.positions[last])
             np.copyto(qd, self.velocities[last])
             np.copyto(qdd, self.accelerations[last])
@@ -187,7 +189,9 @@ class TimeParametrizer:
         if not np.isfinite(sd).all():
             raise SpecError("no timing for the path (limits too tight?)")
         times, positions, velocities, accelerations = _const_accel(path, grid, sd)
-        velocities[0] = velocities[-1] = 0.0
+        # At rest at the end: toppra's last knot carries the braking acceleration, which a
+        # follower holding the goal would turn into a steady offset.
+        velocities[0] = velocities[-1] = accelerations[-1] = 0.0
         positions[0], positions[-1] = points[0], points[-1]
         return JointTrajectory(times, positions, velocities, accelerations)
 
@@ -328,5 +332,6 @@ class JerkLimitedParametrizer:
             q, qd, qdd = segments[i].at_time(min(t - ends[i], segments[i].duration))
             out[0, k], out[1, k], out[2, k] = q, qd, qdd
         out[1, [0, -1]] = 0.0
+        out[2, -1] = 0.0
         out[0, 0], out[0, -1] = points[0], points[-1]
         return JointTrajectory(times, out[0], out[1], out[2])
