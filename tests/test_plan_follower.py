@@ -122,7 +122,8 @@ def test_a_planned_trajectory_ends_at_rest_and_the_arm_stays_on_the_goal(name) -
         }
         goal = np.array(goals[name])
         ou.RNG.setSeed(1)
-        planner = MotionPlanner(robot, velocity_limits=[2.0] * robot.n_joints)
+        n = robot.n_joints
+        planner = MotionPlanner(robot, velocity_limits=[2.0] * n, acceleration_limits=[6.0] * n)
         traj = planner.plan(goal)
         assert traj.velocities[-1].tolist() == [0.0] * robot.n_joints
         assert traj.accelerations[-1].tolist() == [0.0] * robot.n_joints

@@ -41,7 +41,7 @@ from .collision import CollisionChecker
 # (MoveIt's setup assistant uses 95 %).
 ALWAYS = 0.95
 SAMPLES = 2000
-REASONS = ("adjacent", "always", "default", "never", "user")
+REASONS = ("adjacent", "always", "default", "never", "user", "srdf")
 ALLOW = ("adjacent", "always")
 _MEMORY: dict[str, tuple[dict[tuple[str, str], str], dict[tuple[str, str], float]]] = {}
 _FORMAT = "3"
@@ -111,10 +111,14 @@ class AllowedCollisionMatrix:
         if a == b:
             raise SpecError(f"{what}: a body cannot collide with itself ({a!r})")
 
-    def allow(self, a: str, b: str) -> None:
-        """Let bodies `a` and `b` touch (reason "user")."""
+    def allow(self, a: str, b: str, reason: str = "user") -> None:
+        """Let bodies `a` and `b` touch (`reason`: "user", or "srdf" for an SRDF's pair)."""
         self._check(a, b, "AllowedCollisionMatrix.allow")
-        self._pairs[_key(a, b)] = "user"
+        if reason not in REASONS[4:]:
+            raise SpecError(
+                f"AllowedCollisionMatrix.allow: reason must be user or srdf, got {reason!r}"
+            )
+        self._pairs[_key(a, b)] = reason
         self.version += 1
 
     def disallow(self, a: str, b: str) -> None:

@@ -16,18 +16,27 @@ import itertools
 import math
 import time
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from ..control.cartesian import _number, _vector
-from ..errors import InfeasibleError, PlanningError, PlanningTimeout, SpecError, SpecTypeError
+from ..errors import (
+    InfeasibleError,
+    PlanningError,
+    PlanningTimeout,
+    SpecError,
+    SpecTypeError,
+    unknown_name,
+)
 from ..robot import Robot
 from .acm import ALLOW, SAMPLES, AllowedCollisionMatrix, compute_acm
 from .collision import CollisionChecker
 from .constraints import OrientationConstraint
-from .limits import DATASHEETS, RAMP, chain_links, datasheet_limits, find_datasheet
+from .limits import RobotLimits, resolve_limits
+from .srdf import Srdf
 from .trajectory import JerkLimitedParametrizer, JointTrajectory, TimeParametrizer
 
 # OMPL's geometric planners selectable by name.
@@ -101,12 +110,15 @@ class MotionPlanner:
 
     `margin`: the clearance (m) every geom the arm moves keeps from everything else and from
     the arm's other links. `planner`: the name of an OMPL geometric planner (`PLANNERS`).
-    `velocity_limits`, `acceleration_limits`: one positive value per joint; by default the
-    model's, else the published figures of a known arm (`mjkdl.plan.DATASHEETS`; where the
-    tables say where each comes from, `limits_source`). `allowed_contacts`: pairs of body
+    `velocity_limits`, `acceleration_limits`: one positive value per joint; else per joint
+    `limits` (a `RobotLimits`, or the path of a MoveIt `joint_limits.yaml`), the model's, or
+    the published figures of an arm recognised by its names and kinematics
+    (`mjkdl.plan.DATASHEETS`); `limits_source` says where each comes from, and one error
+    lists every limit still missing (see `mjkdl.plan.limits`). `allowed_contacts`: pairs of body
     names whose contacts do not count, on top of the allowed-collision matrix `acm`, sampled
     on first use from `acm_samples` poses (`acm=False`: none; `acm_allow`: the reasons that
-    allow a pair, default adjacent and always; see `mjkdl.plan.acm`).
+    allow a pair, default adjacent and always; see `mjkdl.plan.acm`). `srdf`: a MoveIt SRDF
+    (an `Srdf` or its path) whose disabled collision pairs are allowed too (reason "srdf").
     `resolution`: the joint-space distance (rad) between two checks along a search edge (the timed
     trajectory is checked every `CHECK_STEP`, finer next to obstacles). `padding` (m): the search
     keeps `margin + padding` clear where it can (away from the start and goal), so the motion
@@ -133,6 +145,8 @@ class MotionPlanner:
         acm_samples: int = SAMPLES,
         acm_allow: tuple[str, ...] = ALLOW,
         jerk_limits: Sequence[float] | None = None,
+        limits: RobotLimits | str | Path | None = None,
+        srdf: Srdf | str | Path | None = None,
     ) -> None:
         if not isinstance(robot, Robot):
             raise SpecTypeError(f"MotionPlanner: robot must be a Robot, got {robot!r}")
@@ -148,7 +162,7 @@ class MotionPlanner:
             raise SpecError(f"ik_attempts must be a positive integer, got {ik_attempts!r}")
         self._ik_attempts = ik_attempts
         self._vmax, self._amax, self.limits_source = self._limits(
-            velocity_limits, acceleration_limits
+            velocity_limits, acceleration_limits, limits
         )
         if jerk_limits is None:
             self._jmax = self._amax / JERK_RAMP
@@ -168,9 +182,9 @@ class MotionPlanner:
         self._allowed_user = list(self._checker._allowed_names)
         self._seed = seed
         self._rng = np.random.default_rng(seed)
-        limits = robot.joint_limits
-        self._lower = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -UNLIMITED_RANGE)
-        self._upper = np.where(np.isfinite(limits[:, 1]), limits[:, 1], UNLIMITED_RANGE)
+        ranges = robot.joint_limits
+        self._lower = np.where(np.isfinite(ranges[:, 0]), ranges[:, 0], -UNLIMITED_RANGE)
+        self._upper = np.where(np.isfinite(ranges[:, 1]), ranges[:, 1], UNLIMITED_RANGE)
         self._ends = np.zeros((2, self._n))  # start and goal of the search under way
         self._cone: OrientationConstraint | None = None  # the search's loose constraint
         # Leaving a jiggled start: the clearance it needs, how far (rad) that holds.
@@ -178,7 +192,7 @@ class MotionPlanner:
         self.checks = 0  # validity checks since the planner was made
         # Seconds the last plan spent in each step (0 for a step it skipped).
         self.last_stats: dict[str, float] = dict.fromkeys(_STEPS, 0.0)
-        self._unlimited = ~np.isfinite(limits).all(axis=1)
+        self._unlimited = ~np.isfinite(ranges).all(axis=1)
         self._space_info = self._ompl_space(self._lower, self._upper)
         if not isinstance(acm, bool):
             raise SpecTypeError(f"acm must be True or False, got {acm!r}")
@@ -186,8 +200,8 @@ class MotionPlanner:
         self._acm_version = -1
         if acm:
             began = time.perf_counter()
-            sample_low = np.where(np.isfinite(limits[:, 0]), limits[:, 0], -math.pi)
-            sample_high = np.where(np.isfinite(limits[:, 1]), limits[:, 1], math.pi)
+            sample_low = np.where(np.isfinite(ranges[:, 0]), ranges[:, 0], -math.pi)
+            sample_high = np.where(np.isfinite(ranges[:, 1]), ranges[:, 1], math.pi)
             self._acm = compute_acm(
                 robot,
                 self._margin,
@@ -198,9 +212,42 @@ class MotionPlanner:
                 allow=acm_allow,
             )
             self.acm_seconds = time.perf_counter() - began
-            self._apply_acm()
+        if srdf is not None:
+            self._srdf_pairs(srdf)
+        self._apply_acm()
 
     # ------------------------------------------------------------------ setup
+
+    def _srdf_pairs(self, srdf: Srdf | str | Path) -> None:
+        """Allow the SRDF's disabled pairs: in the matrix (reason "srdf"), or with
+        `acm=False` next to `allowed_contacts`."""
+        if isinstance(srdf, (str, Path)):
+            srdf = Srdf.load(srdf)
+        elif not isinstance(srdf, Srdf):
+            raise SpecTypeError(f"srdf must be an Srdf or the path of an SRDF file, got {srdf!r}")
+        model = self._robot.scene.model
+        bodies = [model.body(b).name for b in range(model.nbody)]
+        pairs = []
+        for k, (first, second, _reason) in enumerate(srdf.disabled):
+            names = []
+            for link in (first, second):
+                hits = [
+                    b
+                    for b in bodies
+                    if b == link or (b.endswith(link) and b[-len(link) - 1] in "/_:")
+                ]
+                if len(hits) != 1:
+                    where = f"SRDF file {srdf.source!r}, disable_collisions {k} ({first}, {second})"
+                    raise unknown_name("body", link, bodies, where)
+                names.append(hits[0])
+            pairs.append((names[0], names[1]))
+        if self._acm is None:
+            self._allowed_user.extend(pairs)
+            self._checker.set_allowed(self._allowed_user)
+            return
+        for a, b in pairs:
+            if a != b and self._acm.reason(a, b) is None:
+                self._acm.allow(a, b, reason="srdf")
 
     def _apply_acm(self) -> None:
         """Hand the matrix's pairs (as edited) and `allowed_contacts` to the checker."""
@@ -211,51 +258,33 @@ class MotionPlanner:
         self._acm_version = acm.version
 
     def _limits(
-        self, velocity: Sequence[float] | None, acceleration: Sequence[float] | None
+        self,
+        velocity: Sequence[float] | None,
+        acceleration: Sequence[float] | None,
+        limits: RobotLimits | str | Path | None,
     ) -> tuple[np.ndarray, np.ndarray, str]:
-        n = self._n
         names = self._robot.joint_names
-        sheet = find_datasheet(self._robot.scene.model, names)
-        published = datasheet_limits(sheet) if sheet is not None else None
+        given = {}
+        for quantity, value in (("velocity", velocity), ("acceleration", acceleration)):
+            field = f"{quantity}_limits"
+            arr = None if value is None else _vector(value, self._n, field)
+            if arr is not None and np.any(arr <= 0):
+                i = int(np.flatnonzero(arr <= 0)[0])
+                raise SpecError(
+                    f"{field}[{i}] (joint {names[i]!r}) must be positive, got {arr[i]:g}"
+                )
+            given[quantity] = arr
+        if isinstance(limits, (str, Path)):
+            limits = RobotLimits.load(limits)
+        elif limits is not None and not isinstance(limits, RobotLimits):
+            raise SpecTypeError(
+                f"limits must be a RobotLimits or the path of a joint_limits.yaml, got {limits!r}"
+            )
         model = self._robot.model
         joints = [model.getJointId(name) for name in names]
         own = np.array([model.velocityLimit[model.joints[j].idx_v] for j in joints])
-        out, sources = [], []
-        for given, field, index in (
-            (velocity, "velocity_limits", 0),
-            (acceleration, "acceleration_limits", 1),
-        ):
-            what = ("velocity", "acceleration")[index]
-            if given is not None:
-                arr = _vector(given, n, field)
-                bad = np.flatnonzero(arr <= 0)
-                if len(bad):
-                    i = int(bad[0])
-                    raise SpecError(
-                        f"{field}[{i}] (joint {names[i]!r}) must be positive, got {arr[i]:g}"
-                    )
-                out.append(arr)
-                sources.append(f"{what}: given")
-                continue
-            if index == 0 and np.all((own > 0) & (own < _NO_LIMIT)):
-                out.append(own.astype(float))
-                sources.append("velocity: the model's (a URDF's <limit velocity>)")
-            elif published is not None:
-                if index == 1 and sheet is not None and sheet.acceleration is None:
-                    out.append(out[0] / RAMP)  # the velocities in use, reached in RAMP s
-                else:
-                    out.append((published.velocity, published.acceleration)[index].copy())
-                source = (published.velocity_source, published.acceleration_source)[index]
-                sources.append(f"{what}: {source}")
-            else:
-                links, span = chain_links(self._robot.scene.model, names)
-                known = ", ".join(d.arm for d in DATASHEETS)
-                raise SpecError(
-                    f"{field}: the model has none for joints {', '.join(names)} and the arm "
-                    f"(bodies {', '.join(links)}; span {span:.3f} m) is none of the published "
-                    f"ones mjkdl knows ({known}); pass {field}=[...] ({n} values)"
-                )
-        return out[0], out[1], "\n".join(sources)
+        found = resolve_limits(self._robot.scene.model, names, given, limits, own)
+        return found.velocity, found.acceleration, found.source
 
     def _ompl_space(self, lower: np.ndarray, upper: np.ndarray) -> Any:
         """OMPL's space information: joint positions within [lower, upper], our checks."""
