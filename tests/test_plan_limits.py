@@ -18,7 +18,7 @@ from conftest import base_spec, menagerie, tutorial_spec, untested_arm, untested
 
 import mjkdl as mjk
 import mjkdl.plan
-from mjkdl.plan import DATASHEETS, MotionPlanner, RobotLimits, Srdf
+from mjkdl.plan import DATASHEETS, MotionPlanner, PlanningTimeout, RobotLimits, Srdf
 from mjkdl.plan.acm import compute_acm
 from mjkdl.plan.limits import RAMP, match_datasheet
 from mjkdl.urdf import example_robot_data_path
@@ -475,3 +475,74 @@ def test_an_srdf_disables_its_pairs_and_gives_its_groups(tmp_path) -> None:
             Srdf.load(bad)
     with pytest.raises(mjk.ModelFileError, match=r"SRDF file '.*nothing.srdf'"):
         Srdf.load(tmp_path / "nothing.srdf")
+
+
+# ---------------------------------------------------------------------- padding
+
+
+def _tight_wrist() -> mjk.Env:
+    spec = mjk.SceneSpec(
+        timestep=0.002,
+        add_floor=True,
+        add_skybox=False,
+        robots=[mjk.RobotSpec(path=str(Path(__file__).parent / "assets" / "tight_wrist.xml"))],
+    )
+    return mjk.Env.build(spec)
+
+
+TIGHT_LIMITS = {"velocity_limits": [2.0] * 4, "acceleration_limits": [5.0] * 4}
+TIGHT_START = [0.0, -0.3, 0.0, 0.5]
+
+
+def test_a_pair_always_within_the_padding_keeps_only_the_margin_and_the_arm_plans() -> None:
+    """As the Lite 6's link4 and link6 (0 of 30 queries planned): the upper arm's knob is
+    7 mm from the wrist's ball in every pose, inside margin + padding (10 mm), in contact
+    within the margin in 7 % of the samples only (the hand). The matrix lists the pair as
+    unpadded: the search checks it for the margin alone, and every query plans."""
+    with _tight_wrist() as env:
+        arm = env.create_robot("base", "l4")
+        arm.set_joint_pos(np.array(TIGHT_START))
+        arm.update()
+        planner = MotionPlanner(arm, **TIGHT_LIMITS)
+        acm = planner.acm
+        assert acm.unpadded == [("l2", "l4")]
+        assert acm.padded_fraction[("l2", "l4")] == 1.0
+        assert 0.03 < acm.contact_fraction[("l2", "l4")] < 0.15
+        assert acm.reason("l2", "l4") is None  # still checked: the hand can hit the knob
+        assert planner.checker.contacts(TIGHT_START) == [("l2", "l4", pytest.approx(0.007))]
+        hit = [0.0, -0.3, 0.0, -1.5]  # the hand folded up onto the knob
+        assert not planner.checker.valid(hit)
+        rng = np.random.default_rng(0)
+        goals = [
+            q
+            for q in rng.uniform([-2.5, -1.2, -2.5, -2], [2.5, 1.2, 2.5, 2], (10, 4))
+            if planner.checker.valid(q)
+        ]
+        assert len(goals) == 8
+        for goal in goals:
+            traj = planner.plan(goal, start=TIGHT_START, timeout=2.0)
+            assert np.abs(traj.positions[-1] - goal).max() < 1e-12
+
+
+def test_a_timeout_with_most_states_invalid_names_the_pair_and_link_padding_frees_it() -> None:
+    with _tight_wrist() as env:
+        arm = env.create_robot("base", "l4")
+        arm.set_joint_pos(np.array(TIGHT_START))
+        arm.update()
+        goal = [1.5, 0.3, 1.0, -1.0]
+        planner = MotionPlanner(arm, acm=False, **TIGHT_LIMITS)  # no matrix: padded
+        with pytest.raises(
+            PlanningTimeout,
+            match=r"found no collision-free path within 0.3 s \(\d+ states checked, status "
+            r"[\w ]+, margin 5 mm\); 9\d% of the states it checked were invalid, [89]\d% of those "
+            r"for bodies 'l2' and 'l4' \(a median 7.0 mm apart, against margin 5 mm \+ padding "
+            r"5 mm\): if they may touch, allow the pair \(planner.acm.allow\('l2', 'l4'\)\), "
+            r"else lower their padding \(link_padding=\{'l4': 0.0\}\) or the margin",
+        ):
+            planner.plan(goal, timeout=0.3)
+        freed = MotionPlanner(arm, acm=False, link_padding={"l4": 0.0}, **TIGHT_LIMITS)
+        assert np.abs(freed.plan(goal, timeout=2.0).positions[-1] - goal).max() < 1e-12
+        with pytest.raises(mjk.UnknownNameError, match=r"no body named 'l9' in link_padding"):
+            MotionPlanner(arm, acm=False, link_padding={"l9": 0.0}, **TIGHT_LIMITS)
+        with pytest.raises(mjk.SpecError, match=r"link_padding\['l4'\] must be a finite number"):
+            MotionPlanner(arm, acm=False, link_padding={"l4": -1.0}, **TIGHT_LIMITS)

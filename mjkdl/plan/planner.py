@@ -122,8 +122,11 @@ class MotionPlanner:
     `resolution`: the joint-space distance (rad) between two checks along a search edge (the timed
     trajectory is checked every `CHECK_STEP`, finer next to obstacles). `padding` (m): the search
     keeps `margin + padding` clear where it can (away from the start and goal), so the motion
-    between checked states and the timed spline keep `margin`. `ik_attempts`: seeds tried
-    for a pose goal, drawn from `seed` (OMPL's own sampling is seeded process-wide:
+    between checked states and the timed spline keep `margin`; `link_padding` ({body: m})
+    sets it per body the arm moves (two of them keep the smaller of theirs), and pairs the
+    matrix finds always closer than that keep the margin alone (`acm.unpadded`).
+    `ik_attempts`: seeds tried for a pose goal, drawn from `seed` (OMPL's own sampling is
+    seeded process-wide:
     `ompl.util.RNG.setSeed`). Everything the arm does not move is taken where it is when
     `plan` starts: obstacles added, moved or removed between calls are seen.
     """
@@ -139,6 +142,7 @@ class MotionPlanner:
         allowed_contacts: Sequence[tuple[str, str]] = (),
         resolution: float = 0.1,
         padding: float = 0.005,
+        link_padding: dict[str, float] | None = None,
         ik_attempts: int = 20,
         seed: int = 0,
         acm: bool = True,
@@ -177,7 +181,8 @@ class MotionPlanner:
             robot,
             self._margin,
             allowed_contacts,
-            reach=self._margin + self._padding,
+            padding=self._padding,
+            link_padding=link_padding,
         )
         self._allowed_user = list(self._checker._allowed_names)
         self._seed = seed
@@ -190,6 +195,10 @@ class MotionPlanner:
         # Leaving a jiggled start: the clearance it needs, how far (rad) that holds.
         self._start_need: tuple[float, float] | None = None
         self.checks = 0  # validity checks since the planner was made
+        # The search's invalid states: how many, and per geom pair the distances in those it
+        # was the least clear pair of.
+        self._invalid = 0
+        self._blockers: dict[tuple[int, int], list[float]] = {}
         # Seconds the last plan spent in each step (0 for a step it skipped).
         self.last_stats: dict[str, float] = dict.fromkeys(_STEPS, 0.0)
         self._unlimited = ~np.isfinite(ranges).all(axis=1)
@@ -210,7 +219,10 @@ class MotionPlanner:
                 samples=acm_samples,
                 seed=seed,
                 allow=acm_allow,
+                padding=self._padding,
+                link_padding=link_padding,
             )
+            self._checker.unpad(self._acm.unpadded)
             self.acm_seconds = time.perf_counter() - began
         if srdf is not None:
             self._srdf_pairs(srdf)
@@ -862,6 +874,8 @@ class MotionPlanner:
                 upper[free] = ends.max(axis=0)[free] + math.pi
             si = self._ompl_space(lower, upper)
         self._ends = np.vstack([q0[None], goals])
+        self._invalid = 0
+        self._blockers = {}
         setup = og.SimpleSetup(si)
         planner = getattr(og, self._planner_name)(si)
         if hasattr(planner, "setRange"):
@@ -901,11 +915,17 @@ class MotionPlanner:
         finally:
             ou.setLogLevel(level)
         if not solved:
+            blocking = self._blocking(self.checks - checks)
             raise PlanningTimeout(
                 f"{self._planner_name} found no collision-free path within {budget:.3g} s "
                 f"({self.checks - checks} states checked, status {status.asString()}, margin "
-                f"{self._margin * 1000:g} mm): raise the timeout, try another planner, or "
-                "check that the goal can be reached"
+                f"{self._margin * 1000:g} mm){blocking}"
+                + (
+                    ""
+                    if blocking
+                    else ": raise the timeout, try another planner, or check "
+                    "that the goal can be reached"
+                )
             )
         # The search's wall time (setup included), as a plain OMPL script would measure it.
         self.last_stats["search"] = time.perf_counter() - t_search - t_simplify
@@ -995,12 +1015,38 @@ class MotionPlanner:
             and cone.error(self._robot.fk_frame(np.asarray(q)).rotation) > SEARCH_CONE
         ):
             return False
-        d = self._checker.clearance(q)
-        if d >= self._checker.reach:
+        d, padded = self._checker.clearances(q)
+        if padded >= self._margin:
             return True
-        if d < self._margin:
-            return False
-        return bool(np.abs(self._ends - np.asarray(q)).max(axis=1).min() < ESCAPE)
+        if d >= self._margin and np.abs(self._ends - np.asarray(q)).max(axis=1).min() < ESCAPE:
+            return True
+        self._invalid += 1
+        nearest = self._checker.nearest()
+        if nearest is not None:
+            g1, g2, dist = nearest
+            self._blockers.setdefault((min(g1, g2), max(g1, g2)), []).append(dist)
+        return False
+
+    def _blocking(self, checks: int) -> str:
+        """When most of the `checks` states the search looked at were invalid: which body
+        pair was the least clear in most of them, and what to do about it; else ""."""
+        if checks <= 0 or self._invalid < 0.5 * checks or not self._blockers:
+            return ""
+        by_pair: dict[tuple[str, str], list[float]] = {}
+        pads: dict[tuple[str, str], float] = {}
+        for (g1, g2), distances in self._blockers.items():
+            a, b, pad = self._checker.pair_names(g1, g2)
+            by_pair.setdefault((a, b), []).extend(distances)
+            pads[a, b] = max(pads.get((a, b), 0.0), pad)
+        (a, b), distances = max(by_pair.items(), key=lambda item: len(item[1]))
+        return (
+            f"; {self._invalid / checks:.0%} of the states it checked were invalid, "
+            f"{len(distances) / self._invalid:.0%} of those for bodies {a!r} and {b!r} (a "
+            f"median {float(np.median(distances)) * 1000:.1f} mm apart, against margin "
+            f"{self._margin * 1000:g} mm + padding {pads[a, b] * 1000:g} mm): if they may "
+            f"touch, allow the pair (planner.acm.allow({a!r}, {b!r})), else lower their "
+            f"padding (link_padding={{{b!r}: 0.0}}) or the margin"
+        )
 
     def _straight(self, q0: np.ndarray, q1: np.ndarray) -> bool:
         """Whether the straight joint-space segment q0 -> q1 passes the search's test."""
