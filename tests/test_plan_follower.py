@@ -4,11 +4,19 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import PANDA_HOME, menagerie, panda_arm, panda_spec, untested_arm, untested_robot
+from conftest import (
+    PANDA_HOME,
+    menagerie,
+    panda_arm,
+    panda_spec,
+    untested_arm,
+    untested_robot,
+)
 
 import mjkdl as mjk
 from mjkdl.plan import JointTrajectory, TrajectoryFollower
@@ -212,8 +220,10 @@ def test_a_watching_follower_stops_on_an_unexpected_block_and_the_planner_goes_o
         # On from there: the planner sees the block (and leaves the contact first).
         again = planner.plan(q_b, start_jiggle=0.15, timeout=5.0, velocity_scaling=0.5)
         assert np.abs(again.positions[0] - robot.jnt_pos_msr).max() < 1e-9
-        # Pressed against the block, the arm lags as it leaves it: followed unwatched.
-        error = TrajectoryFollower(robot).run(again)
+        # Pressed against the block, the arm lags as it leaves it: followed unwatched, and
+        # the follower says so.
+        with pytest.warns(UserWarning, match=r"joint 'joint\d' lagged 0\.\d+ rad behind"):
+            error = TrajectoryFollower(robot).run(again)
         assert error < 0.3
         assert np.abs(robot.jnt_pos_msr - q_b).max() < 0.01
 
@@ -229,3 +239,44 @@ def test_watching_bounds_are_checked(env) -> None:
     follower = TrajectoryFollower(robot, max_contact_force=5.0, allowed_contacts=[("hand", "cub")])
     with pytest.raises(mjk.UnknownNameError, match=r"no body named 'cub' in allowed_contacts\[0\]"):
         follower.start(traj)
+
+
+def test_torque_aware_timing_keeps_a_weak_arm_on_track_and_the_follower_reports_when_not() -> None:
+    """The Rizon-like arm's actuators limited to a few N·m (6 N·m at the base): timed under
+    velocity and acceleration limits alone, the motion asks for more, the servos saturate
+    and the arm lags by 0.78 rad; the follower says so. Given the same torque limits
+    (`RobotLimits.effort`), the timing keeps them and the arm lags 18 mrad at most."""
+    from mjkdl.plan import MotionPlanner, RobotLimits
+
+    goal = np.array([1.2, -0.4, 0.5, 1.6, -0.7, 1.5, 1.0])
+    effort = np.array([6.0, 24.0, 6.0, 14.0, 2.0, 2.0, 2.0])
+    fast = {"velocity_limits": [3.0] * 7, "acceleration_limits": [20.0] * 7}
+    errors = []
+    for torque_aware in (False, True):
+        with untested_arm("rizon_like") as env:
+            robot = untested_robot(env, "rizon_like")
+            env.model.actuator_forcelimited[:] = 1
+            env.model.actuator_forcerange[:] = np.column_stack([-effort, effort])
+            limits = RobotLimits(effort=dict(zip(robot.joint_names, effort.tolist(), strict=True)))
+            planner = MotionPlanner(robot, limits=limits if torque_aware else None, **fast)
+            assert ("torque: RobotLimits" in planner.limits_source) == torque_aware
+            traj = planner.plan(goal)
+            follower = TrajectoryFollower(robot)
+            if torque_aware:
+                quiet = TrajectoryFollower(robot, report_tracking_error=0.05)
+                with warnings.catch_warnings():
+                    warnings.simplefilter("error")
+                    quiet.run(traj)
+                errors.append(quiet.max_error)
+                assert quiet.final_error <= 0.002
+                continue
+            with pytest.warns(
+                UserWarning,
+                match=r"joint 'joint\d' lagged 0\.\d+ rad behind the trajectory at t=0\.\d+ s "
+                r"\(report_tracking_error 0\.01\); the arm ended 0\.\d+ rad from the goal",
+            ):
+                follower.run(traj)
+            errors.append(follower.max_error)
+            assert follower.max_error_joint.startswith("joint")
+    assert errors[0] > 0.3
+    assert errors[1] < 0.03

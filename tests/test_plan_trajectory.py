@@ -160,3 +160,62 @@ def test_ruckig_timing_is_jerk_limited_and_stays_on_the_checked_polyline() -> No
     from mjkdl.plan import TimeParametrizer
 
     assert TimeParametrizer(v, a)(points).duration < traj.duration
+
+
+def test_torque_limits_are_kept_through_the_dynamics_as_toppra_keeps_them() -> None:
+    """The UR10's dynamics, its URDF efforts scaled down until they bind (the base to 5 %,
+    the shoulder to 60 %): timed under velocity and acceleration limits alone, the path asks
+    the base for 3.5x its torque; with the torque limits, at most its torque (1 %: the
+    discretisation), in the time toppra's own JointTorqueConstraint gives."""
+    import toppra
+    import toppra.algorithm
+    import toppra.constraint
+    from conftest import untested_arm, untested_robot
+
+    with untested_arm("ur10") as env:
+        robot = untested_robot(env, "ur10")
+        v = np.array([2.16, 2.16, 3.15, 3.2, 3.2, 3.2])
+        a = v / 0.5
+        torque = robot.model.effortLimit.copy() * [0.05, 0.6, 0.5, 0.1, 0.1, 0.1]
+        waypoints = np.array(
+            [
+                [0, -1.57, 1.57, -1.57, -1.57, 0],
+                [1.0, -0.5, 0.3, -1.0, -1.2, 0.5],
+                [2.0, -0.2, -0.5, -0.5, 0.2, 1.0],
+            ]
+        )
+
+        def worst(traj: JointTrajectory) -> float:
+            return max(
+                float((np.abs(robot.inverse_dynamics(*traj.sample(t))) / torque).max())
+                for t in np.linspace(0.0, traj.duration, 400)
+            )
+
+        plain = TimeParametrizer(v, a)(waypoints)
+        timing = TimeParametrizer(v, a, torque, robot.inverse_dynamics)
+        traj = timing(waypoints)
+        assert worst(plain) > 3.0
+        assert worst(traj) <= 1.01
+        assert traj.duration > 1.3 * plain.duration
+        _spline, grid, points = timing.grid(waypoints)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        interpolation = toppra.constraint.DiscretizationType.Interpolation
+        constraints = [
+            toppra.constraint.JointVelocityConstraint(np.column_stack([-v, v])),
+            toppra.constraint.JointAccelerationConstraint(np.column_stack([-a, a])),
+            toppra.constraint.JointTorqueConstraint(
+                robot.inverse_dynamics,
+                np.column_stack([-torque, torque]),
+                np.zeros(6),
+                discretization_scheme=interpolation,
+            ),
+        ]
+        theirs = toppra.algorithm.TOPPRA(
+            constraints,
+            toppra.SplineInterpolator(s, points, bc_type="natural"),
+            gridpoints=grid,
+            parametrizer="ParametrizeConstAccel",
+        ).compute_trajectory(0.0, 0.0)
+        assert traj.duration == pytest.approx(theirs.duration, rel=1e-6)
+        with pytest.raises(mjk.SpecError, match=r"torque_limits need inverse_dynamics"):
+            TimeParametrizer(v, a, torque)

@@ -73,6 +73,7 @@ class ArmLimits:
     velocity: np.ndarray
     acceleration: np.ndarray
     source: str
+    torque: np.ndarray | None = None  # N·m or N per joint (inf: none); None: no joint has one
 
 
 _UR = ("shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link")
@@ -629,11 +630,13 @@ def resolve_limits(
     given: Mapping[str, np.ndarray | None],
     limits: RobotLimits | None,
     own_velocity: np.ndarray,
+    own_effort: np.ndarray | None = None,
 ) -> ArmLimits:
     """Each joint's velocity and acceleration limit from the first source that has one:
     `given` (the planner's arguments), `limits`, the model's velocity (`own_velocity`, 0 or
     inf where none), the table on an unambiguous match. SpecError listing every missing
-    limit at once; a warning when the names match a table entry but the kinematics do not."""
+    limit at once; a warning when the names match a table entry but the kinematics do not.
+    Torque limits (optional) from `limits.effort`, else the model's (`own_effort`)."""
     n = len(joints)
     match = match_datasheet(model, joints)
     sheet = match.sheet
@@ -696,4 +699,29 @@ def resolve_limits(
         else:
             parts = [f"{source} ({', '.join(names)})" for source, names in groups.items()]
             lines.append(f"{quantity}: " + "; ".join(parts))
-    return ArmLimits(values["velocity"], values["acceleration"], "\n".join(lines))
+    torque = np.full(n, np.inf)
+    where = []
+    for i, joint in enumerate(joints):
+        value = None if limits is None else limits.lookup("effort", joint)
+        if value is not None:
+            torque[i] = value
+            where.append(limits.source if limits is not None else "")
+        elif own_effort is not None and 0 < own_effort[i] < 1e6:
+            torque[i] = own_effort[i]
+            where.append("the model's (a URDF's <limit effort>, an actuator's force range)")
+        else:
+            where.append("none")
+    if np.isinf(torque).all():
+        return ArmLimits(values["velocity"], values["acceleration"], "\n".join(lines))
+    groups = {}
+    for joint, source in zip(joints, where, strict=True):
+        groups.setdefault(source, []).append(joint)
+    lines.append(
+        "torque: "
+        + (
+            next(iter(groups))
+            if len(groups) == 1
+            else "; ".join(f"{source} ({', '.join(names)})" for source, names in groups.items())
+        )
+    )
+    return ArmLimits(values["velocity"], values["acceleration"], "\n".join(lines), torque)

@@ -114,7 +114,9 @@ class MotionPlanner:
     `limits` (a `RobotLimits`, or the path of a MoveIt `joint_limits.yaml`), the model's, or
     the published figures of an arm recognised by its names and kinematics
     (`mjkdl.plan.DATASHEETS`); `limits_source` says where each comes from, and one error
-    lists every limit still missing (see `mjkdl.plan.limits`). `allowed_contacts`: pairs of body
+    lists every limit still missing (see `mjkdl.plan.limits`). Joint torque limits
+    (`limits.effort`, else the model's: a URDF's efforts) are kept through the inverse
+    dynamics by the default timing (`torque_limits`). `allowed_contacts`: pairs of body
     names whose contacts do not count, on top of the allowed-collision matrix `acm`, sampled
     on first use from `acm_samples` poses (`acm=False`: none; `acm_allow`: the reasons that
     allow a pair, default adjacent and always; see `mjkdl.plan.acm`). `srdf`: a MoveIt SRDF
@@ -174,9 +176,7 @@ class MotionPlanner:
             self._jmax = _vector(jerk_limits, self._n, "jerk_limits")
             if np.any(self._jmax <= 0):
                 raise SpecError(f"jerk_limits must be positive, got {self._jmax.tolist()}")
-        self._timers: dict[tuple[float, float, str], Any] = {
-            (1.0, 1.0, "toppra"): TimeParametrizer(self._vmax, self._amax)
-        }
+        self._timers: dict[tuple[float, float, str], Any] = {}
         self._checker = CollisionChecker(
             robot,
             self._margin,
@@ -295,7 +295,9 @@ class MotionPlanner:
         model = self._robot.model
         joints = [model.getJointId(name) for name in names]
         own = np.array([model.velocityLimit[model.joints[j].idx_v] for j in joints])
-        found = resolve_limits(self._robot.scene.model, names, given, limits, own)
+        effort = np.array([model.effortLimit[model.joints[j].idx_v] for j in joints])
+        found = resolve_limits(self._robot.scene.model, names, given, limits, own, effort)
+        self._torque = found.torque
         return found.velocity, found.acceleration, found.source
 
     def _ompl_space(self, lower: np.ndarray, upper: np.ndarray) -> Any:
@@ -341,6 +343,12 @@ class MotionPlanner:
     def acceleration_limits(self) -> np.ndarray:
         """Per-joint acceleration limits the trajectories respect (rad/s² or m/s²)."""
         return self._amax.copy()
+
+    @property
+    def torque_limits(self) -> np.ndarray | None:
+        """Per-joint torque limits (N·m or N; inf: none) toppra's timing keeps through the
+        dynamics (`limits.effort`, else the model's); None when no joint has one."""
+        return None if self._torque is None else self._torque.copy()
 
     @property
     def jerk_limits(self) -> np.ndarray:
@@ -577,7 +585,12 @@ class MotionPlanner:
         if key not in self._timers:
             v, a = self._vmax * key[0], self._amax * key[1]
             self._timers[key] = (
-                TimeParametrizer(v, a)
+                TimeParametrizer(
+                    v,
+                    a,
+                    self._torque,
+                    None if self._torque is None else self._robot.inverse_dynamics,
+                )
                 if timing == "toppra"
                 else JerkLimitedParametrizer(v, a, self._jmax * key[1])
             )

@@ -17,6 +17,7 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -152,9 +153,32 @@ class TimeParametrizer:
     sampled every `KNOT_PERIOD`.
     """
 
-    def __init__(self, velocity_limits: np.ndarray, acceleration_limits: np.ndarray) -> None:
+    def __init__(
+        self,
+        velocity_limits: np.ndarray,
+        acceleration_limits: np.ndarray,
+        torque_limits: np.ndarray | None = None,
+        inverse_dynamics: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None,
+    ) -> None:
         self._v = np.asarray(velocity_limits, dtype=float)
         self._a = np.asarray(acceleration_limits, dtype=float)
+        if (torque_limits is None) != (inverse_dynamics is None):
+            raise SpecError("TimeParametrizer: torque_limits need inverse_dynamics, and back")
+        self._torque = None if torque_limits is None else np.asarray(torque_limits, dtype=float)
+        self._dynamics = inverse_dynamics
+
+    def _torque_rows(
+        self, q: np.ndarray, d1: np.ndarray, d2: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The joint torques along the path as rows a u + b x + g (toppra's joint torque
+        constraint): τ = M q' s̈ + (M q'' + C(q, q') q') ṡ² + g(q), each term by inverse
+        dynamics; bounded by ±`torque_limits` (infinite: unbounded)."""
+        assert self._torque is not None and self._dynamics is not None
+        dynamics, zero = self._dynamics, np.zeros(q.shape[1])
+        g = np.array([dynamics(x, zero, zero) for x in q])
+        a = np.array([dynamics(x, zero, v) for x, v in zip(q, d1, strict=True)]) - g
+        b = np.array([dynamics(x, v, w) for x, v, w in zip(q, d1, d2, strict=True)]) - g
+        return a, b, -self._torque - g, self._torque - g
 
     def grid(self, waypoints: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray] | None:
         """The spline through `waypoints` (repeats dropped), its grid and the waypoints'
@@ -185,7 +209,13 @@ class TimeParametrizer:
                 np.array([0.0, KNOT_PERIOD]), np.repeat(points[:1], 2, 0), zero, zero
             )
         path, grid, points = gridded
-        sd = np.sqrt(_reachability(grid, path(grid, 1), path(grid, 2), self._v, self._a))
+        q, d1, d2 = path(grid), path(grid, 1), path(grid, 2)
+        constraints = [
+            (d1, d2, np.broadcast_to(-self._a, d1.shape), np.broadcast_to(self._a, d1.shape))
+        ]
+        if self._torque is not None:
+            constraints.append(self._torque_rows(q, d1, d2))
+        sd = np.sqrt(_reachability(grid, d1, self._v, constraints))
         if not np.isfinite(sd).all():
             raise SpecError("no timing for the path (limits too tight?)")
         times, positions, velocities, accelerations = _const_accel(path, grid, sd)
@@ -197,40 +227,57 @@ class TimeParametrizer:
 
 
 def _reachability(
-    grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, vmax: np.ndarray, amax: np.ndarray
+    grid: np.ndarray,
+    d1: np.ndarray,
+    vmax: np.ndarray,
+    constraints: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
 ) -> np.ndarray:
     """Squared path velocities x = ṡ² on `grid` of the time-optimal motion along a path with
-    derivatives `d1` = q'(s), `d2` = q''(s) there, at rest at both ends, |q̇| <= vmax and
-    |q̈| <= amax: TOPP-RA (Pham & Pham 2018) as toppra runs it with its joint velocity and
-    acceleration constraints (the latter in its "interpolation" discretisation: on each
-    stage at both grid points). toppra solves each stage's 2-variable LP with a general solver
-    from Python; for box limits the stage's feasible x is an interval from 0, whose top
-    follows by eliminating u (Fourier-Motzkin) for all stages at once, leaving one affine
-    minimum per stage in the backward pass."""
+    derivative `d1` = q'(s) there, at rest at both ends, |q̇| <= vmax and each constraint
+    low <= a u + b x <= high (u = s̈; the joint accelerations: a = q', b = q'', ±amax; the
+    joint torques through the dynamics: a = M q', b = the velocity product terms, the
+    bounds ± the torque limit less gravity): TOPP-RA (Pham & Pham 2018) as toppra runs it
+    (the "interpolation" discretisation: each stage at both of its grid points). toppra
+    solves each stage's 2-variable LP with a general solver from Python; here each row
+    bounds u within [m x + lower, m x + upper] (or x alone), the stage's feasible x is an
+    interval from 0, and its top follows by eliminating u (Fourier-Motzkin) for all stages
+    at once, leaving one affine minimum per stage in the backward pass."""
     delta = np.diff(grid)[:, None]  # (N, 1)
-    # Stage i's joint rows |A u + B x| <= a: the limits at grid point i, and at i + 1 where
-    # x_{i+1} = x + 2 delta u. Each bounds u to [m x - w, m x + w] (A != 0) or x alone.
-    a_rows = np.concatenate([d1[:-1], d1[1:] + 2.0 * delta * d2[1:]], axis=1)
-    b_rows = np.concatenate([d2[:-1], d2[1:]], axis=1)
-    bound = np.concatenate([amax, amax])
+    a_parts, b_parts, lo_parts, hi_parts = [], [], [], []
+    for a, b, floor, ceiling in constraints:
+        a_parts += [a[:-1], a[1:] + 2.0 * delta * b[1:]]
+        b_parts += [b[:-1], b[1:]]
+        lo_parts += [floor[:-1], floor[1:]]
+        hi_parts += [ceiling[:-1], ceiling[1:]]
+    a_rows, b_rows = np.concatenate(a_parts, axis=1), np.concatenate(b_parts, axis=1)
+    lo_rows, hi_rows = np.concatenate(lo_parts, axis=1), np.concatenate(hi_parts, axis=1)
     tiny = 1e-12
     moves = np.abs(a_rows) > tiny
+    up = a_rows > 0
     with np.errstate(divide="ignore", invalid="ignore"):
         slope = np.where(moves, -b_rows / a_rows, 0.0)
-        width = np.where(moves, bound / np.abs(a_rows), np.inf)
-        # Rows without u bound x directly.
-        direct = np.where(~moves & (np.abs(b_rows) > tiny), bound / np.abs(b_rows), np.inf)
-        # Every lower bound on u below every upper one: (m_l - m_k) x <= w_k + w_l.
+        lower = np.where(moves, np.where(up, lo_rows, hi_rows) / a_rows, -np.inf)
+        upper = np.where(moves, np.where(up, hi_rows, lo_rows) / a_rows, np.inf)
+        # Rows without u bound x directly (from above; low <= 0 <= high at rest).
+        direct = np.where(
+            ~moves & (b_rows > tiny),
+            hi_rows / b_rows,
+            np.where(~moves & (b_rows < -tiny), lo_rows / b_rows, np.inf),
+        )
+        # Every lower bound on u below every upper one: (m_k - m_l) x <= upper_l - lower_k.
         coef = slope[:, :, None] - slope[:, None, :]
-        pairs = np.where(coef > tiny, (width[:, :, None] + width[:, None, :]) / coef, np.inf)
+        room = upper[:, None, :] - lower[:, :, None]
+        pairs = np.where(
+            coef > tiny, room / coef, np.where(room < 0, 0.0, np.inf)
+        )  # parallel bounds that cross: only rest
         # x_{i+1} = x + 2 delta u >= 0 below each upper bound.
         coef0 = -1.0 / (2.0 * delta) - slope
-        zero = np.where(coef0 > tiny, width / coef0, np.inf)
+        zero = np.where(coef0 > tiny, upper / coef0, np.inf)
         # Each lower bound below x + 2 delta u <= h (the next controllable set's top):
-        # x <= (h + 2 delta w) / (1 + 2 delta m).
+        # x <= (h - 2 delta lower) / (1 + 2 delta m).
         scale = 1.0 + 2.0 * delta * slope
         p = np.where(scale > tiny, 1.0 / scale, 0.0)
-        r = np.where(scale > tiny, 2.0 * delta * width / scale, np.inf)
+        r = np.where(scale > tiny, -2.0 * delta * lower / scale, np.inf)
         speed = np.where(np.abs(d1) > tiny, (vmax / np.abs(d1)) ** 2, np.inf).min(axis=1)
     top = np.minimum(
         np.minimum(direct.min(axis=1), pairs.min(axis=(1, 2))),
@@ -243,14 +290,14 @@ def _reachability(
     h = 0.0
     for i in range(count - 1, -1, -1):
         h = min(top_list[i], *[pk * h + rk for pk, rk in zip(p_list[i], r_list[i], strict=True)])
-        high[i] = h
+        high[i] = max(h, 0.0)
     # Forward: from rest, the largest u keeping x_{i+1} controllable.
     x = [0.0] * (count + 1)
     two_delta = (2.0 * delta[:, 0]).tolist()
-    slope_list, width_list = slope.tolist(), width.tolist()
+    slope_list, upper_list = slope.tolist(), upper.tolist()
     xi = 0.0
     for i in range(count):
-        u = min([m * xi + w for m, w in zip(slope_list[i], width_list[i], strict=True)])
+        u = min([m * xi + w for m, w in zip(slope_list[i], upper_list[i], strict=True)])
         xi = min(max(xi + two_delta[i] * u, 0.0), high[i + 1])
         x[i + 1] = xi
     return np.array(x)
