@@ -102,10 +102,10 @@ def test_run_returns_the_largest_joint_error_and_settles_at_the_goal(env) -> Non
     follower = TrajectoryFollower(robot)
     error = follower.run(traj)
     assert 0.0 < error < 0.01
-    # Held after the end until every joint is within settle_tolerance (1 mrad), at most 1 s.
+    # Held after the end until every joint is within settle_tolerance (1 mrad), at most 3 s.
     assert follower.final_error == pytest.approx(np.abs(robot.jnt_pos_msr - goal).max())
     assert follower.final_error <= 0.001
-    assert 1.0 - 2 * env.timestep() <= env.time() <= 2.0
+    assert 1.0 - 2 * env.timestep() <= env.time() <= 4.0
     with pytest.raises(mjk.SpecError, match=r"settle_tolerance must be a finite number > 0"):
         TrajectoryFollower(robot, settle_tolerance=0.0)
     with pytest.raises(mjk.SpecError, match=r"settle must be a finite number"):

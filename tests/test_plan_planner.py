@@ -95,9 +95,9 @@ def test_plan_to_a_pose_reaches_it_and_the_executed_motion_is_collision_free(pan
     follower.run(
         traj, after_step=lambda: closest.append(watch.clearance(env.data.qpos[watch.arm_qpos_adr]))
     )
-    # Every step of the trajectory, and of the settling after it (at most 1 s).
+    # Every step of the trajectory, and of the settling after it (at most 3 s).
     steps = traj.duration / env.timestep()
-    assert steps - 2 <= len(closest) <= steps + 1.0 / env.timestep() + 2
+    assert steps - 2 <= len(closest) <= steps + 3.0 / env.timestep() + 2
     assert follower.final_error <= 0.001
     assert min(closest) >= planner.margin
     assert np.linalg.norm(robot.fk_frame().translation - ABOVE_B.translation) < 0.002

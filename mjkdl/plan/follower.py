@@ -46,7 +46,7 @@ from .trajectory import JointTrajectory
 # `run` holds the goal after the trajectory's end until every joint is this close (rad), for
 # at most SETTLE seconds.
 SETTLE_TOLERANCE = 0.001
-SETTLE = 1.0
+SETTLE = 3.0
 # `run` warns when a joint lags the trajectory by more than this (rad).
 REPORT = 0.01
 
