@@ -670,3 +670,59 @@ def test_jerk_limited_timing_beside_toppra(panda) -> None:
         planner.plan(q_b, timing="rk")
     with pytest.raises(mjk.SpecError, match=r"jerk_limits must be positive"):
         MotionPlanner(robot, jerk_limits=[0.0] * 7)
+
+
+def test_upright_queries_across_the_wall_plan_nine_in_ten(panda) -> None:
+    """20 queries from one side of the wall to the other, start and goal with the tool down
+    (random yaw, 0.1-0.6 m high, under the shelves too), kept within 5° all the way: the
+    joint-space projection (the axis alone, the TCP free to move) plans 20 of 20 here; the
+    pose IK it replaced (the TCP held in place) planned 75 of 90 such queries at the 1 s
+    default on the loaded test machine, this one 89 of 90."""
+    from ompl import util as ou
+
+    from mjkdl.plan import OrientationConstraint
+
+    _env, robot, _q_a, _q_b = panda
+    planner = MotionPlanner(robot)
+    upright = OrientationConstraint((0.0, 0.0, 1.0), (0.0, 0.0, -1.0), np.radians(5.0))
+    rng = np.random.default_rng(11)
+
+    def sample(side: float) -> np.ndarray:
+        while True:
+            yaw = rng.uniform(-np.pi / 2, np.pi / 2)
+            rotation = np.array(DOWN) @ pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
+            where = [rng.uniform(0.3, 0.65), side * rng.uniform(0.15, 0.5), rng.uniform(0.1, 0.6)]
+            result = robot.ik(pin.SE3(rotation, np.array(where)), HOME)
+            if (
+                result.success
+                and planner.checker.valid(result.q)
+                and np.all(
+                    np.abs(robot.joint_limits.mean(axis=1) - result.q)
+                    <= np.ptp(robot.joint_limits, axis=1) / 2
+                )
+            ):
+                return result.q
+
+    ou.RNG.setSeed(11)
+    solved = 0
+    for _ in range(20):
+        start, goal = sample(1.0), sample(-1.0)
+        try:
+            traj = planner.plan(goal, start=start, constraint=upright, timeout=2.0)
+        except PlanningTimeout:
+            continue
+        solved += 1
+        tilt = max(
+            upright.error(robot.fk_frame(traj.sample(t)[0]).rotation)
+            for t in np.linspace(0.0, traj.duration, 50)
+        )
+        assert tilt <= np.radians(5.0)
+    assert solved >= 18
+    # The projection itself: a state tilted 30° comes back onto the axis, moving little.
+    q = robot.ik(
+        pin.SE3(np.array(DOWN) @ pin.rpy.rpyToMatrix(0.5, 0.0, 0.0), np.array([0.5, 0.3, 0.4])),
+        HOME,
+    ).q
+    projected = upright.project_joints(q, robot.fk_frame, robot.jacobian)
+    assert upright.error(robot.fk_frame(projected).rotation) < 1e-4
+    assert np.abs(projected - q).max() < 0.6

@@ -437,8 +437,16 @@ class MotionPlanner:
                 self._cone = constraint
             self.last_stats["ends"] = time.perf_counter() - began
             straight = True
+            found, failure = 0, ""
             while True:  # a path whose timing cuts into the margin is searched again
-                waypoints = self._search(q0, goals, budget, began, straight, lower, upper)
+                try:
+                    waypoints = self._search(q0, goals, budget, began, straight, lower, upper)
+                except PlanningTimeout as error:
+                    if not found:
+                        raise
+                    # The time went to paths found and refused, not to the search.
+                    raise PlanningTimeout(self._refused(found, budget, failure)) from error
+                found += 1
                 if q_from is not q0:
                     waypoints = np.vstack([q_from[None], waypoints])
                 trajectory = None
@@ -464,15 +472,19 @@ class MotionPlanner:
                     return trajectory
                 straight = False
                 if time.perf_counter() - began > budget:
-                    raise PlanningTimeout(
-                        f"{self._planner_name}: every path found within {budget:g} s "
-                        f"{failure}; raise the timeout or the padding"
-                    )
+                    raise PlanningTimeout(self._refused(found, budget, failure))
         finally:
             self._start_need = None
             self._cone = None
             if carry is not None:
                 self._checker.carry(None)
+
+    def _refused(self, found: int, budget: float, failure: str) -> str:
+        """Why a plan ran out of time with paths found: each was refused after the search."""
+        return (
+            f"{self._planner_name}: {found} path{'s' if found > 1 else ''} found within "
+            f"{budget:g} s, none usable: the last {failure}; raise the timeout or the padding"
+        )
 
     def plan_cartesian(
         self,
@@ -1115,8 +1127,10 @@ class MotionPlanner:
         lower: np.ndarray,
         upper: np.ndarray,
     ) -> np.ndarray:
-        """The path every `PROJECTION_STEP` projected onto the constraint (IK seeded with the
-        previous projected state), each state checked; PlanningError naming where not."""
+        """The path every `PROJECTION_STEP` projected onto the constraint (in joint space:
+        each state moved the least that puts the tool axis on the world axis, the TCP's
+        position free; else from the previous projected state moved as the path moves), each
+        state checked; PlanningError naming where not."""
         robot = self._robot
         dense = [waypoints[0]]
         for a, b in itertools.pairwise(waypoints):
@@ -1125,21 +1139,19 @@ class MotionPlanner:
         out = [waypoints[0]]
         q = waypoints[0]
         for k, state in enumerate(dense[1:-1], start=1):
-            frame = robot.fk_frame(state)
-            target = pin.SE3(constraint.project(frame.rotation), frame.translation)
             where = f"at {k / (len(dense) - 1):.0%} of the path"
-            for seed in (q, state):
-                result = robot.ik(target, seed)
-                if result.success and float(np.abs(result.q - q).max()) <= 3 * PROJECTION_STEP:
+            for seed in (state, q + (state - dense[k - 1])):
+                result = constraint.project_joints(seed, robot.fk_frame, robot.jacobian)
+                if result is not None and float(np.abs(result - q).max()) <= 3 * PROJECTION_STEP:
                     break
             else:
-                raise PlanningError(f"constraint: the projection has no IK solution {where}")
-            if self._outside(result.q, "", lower, upper) is not None:
+                raise PlanningError(f"constraint: the projection does not converge {where}")
+            if self._outside(result, "", lower, upper) is not None:
                 raise PlanningError(f"constraint: the projection leaves the bounds {where}")
-            clash = self._clash(result.q, f"constraint: the projected state {where}")
+            clash = self._clash(result, f"constraint: the projected state {where}")
             if clash is not None:
                 raise PlanningError(clash)
-            q = result.q
+            q = result
             out.append(q)
         out.append(waypoints[-1])
         return np.array(out)
