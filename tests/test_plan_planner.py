@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from conftest import (
     DOWN,
     PANDA_TCP,
+    ROOT,
     SHELF_TOP,
     base_spec,
     menagerie,
@@ -427,7 +429,7 @@ def test_a_wall_between_two_regions_of_free_space_is_found_early(tmp_path) -> No
         arm = scene.create_robot("base", "l2")
         arm.set_joint_pos([-1.0, 0.0])
         planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
-        # Not a timeout: PlanningTimeout would fail this; the wall test runs after a fifth.
+        # Not a timeout: PlanningTimeout would fail this; the wall test runs after 2000 checks.
         with pytest.raises(
             InfeasibleError,
             match=r"the start and goal lie in different regions of free space: joint 'j1' "
@@ -726,3 +728,57 @@ def test_upright_queries_across_the_wall_plan_nine_in_ten(panda) -> None:
     projected = upright.project_joints(q, robot.fk_frame, robot.jacobian)
     assert upright.error(robot.fk_frame(projected).rotation) < 1e-4
     assert np.abs(projected - q).max() < 0.6
+
+
+WALL_QUERY = """
+import sys
+import numpy as np
+from ompl import util as ou
+from conftest import base_spec, two_link_arm
+import mjkdl as mjk
+from mjkdl.plan import InfeasibleError, MotionPlanner
+
+ou.RNG.setSeed(3)
+path = sys.argv[1]
+open(path, "w").write(two_link_arm())
+post = mjk.SceneObject(
+    name="post", shape=mjk.Shape.BOX, size=[0.02, 0.02, 0.1], pos=[0.2, 0.0, 0.05], fixed=True
+)
+spec = base_spec(add_floor=False, robots=[mjk.RobotSpec(path=path)], objects=[post])
+with mjk.Scene.build(spec) as scene:
+    arm = scene.create_robot("base", "l2")
+    arm.set_joint_pos([-1.0, 0.0])
+    planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
+    for timeout in (2.0, 0.5):
+        try:
+            planner.plan([1.0, 0.0], timeout=timeout)
+        except InfeasibleError as error:
+            print(error.reason, error)
+"""
+
+
+def test_the_same_query_and_seed_get_the_same_verdict_in_another_process(tmp_path) -> None:
+    """The wall test runs after a count of validity checks, not a share of the time, and
+    samples each slice from the planner's seed: two processes with OMPL seeded alike word
+    the verdict alike, to the value and the trees' sizes, whatever the timeout."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "query.py"
+    script.write_text(WALL_QUERY)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests")])}
+    runs = [
+        subprocess.run(
+            [sys.executable, str(script), str(tmp_path / f"arm{k}.xml")],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=120,
+            check=True,
+        ).stdout
+        for k in range(2)
+    ]
+    lines = runs[0].splitlines()
+    assert len(lines) == 2 and all(line.startswith("disconnected ") for line in lines)
+    assert "joint 'j1' cannot pass" in lines[0]
+    assert runs[0] == runs[1]

@@ -92,13 +92,15 @@ SEARCH_CONE = math.radians(45.0)
 PROJECTION_STEP = 0.02
 # How far (rad) a measured start may be past a bound and be clipped back into it.
 START_SLACK = 0.005
-# The wall test (`MotionPlanner._wall`): after this share of the timeout without a path,
-# RRTConnect's two trees are examined for a joint value neither has crossed; slices of it
+# The wall test (`MotionPlanner._wall`): after WALL_CHECKS validity checks without a path
+# (or WALL_AFTER of the timeout on a slow machine: then the trees, and the verdict, may
+# differ), RRTConnect's two trees are examined for a joint value neither has crossed; slices of it
 # every WALL_STEP (rad) are sampled up to WALL_SAMPLES times (stopping at the first free
 # configuration), and a slice without one divides the free space: the query is infeasible.
 # 200 samples called a UR10's wrist slice a wall where 1.5 % of the configurations are free;
 # 2000 miss such a passage with a probability of 1e-13, and say so in the verdict.
-WALL_AFTER = 0.2
+WALL_CHECKS = 2000
+WALL_AFTER = 0.8
 WALL_STEP = 0.05
 WALL_SAMPLES = 2000
 # Random goal states drawn within a goal tolerance when the exact goal is in collision.
@@ -409,7 +411,7 @@ class MotionPlanner:
         Raises `InfeasibleError` (with a `reason`) when the query cannot be solved, before
         searching: a start or goal in collision or outside the bounds, no collision-free IK
         solution, or a start or goal in a pocket of free space (`POCKET_RADIUS`); with
-        RRTConnect, after `WALL_AFTER` of the timeout, a joint value that divides the free
+        RRTConnect, after `WALL_CHECKS` validity checks, a joint value that divides the free
         space between them ("disconnected", see `_wall`); raises `PlanningTimeout` when the
         search used its time.
         """
@@ -918,11 +920,17 @@ class MotionPlanner:
         try:
             status = None
             if self._planner_name == "RRTConnect":
-                # A first share of the time; then, unsolved, look for a wall between the
-                # two trees (`_wall`) before searching on.
-                first = WALL_AFTER * budget - (time.perf_counter() - began)
-                if first > 1e-3:
-                    status = setup.solve(first)
+                # A first `WALL_CHECKS` validity checks (a count, not a time: the trees the
+                # wall test reads are then the same on any machine); then, unsolved, look
+                # for a wall between the two trees (`_wall`) before searching on.
+                until = began + WALL_AFTER * budget
+                if time.perf_counter() < until:
+                    first = self.checks + WALL_CHECKS
+                    status = setup.solve(
+                        ob.PlannerTerminationCondition(
+                            lambda: self.checks >= first or time.perf_counter() > until
+                        )
+                    )
                     if not setup.haveExactSolutionPath():
                         wall = self._wall(planner, si, lower, upper, began + budget)
                         if wall is not None:
