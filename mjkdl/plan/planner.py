@@ -1002,6 +1002,12 @@ class MotionPlanner:
                     return None
                 if blocked:
                     name = self._robot.joint_names[i]
+                    kept = (
+                        ""
+                        if self._cone is None
+                        else f" with the tool axis within {math.degrees(SEARCH_CONE):g}° of the "
+                        "constraint's"
+                    )
                     wrap = (
                         "; a joint with more than a turn: try the goal's equivalent a turn "
                         "(2π) towards the start's side"
@@ -1011,7 +1017,7 @@ class MotionPlanner:
                     return (
                         f"the start and goal lie in different regions of free space: joint "
                         f"{name!r} cannot pass {c:.3f} rad (none of {WALL_SAMPLES} random "
-                        f"configurations with it there is collision-free: a passage, if any, "
+                        f"configurations with it there is collision-free{kept}: a passage, if any, "
                         f"holds under {1 / WALL_SAMPLES:.2%} of them; neither search tree "
                         f"crossed [{gap[0]:.3f}, {gap[1]:.3f}] rad in "
                         f"{len(start) + len(goal)} states){wrap}"
@@ -1022,9 +1028,11 @@ class MotionPlanner:
         self, i: int, c: float, lower: np.ndarray, upper: np.ndarray, deadline: float
     ) -> bool | None:
         """Whether all `WALL_SAMPLES` random configurations (the other joints uniform within
-        [lower, upper]) with joint `i` at `c` fail the checker in use; None at `deadline`.
-        The samples depend only on the planner's seed, the joint and the value, so the same
-        slice gets the same verdict whatever ran before."""
+        [lower, upper]) with joint `i` at `c` fail the checker in use (with a path
+        constraint, the search's: the tool axis within `SEARCH_CONE` too); None at
+        `deadline`. The samples depend only on the planner's seed, the joint and the value,
+        so the same slice gets the same verdict whatever ran before."""
+        cone, fk = self._cone, self._robot.fk_frame
         rng = np.random.default_rng([self._seed, i, round(abs(c) * 1e6), int(c < 0)])
         batch = 100
         for first in range(0, WALL_SAMPLES, batch):
@@ -1034,7 +1042,9 @@ class MotionPlanner:
             rows[:, i] = c
             for q in rows:
                 self.checks += 1
-                if self._checker.valid(q):
+                if self._checker.valid(q) and (
+                    cone is None or cone.error(fk(q).rotation) <= SEARCH_CONE
+                ):
                     return False
         return True
 
