@@ -300,6 +300,13 @@ def test_an_arm_named_like_the_iiwa_with_other_kinematics_gets_a_warning_and_one
             warnings.simplefilter("error")
             planner = MotionPlanner(robot, velocity_limits=[2.0] * 7, acceleration_limits=[5.0] * 7)
         assert planner.limits_source == "velocity: given\nacceleration: given"
+        given = {"velocity_limits": [2.0] * 7, "acceleration_limits": [5.0] * 7}
+        with pytest.raises(mjk.SpecTypeError, match=r"limits must be a RobotLimits or the path"):
+            MotionPlanner(robot, limits=5, **given)
+        with pytest.raises(mjk.SpecTypeError, match=r"srdf must be an Srdf or the path"):
+            MotionPlanner(robot, srdf=5, acm=False, **given)
+        with pytest.raises(mjk.SpecTypeError, match=r"RobotLimits.velocity must map joint names"):
+            RobotLimits(velocity=[1.0])
 
 
 def test_a_moveit_joint_limits_yaml_fills_in_and_one_error_lists_what_is_still_missing(
