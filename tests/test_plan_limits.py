@@ -532,23 +532,31 @@ def test_a_pair_always_within_the_padding_keeps_only_the_margin_and_the_arm_plan
 
 
 def test_a_timeout_with_most_states_invalid_names_the_pair_and_link_padding_frees_it() -> None:
+    """Without the matrix the pair keeps its padding: RRT (no wall test, so no dropping of
+    the padding either) times out and names it; RRTConnect, after its wall test, goes on with
+    the margin alone and plans; per-link padding frees the pair from the start."""
     with _tight_wrist() as env:
         arm = env.create_robot("base", "l4")
         arm.set_joint_pos(np.array(TIGHT_START))
         arm.update()
         goal = [1.5, 0.3, 1.0, -1.0]
-        planner = MotionPlanner(arm, acm=False, **TIGHT_LIMITS)  # no matrix: padded
+        planner = MotionPlanner(arm, acm=False, planner="RRT", **TIGHT_LIMITS)  # padded
         with pytest.raises(
             PlanningTimeout,
-            match=r"found no collision-free path within 0.3 s \(\d+ states checked, status "
-            r"[\w ]+, margin 5 mm\); 9\d% of the states it checked were invalid, [89]\d% of those "
-            r"for bodies 'l2' and 'l4' \(a median 7.0 mm apart, against margin 5 mm \+ padding "
-            r"5 mm\): if they may touch, allow the pair \(planner.acm.allow\('l2', 'l4'\)\), "
-            r"else lower their padding \(link_padding=\{'l4': 0.0\}\) or the margin",
+            match=r"RRT found no collision-free path within 0.3 s \(\d+ states checked, status "
+            r"[\w ]+, margin 5 mm\); (9\d|100)% of the states it checked were invalid, "
+            r"[89]\d% of those for bodies 'l2' and 'l4' \(a median 7.0 mm apart, against "
+            r"margin 5 mm \+ padding 5 mm\): if they may touch, allow the pair "
+            r"\(planner.acm.allow\('l2', 'l4'\)\), else lower their padding "
+            r"\(link_padding=\{'l4': 0.0\}\) or the margin",
         ):
             planner.plan(goal, timeout=0.3)
+        connect = MotionPlanner(arm, acm=False, **TIGHT_LIMITS)
+        assert np.abs(connect.plan(goal, timeout=2.0).positions[-1] - goal).max() < 1e-12
+        assert connect.padding_dropped
         freed = MotionPlanner(arm, acm=False, link_padding={"l4": 0.0}, **TIGHT_LIMITS)
         assert np.abs(freed.plan(goal, timeout=2.0).positions[-1] - goal).max() < 1e-12
+        assert not freed.padding_dropped
         with pytest.raises(mjk.UnknownNameError, match=r"no body named 'l9' in link_padding"):
             MotionPlanner(arm, acm=False, link_padding={"l9": 0.0}, **TIGHT_LIMITS)
         with pytest.raises(mjk.SpecError, match=r"link_padding\['l4'\] must be a finite number"):
