@@ -30,6 +30,11 @@ from ..errors import SpecError
 KNOT_PERIOD = 0.01
 # Path-parameter spacing (rad of joint-space distance) of the timing grid, within 30..100 points.
 GRID_STEP = 0.05
+# A timing under velocity and acceleration limits is checked for the torque limits at every
+# this-many grid points, against this share of them (room for the points between): a path
+# that comes closer is timed again with the torque rows, exactly.
+TORQUE_STRIDE = 4
+TORQUE_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -150,7 +155,9 @@ class TimeParametrizer:
     at both ends: a natural cubic spline through the waypoints, parametrised by their
     cumulative joint-space distance, is timed by TOPP-RA (`_reachability`: toppra's algorithm
     and constraint discretisation, solved in closed form for box limits), and the result is
-    sampled every `KNOT_PERIOD`.
+    sampled every `KNOT_PERIOD`. With `torque_limits` and `inverse_dynamics(q, qd, qdd)`,
+    the joint torques are kept too (toppra's joint torque constraint): a timing that asks
+    for more torque at a grid point is computed again with the torque rows.
     """
 
     def __init__(
@@ -166,6 +173,23 @@ class TimeParametrizer:
             raise SpecError("TimeParametrizer: torque_limits need inverse_dynamics, and back")
         self._torque = None if torque_limits is None else np.asarray(torque_limits, dtype=float)
         self._dynamics = inverse_dynamics
+
+    def _over_torque(
+        self, grid: np.ndarray, q: np.ndarray, d1: np.ndarray, d2: np.ndarray, x: np.ndarray
+    ) -> bool:
+        """Whether the timing `x` (ṡ² on `grid`) asks any joint for more than `TORQUE_SHARE`
+        of its torque limit at every `TORQUE_STRIDE`th grid point or the last (with the path
+        acceleration of the stage starting there): a twelfth of the torque rows' inverse
+        dynamics; most paths never come near the limits and are not timed again."""
+        assert self._torque is not None and self._dynamics is not None
+        u = np.diff(x) / (2.0 * np.diff(grid))
+        u = np.append(u, u[-1])
+        speed = np.sqrt(x)
+        for k in [*range(0, len(grid) - 1, TORQUE_STRIDE), len(grid) - 1]:
+            tau = self._dynamics(q[k], d1[k] * speed[k], d1[k] * u[k] + d2[k] * x[k])
+            if np.any(np.abs(tau) > TORQUE_SHARE * self._torque):
+                return True
+        return False
 
     def _torque_rows(
         self, q: np.ndarray, d1: np.ndarray, d2: np.ndarray
@@ -213,9 +237,11 @@ class TimeParametrizer:
         constraints = [
             (d1, d2, np.broadcast_to(-self._a, d1.shape), np.broadcast_to(self._a, d1.shape))
         ]
-        if self._torque is not None:
+        x = _reachability(grid, d1, self._v, constraints)
+        if self._torque is not None and self._over_torque(grid, q, d1, d2, x):
             constraints.append(self._torque_rows(q, d1, d2))
-        sd = np.sqrt(_reachability(grid, d1, self._v, constraints))
+            x = _reachability(grid, d1, self._v, constraints)
+        sd = np.sqrt(x)
         if not np.isfinite(sd).all():
             raise SpecError("no timing for the path (limits too tight?)")
         times, positions, velocities, accelerations = _const_accel(path, grid, sd)
