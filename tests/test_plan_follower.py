@@ -280,3 +280,25 @@ def test_torque_aware_timing_keeps_a_weak_arm_on_track_and_the_follower_reports_
             assert follower.max_error_joint.startswith("joint")
     assert errors[0] > 0.3
     assert errors[1] < 0.03
+
+
+def test_run_stops_settling_when_the_arm_is_at_rest_short_of_the_goal() -> None:
+    """The Rizon-like arm's wrist joint held by 1 N·m of dry friction, its actuator limited
+    to 0.5 N·m: it cannot follow, and `run` returns once the arm is at rest instead of
+    waiting out the 3 s of settling; `final_error` says how short it stopped."""
+    with untested_arm("rizon_like") as env:
+        robot = untested_robot(env, "rizon_like")
+        model = env.model
+        model.dof_frictionloss[model.joint("joint5").dofadr[0]] = 1.0
+        wrist = model.actuator("a5").id
+        model.actuator_forcelimited[wrist] = 1
+        model.actuator_forcerange[wrist] = [-0.5, 0.5]
+        start = robot.jnt_pos_msr.copy()
+        goal = start + np.array([0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0])
+        zeros = np.zeros((2, 7))
+        traj = JointTrajectory([0.0, 1.0], [start, goal], zeros, zeros)
+        follower = TrajectoryFollower(robot, report_tracking_error=None)
+        began = env.time()
+        follower.run(traj)
+        assert follower.final_error > 0.01
+        assert env.time() - began < 1.0 + 0.5  # not the whole 3 s of settling

@@ -12,8 +12,9 @@ TORQUE mode: computed torque, τ = M(q) (q̈_d + Kp e + Kd ė) + h(q, q̇) + dam
 those of a critically damped `bandwidth` in every joint.
 
 Settling: `run` goes on holding the goal after the trajectory's end until every joint is
-within `settle_tolerance` of it (or `settle` seconds have passed), so the arm stops on the goal
-rather than wherever the servos' lag left it; `final_error` says how far it ended.
+within `settle_tolerance` of it (or the arm is at rest, or `settle` seconds have passed), so
+the arm stops on the goal rather than wherever the servos' lag left it; `final_error` says
+how far it ended.
 
 Reporting: the largest joint error while playing is kept (`max_error`, with the joint and
 time: `max_error_joint`, `max_error_time`), and `run` warns when it passes
@@ -47,6 +48,8 @@ from .trajectory import JointTrajectory
 # at most SETTLE seconds.
 SETTLE_TOLERANCE = 0.001
 SETTLE = 3.0
+# ... or until no joint moves faster than this (rad/s): at rest short of the goal.
+SETTLE_SPEED = 1e-3
 # `run` warns when a joint lags the trajectory by more than this (rad).
 REPORT = 0.01
 
@@ -301,6 +304,8 @@ class TrajectoryFollower:
         while self.stop is None and robot.scene.time() < until:
             if np.abs(robot.jnt_pos_msr - goal).max() <= self._settle_tolerance:
                 break
+            if np.abs(robot.jnt_vel_msr).max() < SETTLE_SPEED:
+                break  # at rest off the goal (held by friction, a load): waiting gains nothing
             self.command()
             robot.step()
             if after_step is not None:
