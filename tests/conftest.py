@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -454,3 +455,45 @@ def franka_server() -> Iterator[str]:
     needs_extra("franka")
     with franka_sim("--lockstep", "--command-timeout", "10") as sim:
         yield sim.host
+
+
+# Arms no Menagerie folder here holds, for the planner's per-arm tests: a seven-joint arm
+# named like the KUKA iiwa with another arm's kinematics (as a Flexiv Rizon 4 is), and
+# example-robot-data's UR10.
+RIZON_LIKE = Path(__file__).resolve().parent / "assets" / "rizon_like.xml"
+RIZON_LIKE_START = [0.0, 0.3, 0.0, 1.2, 0.0, 0.8, 0.0]
+UR10_HOME = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0]
+
+
+def untested_arm(name: str, objects: list[mjk.SceneObject] | None = None) -> mjk.Env:
+    """An Env with "rizon_like" or "ur10" on the floor (its robot: `env.robots[0]`-style,
+    built by `untested_robot`)."""
+    from mjkdl.urdf import example_robot_data_path
+
+    path = (
+        str(RIZON_LIKE)
+        if name == "rizon_like"
+        else str(example_robot_data_path("ur_description/urdf/ur10_robot.urdf"))
+    )
+    spec = mjk.SceneSpec(
+        timestep=0.002,
+        add_floor=True,
+        add_skybox=False,
+        robots=[mjk.RobotSpec(path=path)],
+        objects=objects or [],
+    )
+    return mjk.Env.build(spec)
+
+
+def untested_robot(env: mjk.Env, name: str) -> mjk.Robot:
+    """The arm of `untested_arm(name)` at its start, in POSITION mode."""
+    base, tip, start = (
+        ("base", "link7", RIZON_LIKE_START)
+        if name == "rizon_like"
+        else ("base_link", "tool0", UR10_HOME)
+    )
+    robot = env.create_robot(base, tip)
+    robot.set_joint_pos(np.array(start))
+    robot.ctrl_mode = mjk.CtrlMode.POSITION
+    robot.update()
+    return robot

@@ -16,4 +16,4 @@ def test_motion_doc_blocks_run_and_print_what_they_say() -> None:
 
 
 def test_planning_for_your_arm_blocks_run_and_print_what_they_say() -> None:
-    assert_blocks_run(ARM_DOC, at_least=6)
+    assert_blocks_run(ARM_DOC, at_least=9)

@@ -7,16 +7,20 @@ collision-free states that keeps the margin along the timed trajectory (`mj_geom
 
 from __future__ import annotations
 
+import warnings
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pytest
-from conftest import base_spec, menagerie, tutorial_spec
+import yaml
+from conftest import base_spec, menagerie, tutorial_spec, untested_arm, untested_robot
 
 import mjkdl as mjk
 import mjkdl.plan
-from mjkdl.plan import DATASHEETS, MotionPlanner
+from mjkdl.plan import DATASHEETS, MotionPlanner, PlanningTimeout, RobotLimits, Srdf
 from mjkdl.plan.acm import compute_acm
-from mjkdl.plan.limits import RAMP
+from mjkdl.plan.limits import RAMP, match_datasheet
 from mjkdl.urdf import example_robot_data_path
 
 DEG = np.pi / 180.0
@@ -37,7 +41,7 @@ ARMS = {
         "ur_description/urdf/ur5_robot.urdf",
         "base_link",
         "wrist_3_link",
-        "Universal Robots UR5e",
+        "Universal Robots UR5 (CB3)",
     ),
     "gen3": ("kinova_gen3", "gen3.xml", "base_link", "bracelet_link", "Kinova Gen3 (7 DoF)"),
 }
@@ -255,10 +259,305 @@ def test_a_link_always_within_the_margin_of_its_mount_is_allowed(tmp_path) -> No
 def test_every_datasheet_names_its_source_and_how_it_was_checked() -> None:
     from mjkdl.plan import DATASHEETS
 
-    assert len(DATASHEETS) == 12
+    assert len(DATASHEETS) == 14
     for sheet in DATASHEETS:
         assert sheet.velocity_source and sheet.acceleration_source, sheet.arm
-        assert sheet.verified.startswith("2026-11-26: "), sheet.arm
-        assert len(sheet.velocity) == len(sheet.links), sheet.arm
+        assert sheet.kinematics_source, sheet.arm
+        assert sheet.verified.startswith(("2026-11-26: ", "2026-11-27: ")), sheet.arm
+        assert len(sheet.velocity) == len(sheet.links) == len(sheet.kinematics), sheet.arm
     ur10e = next(s for s in DATASHEETS if s.arm == "Universal Robots UR10e")
     assert ur10e.velocity == pytest.approx(np.radians([120, 120, 180, 180, 180, 180]), abs=1e-4)
+
+
+# ---------------------------------------------------------------------- per-robot limits
+
+
+def test_an_arm_named_like_the_iiwa_with_other_kinematics_gets_a_warning_and_one_error() -> None:
+    """The Rizon-like arm (the iiwa's body names, side offsets between its axes, summed
+    offsets within 3 % of the iiwa 14's) silently got the iiwa 14's limits when arms were
+    told apart by size: now the table is not used, a warning says why, and one error lists
+    every missing limit."""
+    with untested_arm("rizon_like") as env:
+        robot = untested_robot(env, "rizon_like")
+        with (
+            pytest.warns(
+                UserWarning,
+                match=r"bodies link1, .*, link7\): its bodies are named like those of .*KUKA "
+                r"LBR iiwa 14 R820 \(along joint axis 2 the offset is 0\.0600 m, theirs "
+                r"0\.0000 m\).* but its kinematics differ, so their limits are not used",
+            ),
+            pytest.raises(mjk.SpecError) as error,
+        ):
+            MotionPlanner(robot)
+        joints = ", ".join(f"joint{i}" for i in range(1, 8))
+        assert str(error.value).startswith(
+            f"no velocity limit for joints {joints}; no acceleration limit for joints {joints} "
+            "(the arm's bodies: link1, "
+        )
+        assert "limits='joint_limits.yaml' (MoveIt's file)" in str(error.value)
+        # Given in full, no table is consulted and nothing is said.
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            planner = MotionPlanner(robot, velocity_limits=[2.0] * 7, acceleration_limits=[5.0] * 7)
+        assert planner.limits_source == "velocity: given\nacceleration: given"
+        given = {"velocity_limits": [2.0] * 7, "acceleration_limits": [5.0] * 7}
+        with pytest.raises(mjk.SpecTypeError, match=r"limits must be a RobotLimits or the path"):
+            MotionPlanner(robot, limits=5, **given)
+        with pytest.raises(mjk.SpecTypeError, match=r"srdf must be an Srdf or the path"):
+            MotionPlanner(robot, srdf=5, acm=False, **given)
+        with pytest.raises(mjk.SpecTypeError, match=r"RobotLimits.velocity must map joint names"):
+            RobotLimits(velocity=[1.0])
+
+
+def test_a_moveit_joint_limits_yaml_fills_in_and_one_error_lists_what_is_still_missing(
+    tmp_path,
+) -> None:
+    with untested_arm("rizon_like") as env:
+        robot = untested_robot(env, "rizon_like")
+        file = tmp_path / "joint_limits.yaml"
+        entries = {
+            f"joint{i}": {
+                "has_velocity_limits": True,
+                "max_velocity": 2.0 + 0.1 * i,
+                "has_acceleration_limits": i <= 5,
+                "max_acceleration": 6.0,
+            }
+            for i in range(1, 8)
+        }
+        file.write_text(yaml.safe_dump({"joint_limits": entries}))
+        with (
+            pytest.warns(UserWarning),
+            pytest.raises(
+                mjk.SpecError, match=r"^no acceleration limit for joints joint6, joint7 \(the arm"
+            ),
+        ):
+            MotionPlanner(robot, limits=file)
+        with pytest.warns(UserWarning, match=r"kinematics differ"):
+            planner = MotionPlanner(robot, limits=str(file), acceleration_limits=[4.0] * 7)
+        assert planner.velocity_limits.tolist() == pytest.approx(
+            [2.0 + 0.1 * i for i in range(1, 8)]
+        )
+        assert planner.limits_source == f"velocity: {file}\nacceleration: given"
+        # Our own file is the same format: RobotLimits saves what it loads.
+        own = RobotLimits(
+            velocity={"joint1": 1.0}, acceleration={"joint1": 3.0}, effort={"joint1": 80.0}
+        )
+        own.save(tmp_path / "own.yaml")
+        again = RobotLimits.load(tmp_path / "own.yaml")
+        assert (again.velocity, again.acceleration, again.effort) == (
+            {"joint1": 1.0},
+            {"joint1": 3.0},
+            {"joint1": 80.0},
+        )
+        # Per joint, the first source that has a limit: the file for joint1, then the model's
+        # (none in an MJCF), then nothing: the error lists the six others.
+        with (
+            pytest.warns(UserWarning),
+            pytest.raises(
+                mjk.SpecError,
+                match=r"^no velocity limit for joints joint2, joint3, joint4, joint5, joint6, "
+                r"joint7;",
+            ),
+        ):
+            MotionPlanner(robot, limits=own)
+
+
+@pytest.mark.parametrize(
+    ("text", "error", "message"),
+    [
+        (
+            "joint_limits: {joint1: {max_velocity: -1}}",
+            mjk.SpecError,
+            r"velocity of joint "
+            r"'joint1' must be a finite number > 0, got -1",
+        ),
+        (
+            "joint_limits: {joint1: {max_velocity: fast}}",
+            mjk.SpecTypeError,
+            r"velocity of joint "
+            r"'joint1' must be a number, got 'fast'",
+        ),
+        (
+            "joint_limits: {joint1: {has_acceleration_limits: true}}",
+            mjk.SpecError,
+            r"joint_limits\.joint1 has has_acceleration_limits: true but no max_acceleration",
+        ),
+        ("limits: {}", mjk.SpecError, r"has no 'joint_limits' mapping"),
+        ("joint_limits: [1, 2", mjk.SpecError, r"is not YAML"),
+    ],
+)
+def test_bad_joint_limits_files_are_refused_naming_the_file(tmp_path, text, error, message) -> None:
+    file = tmp_path / "joint_limits.yaml"
+    file.write_text(text)
+    with pytest.raises(error, match=message) as raised:
+        RobotLimits.load(file)
+    assert str(file) in str(raised.value)
+    with pytest.raises(mjk.ModelFileError, match=r"joint limits file '.*missing.yaml'"):
+        RobotLimits.load(tmp_path / "missing.yaml")
+
+
+def test_the_table_matches_names_and_kinematics_not_size(tmp_path) -> None:
+    """A ViperX 300 (the WX250s model with the vx300s's joint origins: its summed offsets are
+    0.724 m, the table's size guess was 0.80 m) is recognised; example-robot-data's UR10 is a
+    UR10 (CB3), no longer taken for a UR10e by size; the Menagerie Panda is not an FR3."""
+    folder = Path(menagerie("trossen_wx250s")).parent
+    spec = mujoco.MjSpec.from_file(str(folder / "wx250s.xml"))
+    spec.meshdir = spec.texturedir = str(folder / "assets")
+    origins = {
+        "shoulder_link": [0, 0, 0.079],
+        "upper_arm_link": [0, 0, 0.04805],
+        "upper_forearm_link": [0.05955, 0, 0.3],
+        "lower_forearm_link": [0.2, 0, 0],
+        "wrist_link": [0.1, 0, 0],
+        "gripper_link": [0.069744, 0, 0],
+    }
+    for name, pos in origins.items():
+        spec.body(f"wx250s/{name}").pos = pos
+    (tmp_path / "vx300s.xml").write_text(spec.to_xml())
+    model = mjk.Scene.build(base_spec(robots=[mjk.RobotSpec(path=str(tmp_path / "vx300s.xml"))]))
+    with model as scene:
+        robot = scene.create_robot("wx250s/base_link", "wx250s/gripper_link")
+        assert match_datasheet(scene.model, robot.joint_names).sheet.arm == (
+            "Trossen ViperX 300 6DOF (vx300s)"
+        )
+    with untested_arm("ur10") as env:
+        robot = untested_robot(env, "ur10")
+        assert match_datasheet(env.model, robot.joint_names).sheet.arm == (
+            "Universal Robots UR10 (CB3)"
+        )
+    scene, robot = _build("panda")
+    with scene:
+        found = match_datasheet(scene.model, robot.joint_names)
+        assert (found.sheet.arm, found.note) == ("Franka Emika Panda", "")
+    # Each table entry's kinematics, through its own convention, gives the signature of
+    # the models at hand (Menagerie's and example-robot-data's) within the tolerances.
+    for name in ("panda", "iiwa14", "xarm7", "wx250s", "ur5", "gen3"):
+        scene, robot = _build(name)
+        with scene:
+            sheet = match_datasheet(scene.model, robot.joint_names).sheet
+            assert sheet is not None and sheet.arm.startswith(ARMS[name][4]), name
+
+
+def test_an_srdf_disables_its_pairs_and_gives_its_groups(tmp_path) -> None:
+    """example-robot-data's UR5 SRDF: its disabled pairs are allowed (reason "srdf" where
+    sampling had not allowed them); the Z1's SRDF: a group with a chain and named states."""
+    from mjkdl.urdf import example_robot_data_path
+
+    scene, robot = _build("ur5")
+    with scene:
+        srdf = example_robot_data_path("ur_description/srdf/ur5.srdf")
+        planner = MotionPlanner(robot, srdf=srdf, acm_samples=200)
+        acm = planner.acm
+        assert acm.reason("base_link", "upper_arm_link") == "srdf"
+        assert acm.reason("forearm_link", "wrist_3_link") == "srdf"
+        assert acm.reason("shoulder_link", "upper_arm_link") == "adjacent"  # as sampled
+        assert acm.summary()["srdf"] == 4  # the 10 pairs less the 6 adjacent ones
+        # Without a matrix, the pairs join allowed_contacts.
+        bare = MotionPlanner(robot, srdf=Srdf.load(srdf), acm=False)
+        assert ("forearm_link", "wrist_3_link") in bare.checker._allowed_names
+        bad = tmp_path / "bad.srdf"
+        bad.write_text(
+            '<robot><disable_collisions link1="base_link" link2="wrist_9_link"/></robot>'
+        )
+        with pytest.raises(
+            mjk.UnknownNameError,
+            match=r"no body named 'wrist_9_link' in SRDF file '.*bad.srdf', disable_collisions 0",
+        ):
+            MotionPlanner(robot, srdf=bad, acm_samples=200)
+    z1 = Srdf.load(example_robot_data_path("z1_description/srdf/z1.srdf"))
+    group = z1.groups["end_effector"]
+    assert group.joints == tuple(f"joint{i}" for i in range(1, 7))
+    assert group.chains == (("base", "gripperMover"),)
+    assert z1.states["arm_up"]["joint2"] == pytest.approx(0.26178)
+    for text, message in (
+        (
+            "<robot><disable_collisions link1='a'/></robot>",
+            r"a <disable_collisions> has no 'link2'",
+        ),
+        ("<robot", r"is not XML"),
+        ("<urdf/>", r"the root element is <urdf>, not <robot>"),
+    ):
+        bad.write_text(text)
+        with pytest.raises(mjk.SpecError, match=message):
+            Srdf.load(bad)
+    with pytest.raises(mjk.ModelFileError, match=r"SRDF file '.*nothing.srdf'"):
+        Srdf.load(tmp_path / "nothing.srdf")
+
+
+# ---------------------------------------------------------------------- padding
+
+
+def _tight_wrist() -> mjk.Env:
+    spec = mjk.SceneSpec(
+        timestep=0.002,
+        add_floor=True,
+        add_skybox=False,
+        robots=[mjk.RobotSpec(path=str(Path(__file__).parent / "assets" / "tight_wrist.xml"))],
+    )
+    return mjk.Env.build(spec)
+
+
+TIGHT_LIMITS = {"velocity_limits": [2.0] * 4, "acceleration_limits": [5.0] * 4}
+TIGHT_START = [0.0, -0.3, 0.0, 0.5]
+
+
+def test_a_pair_always_within_the_padding_keeps_only_the_margin_and_the_arm_plans() -> None:
+    """As the Lite 6's link4 and link6 (0 of 30 queries planned): the upper arm's knob is
+    7 mm from the wrist's ball in every pose, inside margin + padding (10 mm), in contact
+    within the margin in 7 % of the samples only (the hand). The matrix lists the pair as
+    unpadded: the search checks it for the margin alone, and every query plans."""
+    with _tight_wrist() as env:
+        arm = env.create_robot("base", "l4")
+        arm.set_joint_pos(np.array(TIGHT_START))
+        arm.update()
+        planner = MotionPlanner(arm, **TIGHT_LIMITS)
+        acm = planner.acm
+        assert acm.unpadded == [("l2", "l4")]
+        assert acm.padded_fraction[("l2", "l4")] == 1.0
+        assert 0.03 < acm.contact_fraction[("l2", "l4")] < 0.15
+        assert acm.reason("l2", "l4") is None  # still checked: the hand can hit the knob
+        assert planner.checker.contacts(TIGHT_START) == [("l2", "l4", pytest.approx(0.007))]
+        hit = [0.0, -0.3, 0.0, -1.5]  # the hand folded up onto the knob
+        assert not planner.checker.valid(hit)
+        rng = np.random.default_rng(0)
+        goals = [
+            q
+            for q in rng.uniform([-2.5, -1.2, -2.5, -2], [2.5, 1.2, 2.5, 2], (10, 4))
+            if planner.checker.valid(q)
+        ]
+        assert len(goals) == 8
+        for goal in goals:
+            traj = planner.plan(goal, start=TIGHT_START, timeout=2.0)
+            assert np.abs(traj.positions[-1] - goal).max() < 1e-12
+
+
+def test_a_timeout_with_most_states_invalid_names_the_pair_and_link_padding_frees_it() -> None:
+    """Without the matrix the pair keeps its padding: RRT (no wall test, so no dropping of
+    the padding either) times out and names it; RRTConnect, after its wall test, goes on with
+    the margin alone and plans; per-link padding frees the pair from the start."""
+    with _tight_wrist() as env:
+        arm = env.create_robot("base", "l4")
+        arm.set_joint_pos(np.array(TIGHT_START))
+        arm.update()
+        goal = [1.5, 0.3, 1.0, -1.0]
+        planner = MotionPlanner(arm, acm=False, planner="RRT", **TIGHT_LIMITS)  # padded
+        with pytest.raises(
+            PlanningTimeout,
+            match=r"RRT found no collision-free path within 0.3 s \(\d+ states checked, status "
+            r"[\w ]+, margin 5 mm\); (9\d|100)% of the states it checked were invalid, "
+            r"[89]\d% of those for bodies 'l2' and 'l4' \(a median 7.0 mm apart, against "
+            r"margin 5 mm \+ padding 5 mm\): if they may touch, allow the pair "
+            r"\(planner.acm.allow\('l2', 'l4'\)\), else lower their padding "
+            r"\(link_padding=\{'l4': 0.0\}\) or the margin",
+        ):
+            planner.plan(goal, timeout=0.3)
+        connect = MotionPlanner(arm, acm=False, **TIGHT_LIMITS)
+        assert np.abs(connect.plan(goal, timeout=2.0).positions[-1] - goal).max() < 1e-12
+        assert connect.padding_dropped
+        freed = MotionPlanner(arm, acm=False, link_padding={"l4": 0.0}, **TIGHT_LIMITS)
+        assert np.abs(freed.plan(goal, timeout=2.0).positions[-1] - goal).max() < 1e-12
+        assert not freed.padding_dropped
+        with pytest.raises(mjk.UnknownNameError, match=r"no body named 'l9' in link_padding"):
+            MotionPlanner(arm, acm=False, link_padding={"l9": 0.0}, **TIGHT_LIMITS)
+        with pytest.raises(mjk.SpecError, match=r"link_padding\['l4'\] must be a finite number"):
+            MotionPlanner(arm, acm=False, link_padding={"l4": -1.0}, **TIGHT_LIMITS)

@@ -27,7 +27,12 @@ def test_sample_reproduces_a_cubic_and_holds_the_ends() -> None:
     many = traj.positions_at(np.array([-1.0, 0.1, 0.42, 1.0, 2.0]))
     assert np.allclose(many, [traj.sample(t)[0] for t in (0.0, 0.1, 0.42, 1.0, 1.0)], atol=1e-14)
     assert np.array_equal(traj.sample(-1.0)[0], traj.positions[0])
-    assert np.array_equal(traj.sample(5.0)[1], traj.velocities[-1])
+    # Past the end (and before the start) the trajectory holds its end at rest.
+    q, qd, qdd = traj.sample(5.0)
+    assert np.array_equal(q, traj.positions[-1])
+    assert qd.tolist() == [0.0, 0.0] and qdd.tolist() == [0.0, 0.0]
+    assert traj.sample(-1.0)[2].tolist() == [0.0, 0.0]
+    assert traj.sample(1.0)[1].tolist() == [2.0, 4.0]  # the last knot itself as given
     with pytest.raises(ValueError, match="read-only"):
         traj.positions[0, 0] = 1.0
 
@@ -57,6 +62,9 @@ def test_toppra_timing_passes_the_waypoints_within_the_limits() -> None:
     traj = TimeParametrizer(V, A)(waypoints)
     assert np.array_equal(traj.positions[[0, -1]], waypoints[[0, -1]])
     assert np.abs(traj.velocities[[0, -1]]).max() == 0.0  # at rest at both ends
+    assert np.abs(traj.accelerations[-1]).max() == 0.0
+    q, qd, qdd = traj.sample(traj.duration + 0.5)  # past the end: the goal, at rest
+    assert np.array_equal(q, waypoints[-1]) and not qd.any() and not qdd.any()
     samples = [traj.sample(t) for t in np.linspace(0.0, traj.duration, 3000)]
     assert (np.abs([s[1] for s in samples]).max(axis=0) / V).max() <= 1.01
     assert (np.abs([s[2] for s in samples]).max(axis=0) / A).max() <= 1.02
@@ -101,7 +109,10 @@ def test_timing_matches_toppras_own_solver_and_const_accel_parametrizer(seed) ->
     inner = traj.times[1:-1]
     assert np.abs(traj.positions[1:-1] - theirs(inner)).max() < 1e-6
     assert np.abs(traj.velocities[1:-1] - theirs(inner, 1)).max() < 1e-5
-    assert np.abs(traj.accelerations - theirs(traj.times, 2)).max() < 1e-4
+    assert np.abs(traj.accelerations[:-1] - theirs(traj.times[:-1], 2)).max() < 1e-4
+    # toppra's last knot brakes; ours is at rest there.
+    assert np.abs(theirs(traj.times[-1:], 2)).max() > 0.1
+    assert traj.accelerations[-1].tolist() == [0.0] * 7
 
 
 def test_random_paths_get_finite_timings() -> None:
@@ -132,6 +143,7 @@ def test_ruckig_timing_is_jerk_limited_and_stays_on_the_checked_polyline() -> No
     points = np.array([[0.0, 0.0], [0.6, 0.3], [0.6, -0.5]])
     traj = JerkLimitedParametrizer(v, a, j)(points)
     assert np.abs(traj.positions[[0, -1]] - points[[0, -1]]).max() < 1e-12
+    assert not traj.velocities[-1].any() and not traj.accelerations[-1].any()
     t = np.arange(0.0, traj.duration, 0.001)
     q = np.array([traj.sample(x)[0] for x in t])
     qd = np.array([traj.sample(x)[1] for x in t])
@@ -148,3 +160,62 @@ def test_ruckig_timing_is_jerk_limited_and_stays_on_the_checked_polyline() -> No
     from mjkdl.plan import TimeParametrizer
 
     assert TimeParametrizer(v, a)(points).duration < traj.duration
+
+
+def test_torque_limits_are_kept_through_the_dynamics_as_toppra_keeps_them() -> None:
+    """The UR10's dynamics, its URDF efforts scaled down until they bind (the base to 5 %,
+    the shoulder to 60 %): timed under velocity and acceleration limits alone, the path asks
+    the base for 3.5x its torque; with the torque limits, at most its torque (1 %: the
+    discretisation), in the time toppra's own JointTorqueConstraint gives."""
+    import toppra
+    import toppra.algorithm
+    import toppra.constraint
+    from conftest import untested_arm, untested_robot
+
+    with untested_arm("ur10") as env:
+        robot = untested_robot(env, "ur10")
+        v = np.array([2.16, 2.16, 3.15, 3.2, 3.2, 3.2])
+        a = v / 0.5
+        torque = robot.model.effortLimit.copy() * [0.05, 0.6, 0.5, 0.1, 0.1, 0.1]
+        waypoints = np.array(
+            [
+                [0, -1.57, 1.57, -1.57, -1.57, 0],
+                [1.0, -0.5, 0.3, -1.0, -1.2, 0.5],
+                [2.0, -0.2, -0.5, -0.5, 0.2, 1.0],
+            ]
+        )
+
+        def worst(traj: JointTrajectory) -> float:
+            return max(
+                float((np.abs(robot.inverse_dynamics(*traj.sample(t))) / torque).max())
+                for t in np.linspace(0.0, traj.duration, 400)
+            )
+
+        plain = TimeParametrizer(v, a)(waypoints)
+        timing = TimeParametrizer(v, a, torque, robot.inverse_dynamics)
+        traj = timing(waypoints)
+        assert worst(plain) > 3.0
+        assert worst(traj) <= 1.01
+        assert traj.duration > 1.3 * plain.duration
+        _spline, grid, points = timing.grid(waypoints)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        interpolation = toppra.constraint.DiscretizationType.Interpolation
+        constraints = [
+            toppra.constraint.JointVelocityConstraint(np.column_stack([-v, v])),
+            toppra.constraint.JointAccelerationConstraint(np.column_stack([-a, a])),
+            toppra.constraint.JointTorqueConstraint(
+                robot.inverse_dynamics,
+                np.column_stack([-torque, torque]),
+                np.zeros(6),
+                discretization_scheme=interpolation,
+            ),
+        ]
+        theirs = toppra.algorithm.TOPPRA(
+            constraints,
+            toppra.SplineInterpolator(s, points, bc_type="natural"),
+            gridpoints=grid,
+            parametrizer="ParametrizeConstAccel",
+        ).compute_trajectory(0.0, 0.0)
+        assert traj.duration == pytest.approx(theirs.duration, rel=1e-6)
+        with pytest.raises(mjk.SpecError, match=r"torque_limits need inverse_dynamics"):
+            TimeParametrizer(v, a, torque)

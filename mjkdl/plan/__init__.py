@@ -5,8 +5,9 @@ from .acm import AllowedCollisionMatrix, acm_cache_dir
 from .collision import CollisionChecker
 from .constraints import OrientationConstraint
 from .follower import FollowerStop, TrajectoryFollower
-from .limits import DATASHEETS, Datasheet
+from .limits import DATASHEETS, Datasheet, RobotLimits
 from .planner import PLANNERS, MotionPlanner
+from .srdf import Srdf, SrdfGroup
 from .trajectory import JointTrajectory, TimeParametrizer
 
 __all__ = [
@@ -22,6 +23,9 @@ __all__ = [
     "OrientationConstraint",
     "PlanningError",
     "PlanningTimeout",
+    "RobotLimits",
+    "Srdf",
+    "SrdfGroup",
     "TimeParametrizer",
     "TrajectoryFollower",
     "acm_cache_dir",

@@ -10,6 +10,12 @@ samples). "In contact" means closer than the planner's margin. Pairs of bodies t
 relative pose (a hand and its fingers) are not the planner's business and are not listed. A
 pair gets the first reason that applies, in that order.
 
+The search keeps `margin + padding` where it can. A pair that is not allowed but closer than
+that in at least `ALWAYS` of the samples (a UFACTORY Lite 6's link4 and link6 stay within
+9.4 mm of each other: never inside a 5 mm margin, always inside margin + 5 mm padding) would
+leave the search almost no valid state: it is listed in `unpadded`, and the planner checks it
+for the margin alone.
+
 Only the reasons in `allow` (default `ALLOW`: adjacent and always) make a pair allowed; the
 others are kept in `sampled` for inspection. MoveIt allows all four; here *never* saves
 nothing (MuJoCo's collision pass runs whole and pairs are filtered after it) and sampling misses
@@ -17,8 +23,8 @@ rare contacts, and *default* caught the Panda's hand and link5 (3 mm apart at `q
 then met 27 mm deep in 4 of 50 trajectories executed in `benchmarks/planning.py`'s clutter.
 `allow=REASONS[:4]` is MoveIt's choice.
 
-The result is cached per model (a hash of the robot's bodies, geoms, joint ranges, the margin
-and the sample count): in memory, and as JSON under `acm_cache_dir()`.
+The result is cached per model (a hash of the robot's bodies, geoms, joint ranges, the margin,
+the paddings and the sample count): in memory, and as JSON under `acm_cache_dir()`.
 """
 
 from __future__ import annotations
@@ -41,10 +47,11 @@ from .collision import CollisionChecker
 # (MoveIt's setup assistant uses 95 %).
 ALWAYS = 0.95
 SAMPLES = 2000
-REASONS = ("adjacent", "always", "default", "never", "user")
+REASONS = ("adjacent", "always", "default", "never", "user", "srdf")
 ALLOW = ("adjacent", "always")
-_MEMORY: dict[str, tuple[dict[tuple[str, str], str], dict[tuple[str, str], float]]] = {}
-_FORMAT = "3"
+_Fractions = dict[tuple[str, str], float]
+_MEMORY: dict[str, tuple[dict[tuple[str, str], str], _Fractions, _Fractions]] = {}
+_FORMAT = "4"
 
 
 def acm_cache_dir() -> Path:
@@ -67,7 +74,9 @@ class AllowedCollisionMatrix:
     Inspect with `reason(a, b)`, `pairs` or `len()`; edit with `allow(a, b)` and
     `disallow(a, b)` (the planner applies edits at its next `plan`). `candidates`: every
     pair the sampling looked at, `contact_fraction[pair]` how often it was in contact;
-    `sampled`: every classified pair and its reason, allowed or not (see `allow`).
+    `padded_fraction[pair]` how often closer than margin + padding; `unpadded`: the pairs
+    not allowed that were that close in at least `ALWAYS` of the samples (checked for the
+    margin alone); `sampled`: every classified pair and its reason, allowed or not.
     """
 
     def __init__(
@@ -76,11 +85,16 @@ class AllowedCollisionMatrix:
         bodies: set[str],
         contact_fraction: dict[tuple[str, str], float] | None = None,
         allow: tuple[str, ...] = ALLOW,
+        padded_fraction: dict[tuple[str, str], float] | None = None,
     ) -> None:
         self.sampled = {_key(*p): r for p, r in pairs.items()}
         self._pairs = {p: r for p, r in self.sampled.items() if r in allow}
         self._bodies = set(bodies)
         self.contact_fraction = dict(contact_fraction or {})
+        self.padded_fraction = dict(padded_fraction or {})
+        self.unpadded = sorted(
+            p for p, f in self.padded_fraction.items() if f >= ALWAYS and p not in self._pairs
+        )
         self.version = 0  # bumped by every edit
 
     @property
@@ -111,10 +125,14 @@ class AllowedCollisionMatrix:
         if a == b:
             raise SpecError(f"{what}: a body cannot collide with itself ({a!r})")
 
-    def allow(self, a: str, b: str) -> None:
-        """Let bodies `a` and `b` touch (reason "user")."""
+    def allow(self, a: str, b: str, reason: str = "user") -> None:
+        """Let bodies `a` and `b` touch (`reason`: "user", or "srdf" for an SRDF's pair)."""
         self._check(a, b, "AllowedCollisionMatrix.allow")
-        self._pairs[_key(a, b)] = "user"
+        if reason not in REASONS[4:]:
+            raise SpecError(
+                f"AllowedCollisionMatrix.allow: reason must be user or srdf, got {reason!r}"
+            )
+        self._pairs[_key(a, b)] = reason
         self.version += 1
 
     def disallow(self, a: str, b: str) -> None:
@@ -150,29 +168,36 @@ def compute_acm(
     seed: int = 0,
     use_cache: bool = True,
     allow: tuple[str, ...] = ALLOW,
+    padding: float = 0.0,
+    link_padding: dict[str, float] | None = None,
 ) -> AllowedCollisionMatrix:
-    """The allowed-collision matrix of `robot`'s arm at `margin` (m), sampled within
-    [lower, upper] (cached; see the module's docstring)."""
+    """The allowed-collision matrix of `robot`'s arm at `margin` (m) and the search's
+    paddings (see `CollisionChecker`), sampled within [lower, upper] (cached; see the
+    module's docstring)."""
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 10:
         raise SpecError(f"acm_samples must be an integer >= 10, got {samples!r}")
     model = robot.scene.model
     mask, _mount = robot_bodies(model, robot)
     names = {b: model.body(b).name for b in np.flatnonzero(mask).tolist()}
-    key = _fingerprint(model, robot, mask, margin, lower, upper, samples, seed)
+    checker = CollisionChecker(robot, margin, padding=padding, link_padding=link_padding)
+    pads = np.minimum(checker._body_padding[mask], 1.0)  # inf: pads nothing of its own
+    key = _fingerprint(model, robot, mask, margin, lower, upper, samples, seed, pads)
     pairs: dict[tuple[str, str], str] | None = None
-    fractions: dict[tuple[str, str], float] = {}
+    fractions: _Fractions = {}
+    padded: _Fractions = {}
     if use_cache and key in _MEMORY:
-        pairs, fractions = _MEMORY[key]
+        pairs, fractions, padded = _MEMORY[key]
     file = acm_cache_dir() / f"{key}.json"
     if pairs is None and use_cache and file.is_file():
         try:
             stored = json.loads(file.read_text())
             pairs = {_key(a, b): r for a, b, r in stored["pairs"]}
             fractions = {_key(a, b): f for a, b, f in stored["fractions"]}
+            padded = {_key(a, b): f for a, b, f in stored["padded"]}
         except (OSError, ValueError, KeyError, TypeError):
             pairs = None
     if pairs is None:
-        pairs, fractions = _sample(robot, margin, lower, upper, mask, samples, seed)
+        pairs, fractions, padded = _sample(checker, margin, lower, upper, mask, samples, seed)
         if use_cache:
             try:
                 file.parent.mkdir(parents=True, exist_ok=True)
@@ -180,27 +205,27 @@ def compute_acm(
                     "format": _FORMAT,
                     "pairs": [[a, b, r] for (a, b), r in sorted(pairs.items())],
                     "fractions": [[a, b, f] for (a, b), f in sorted(fractions.items())],
+                    "padded": [[a, b, f] for (a, b), f in sorted(padded.items())],
                 }
                 file.write_text(json.dumps(record))
             except OSError:
                 pass  # a read-only home: the memory cache still holds it
     if use_cache:
-        _MEMORY[key] = (dict(pairs), dict(fractions))
+        _MEMORY[key] = (dict(pairs), dict(fractions), dict(padded))
     if isinstance(allow, str) or any(r not in REASONS[:4] for r in allow):
         raise SpecError(f"acm_allow must be a tuple of {', '.join(REASONS[:4])}; got {allow!r}")
-    return AllowedCollisionMatrix(pairs, set(names.values()), fractions, tuple(allow))
+    return AllowedCollisionMatrix(pairs, set(names.values()), fractions, tuple(allow), padded)
 
 
 def _sample(
-    robot: Robot,
+    checker: CollisionChecker,
     margin: float,
     lower: np.ndarray,
     upper: np.ndarray,
     mask: np.ndarray,
     samples: int,
     seed: int,
-) -> tuple[dict[tuple[str, str], str], dict[tuple[str, str], float]]:
-    checker = CollisionChecker(robot, margin)
+) -> tuple[dict[tuple[str, str], str], _Fractions, _Fractions]:
     model, data = checker._model, checker._data
     assert model is not None
     groups = checker._groups
@@ -218,28 +243,38 @@ def _sample(
             index[a, b] = index[b, a] = len(candidates)
             candidates.append((a, b))
     counts = np.zeros(len(candidates), dtype=np.int64)
+    near = np.zeros(len(candidates), dtype=np.int64)
     geom_body = model.geom_bodyid
-    counts_mask = checker._counts
+    counts_mask, pad = checker._counts, checker._pad
 
-    def touching(q: np.ndarray) -> np.ndarray:
+    def touching(q: np.ndarray, within: float = 0.0) -> np.ndarray:
+        """The candidate pairs closer than the margin (+ `within` of their padding)."""
         checker._place(q)
         n = data.ncon
         con = data.contact
         g1, g2 = con.geom1[:n], con.geom2[:n]
-        keep = counts_mask[g1, g2] & (con.dist[:n] < margin)
+        keep = counts_mask[g1, g2] & (con.dist[:n] < margin + within * pad[g1, g2])
         found = index[geom_body[g1[keep]], geom_body[g2[keep]]]
         return np.unique(found[found >= 0])
 
     rng = np.random.default_rng(seed)
     for q in rng.uniform(lower, upper, (samples, len(lower))):
-        counts[touching(q)] += 1
+        closer = touching(q, 1.0)
+        near[closer] += 1
+        n = data.ncon
+        con = data.contact
+        inside = counts_mask[con.geom1[:n], con.geom2[:n]] & (con.dist[:n] < margin)
+        found = index[geom_body[con.geom1[:n][inside]], geom_body[con.geom2[:n][inside]]]
+        counts[np.unique(found[found >= 0])] += 1
     default = np.clip(model.qpos0[checker.arm_qpos_adr], lower, upper)
     at_default = set(touching(default).tolist())
     pairs: dict[tuple[str, str], str] = {}
-    fractions: dict[tuple[str, str], float] = {}
+    fractions: _Fractions = {}
+    padded: _Fractions = {}
     for k, (a, b) in enumerate(candidates):
         pair = _key(model.body(a).name, model.body(b).name)
         fractions[pair] = float(counts[k]) / samples
+        padded[pair] = float(near[k]) / samples
         if model.body_parentid[a] == b or model.body_parentid[b] == a:
             pairs[pair] = "adjacent"
         elif counts[k] >= math.ceil(ALWAYS * samples):
@@ -248,7 +283,7 @@ def _sample(
             pairs[pair] = "default"
         elif counts[k] == 0:
             pairs[pair] = "never"
-    return pairs, fractions
+    return pairs, fractions, padded
 
 
 def _fingerprint(
@@ -260,8 +295,10 @@ def _fingerprint(
     upper: np.ndarray,
     samples: int,
     seed: int,
+    pads: np.ndarray,
 ) -> str:
-    """A hash of what the matrix depends on: the robot's bodies and geoms, the limits."""
+    """A hash of what the matrix depends on: the robot's bodies and geoms, the limits, the
+    margin and paddings."""
     digest = hashlib.sha256(_FORMAT.encode())
     bodies = np.flatnonzero(mask)
     geoms = np.flatnonzero(mask[model.geom_bodyid])
@@ -283,6 +320,7 @@ def _fingerprint(
         np.asarray(lower, dtype=float),
         np.asarray(upper, dtype=float),
         np.array([margin, samples, seed], dtype=float),
+        pads,
     ):
         digest.update(np.ascontiguousarray(np.round(array, 9)).tobytes())
     return digest.hexdigest()[:24]

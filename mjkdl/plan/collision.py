@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import mujoco
 import numpy as np
@@ -34,6 +34,11 @@ class CollisionChecker:
     `reach` (>= margin, default margin): distances up to it are measured (`clearance`), so
     one collision pass answers "at least `margin`" and "at least `reach`". `allowed_contacts`:
     pairs of body names whose contacts never count (a held object and the fingers).
+    `padding` (m): what a pair of geoms should keep beyond the margin where it can (the
+    planner's search): the bodies the arm moves (and a carried one) get `padding`, or
+    `link_padding[body]`; a pair of two of them keeps the smaller of their two, a body
+    against anything else its own (`clearances`); `unpad(pairs)` takes it off body pairs
+    that never get that far apart. `reach` grows to margin + the largest padding.
     `carry(body)`: a free body that moves rigidly with the arm's tip (a grasped cube).
     """
 
@@ -43,12 +48,27 @@ class CollisionChecker:
         margin: float,
         allowed_contacts: Sequence[tuple[str, str]] = (),
         reach: float | None = None,
+        padding: float = 0.0,
+        link_padding: Mapping[str, float] | None = None,
     ) -> None:
         if not isinstance(robot, Robot):
             raise SpecTypeError(f"CollisionChecker: robot must be a Robot, got {robot!r}")
         self._robot = robot
         self._margin = _number(margin, "margin")
-        self._reach = max(self._margin, _number(reach, "reach") if reach is not None else 0.0)
+        self._padding = _number(padding, "padding")
+        if link_padding is not None and not isinstance(link_padding, Mapping):
+            raise SpecTypeError(
+                f"link_padding must map body names to paddings (m), got {link_padding!r}"
+            )
+        self._link_padding = {
+            str(name): _number(value, f"link_padding[{name!r}]")
+            for name, value in (link_padding or {}).items()
+        }
+        widest = max([self._padding, *self._link_padding.values()])
+        self._reach = max(
+            self._margin + widest, _number(reach, "reach") if reach is not None else 0.0
+        )
+        self._unpadded_names: set[tuple[str, str]] = set()
         self._allowed_names = _pair_names(allowed_contacts, "allowed_contacts")
         self._model: mujoco.MjModel | None = None
         self._carry_name: str | None = None
@@ -86,6 +106,12 @@ class CollisionChecker:
             self._groups[_subtree(model, int(model.jnt_bodyid[j]))] = k
         self._colliding = (source.geom_contype != 0) | (source.geom_conaffinity != 0)
         self._allowed = self._resolve(self._allowed_names, "allowed_contacts")
+        # Bodies the arm does not move pad nothing of their own: a pair takes the other's.
+        self._body_padding = np.where(self._moving, self._padding, math.inf)
+        for name, value in self._link_padding.items():
+            body = model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", name, "link_padding")
+            self._body_padding[body] = value
+        self._unpadded = self._resolve(sorted(self._unpadded_names), "unpad")
         self._carried = -1
         self._carry_qadr = -1
         self._masks(self._moving)
@@ -128,6 +154,16 @@ class CollisionChecker:
             counts[np.ix_(body == a, body == b)] = False
             counts[np.ix_(body == b, body == a)] = False
         self._counts = counts
+        own = self._body_padding.copy()
+        if self._carried >= 0:
+            own[self._carried] = self._padding
+        pad = own[body]
+        pad = np.minimum(pad[:, None], pad[None, :])
+        pad[np.isinf(pad)] = 0.0  # two bodies the arm does not move: never counted
+        for a, b in self._unpadded:
+            pad[np.ix_(body == a, body == b)] = 0.0
+            pad[np.ix_(body == b, body == a)] = 0.0
+        self._pad = pad
 
     def _resolve(self, pairs: list[tuple[str, str]], field: str) -> set[tuple[int, int]]:
         model = self._model
@@ -144,6 +180,13 @@ class CollisionChecker:
         names = _pair_names(allowed_contacts, "allowed_contacts")
         self._allowed = self._resolve(names, "allowed_contacts")
         self._allowed_names = names
+        self._masks(self._arm_body)
+
+    def unpad(self, pairs: Sequence[tuple[str, str]]) -> None:
+        """Take the padding off these pairs of body names: they keep only the margin."""
+        names = _pair_names(pairs, "unpad")
+        self._unpadded = self._resolve(names, "unpad")
+        self._unpadded_names = set(names)
         self._masks(self._arm_body)
 
     def carry(self, body: str | None) -> None:
@@ -237,6 +280,39 @@ class CollisionChecker:
             return math.inf
         counted = self._counted()
         return float(data.contact.dist[counted].min()) if len(counted) else math.inf
+
+    def clearances(self, q: np.ndarray | Sequence[float]) -> tuple[float, float]:
+        """At `q`: `clearance` and the smallest distance less its pair's padding (inf when
+        nothing is within reach): every pair keeps margin + padding when the second is at
+        least the margin."""
+        self._place(q)
+        if self._data.ncon == 0:
+            return math.inf, math.inf
+        counted = self._counted()
+        if not len(counted):
+            return math.inf, math.inf
+        con = self._data.contact
+        dist = con.dist[counted]
+        padded = dist - self._pad[con.geom1[counted], con.geom2[counted]]
+        return float(dist.min()), float(padded.min())
+
+    def nearest(self) -> tuple[int, int, float] | None:
+        """At the last checked `q`: the geom pair the least clear of margin + padding and
+        its distance (m), or None."""
+        counted = self._counted()
+        if not len(counted):
+            return None
+        con = self._data.contact
+        g1, g2 = con.geom1[counted], con.geom2[counted]
+        k = int(np.argmin(con.dist[counted] - self._pad[g1, g2]))
+        return int(g1[k]), int(g2[k]), float(con.dist[counted[k]])
+
+    def pair_names(self, g1: int, g2: int) -> tuple[str, str, float]:
+        """The bodies of two geoms (sorted names) and the padding their pair keeps."""
+        model = self._model
+        assert model is not None
+        a, b = (model.body(int(model.geom_bodyid[g])).name for g in (g1, g2))
+        return min(a, b), max(a, b), float(self._pad[g1, g2])
 
     def contacts(self, q: np.ndarray | Sequence[float]) -> list[tuple[str, str, float]]:
         """The pairs of bodies closer than `reach` at `q`, nearest first: (body, body, m)."""

@@ -2,24 +2,36 @@
 
 `MotionPlanner.plan(goal, constraint=OrientationConstraint(...))` searches with the axis kept
 within a loose cone (`SEARCH_CONE`, 45°) of its direction, then *projects* the path onto the
-constraint: every `PROJECTION_STEP` (rad) along the path, the TCP's rotation is turned the
-least that puts `tool_axis` on `world_axis` (the position and the rotation about the axis
-stay), and IK, seeded with the previous projected state, finds the joints. The projected path
-is checked for collisions and timed; the timed trajectory is then checked against the
-tolerance. This is not OMPL's constrained planning (its Python bindings here cannot hand
-states of a constrained space to Python): a path whose projection fails is searched anew
-until the timeout.
+constraint: every `PROJECTION_STEP` (rad) along the path, the state is moved the least in
+joint space that puts `tool_axis` on `world_axis` (`project_joints`: damped Gauss-Newton on
+the axis alone, the TCP's position free; IK to a fixed TCP position planned 75 of 90 queries
+where this plans 89). The projected path is checked for collisions and timed; the timed
+trajectory is then checked against the tolerance. This is not OMPL's constrained planning
+(its Python bindings here cannot hand states of a constrained space to Python): a path whose
+projection fails is searched anew until the timeout.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..control.cartesian import _number, _vector
 from ..errors import SpecError
+
+# The joint-space projection (`OrientationConstraint.project_joints`): converged when the
+# tool axis is this close (its chord, ~rad) to the world axis; damping of its least squares.
+PROJECTION_TOLERANCE = 1e-5
+PROJECTION_ITERATIONS = 30
+PROJECTION_DAMPING = 1e-6
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 @dataclass(frozen=True)
@@ -46,24 +58,24 @@ class OrientationConstraint:
         axis = rotation @ np.asarray(self.tool_axis)
         return float(math.acos(max(-1.0, min(1.0, float(axis @ np.asarray(self.world_axis))))))
 
-    def project(self, rotation: np.ndarray) -> np.ndarray:
-        """`rotation` turned the least that puts the tool axis on the world axis."""
-        axis = rotation @ np.asarray(self.tool_axis)
-        target = np.asarray(self.world_axis)
-        cross = np.cross(axis, target)
-        sine, cosine = float(np.linalg.norm(cross)), float(axis @ target)
-        if sine < 1e-12:
-            if cosine > 0:
-                return rotation.copy()
-            # Upside down: turn half a turn about any axis normal to it.
-            normal = np.cross(axis, [1.0, 0.0, 0.0])
-            if np.linalg.norm(normal) < 1e-6:
-                normal = np.cross(axis, [0.0, 1.0, 0.0])
-            cross, sine, cosine = normal / np.linalg.norm(normal), 0.0, -1.0
-        else:
-            cross = cross / sine
-        k = np.array(
-            [[0.0, -cross[2], cross[1]], [cross[2], 0.0, -cross[0]], [-cross[1], cross[0], 0.0]]
-        )
-        turn = np.eye(3) + sine * k + (1.0 - cosine) * (k @ k)
-        return turn @ rotation
+    def project_joints(
+        self,
+        q: np.ndarray,
+        fk: Callable[[np.ndarray], Any],
+        jacobian: Callable[[np.ndarray], np.ndarray],
+    ) -> np.ndarray | None:
+        """Joint positions near `q` whose tool axis is on the world axis (within
+        `PROJECTION_TOLERANCE`): damped Gauss-Newton on the axis alone, the TCP's position
+        left free (a 2-D constraint, not a 6-D pose); None when it does not converge.
+        `fk(q)` gives the TCP pose, `jacobian(q)` its 6×n world-aligned Jacobian."""
+        tool, world = np.asarray(self.tool_axis), np.asarray(self.world_axis)
+        q = np.array(q, dtype=float)
+        for _ in range(PROJECTION_ITERATIONS):
+            axis = fk(q).rotation @ tool
+            error = axis - world
+            if float(np.linalg.norm(error)) <= PROJECTION_TOLERANCE:
+                return q
+            # d(axis)/dq = omega × axis, omega the angular rows of the Jacobian.
+            j = -_skew(axis) @ jacobian(q)[3:]
+            q -= j.T @ np.linalg.solve(j @ j.T + PROJECTION_DAMPING * np.eye(3), error)
+        return None

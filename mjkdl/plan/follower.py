@@ -11,6 +11,16 @@ then applies τ_d + K e + D ė, and the robot's gravity feed-forward supplies g(
 TORQUE mode: computed torque, τ = M(q) (q̈_d + Kp e + Kd ė) + h(q, q̇) + damping q̇, the gains
 those of a critically damped `bandwidth` in every joint.
 
+Settling: `run` goes on holding the goal after the trajectory's end until every joint is
+within `settle_tolerance` of it (or the arm is at rest, or `settle` seconds have passed), so
+the arm stops on the goal rather than wherever the servos' lag left it; `final_error` says
+how far it ended.
+
+Reporting: the largest joint error while playing is kept (`max_error`, with the joint and
+time: `max_error_joint`, `max_error_time`), and `run` warns when it passes
+`report_tracking_error` (10 mrad by default): a trajectory the arm cannot follow (limits
+beyond what its actuators deliver, soft servos) does not go unnoticed.
+
 Watching: with `max_tracking_error` (rad) or `max_contact_force` (N) set, the follower stops
 the arm (holds it where it is measured) when a joint lags the trajectory by more, or when a
 contact of the arm's bodies with anything (other than `allowed_contacts`) pushes harder;
@@ -20,6 +30,7 @@ contact of the arm's bodies with anything (other than `allowed_contacts`) pushes
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -32,6 +43,15 @@ from ..names import model_id
 from ..robot import Robot
 from ..spec import CtrlMode
 from .trajectory import JointTrajectory
+
+# `run` holds the goal after the trajectory's end until every joint is this close (rad), for
+# at most SETTLE seconds.
+SETTLE_TOLERANCE = 0.001
+SETTLE = 3.0
+# ... or until no joint moves faster than this (rad/s): at rest short of the goal.
+SETTLE_SPEED = 1e-3
+# `run` warns when a joint lags the trajectory by more than this (rad).
+REPORT = 0.01
 
 
 @dataclass(frozen=True)
@@ -53,6 +73,8 @@ class TrajectoryFollower:
     `max_tracking_error` (rad, any joint), `max_contact_force` (N, normal force of one
     contact): stop the arm beyond them (None: not watched); `allowed_contacts`: pairs of
     body names whose contacts are expected (fingers and a grasped cube).
+    `settle_tolerance` (rad): how close to the goal `run` waits for the arm to come.
+    `report_tracking_error` (rad; None: quiet): `run` warns when a joint lagged more.
     Per step: `robot.update()`, `follower.command()`, `robot.step()` — or `run(trajectory)`.
     """
 
@@ -65,9 +87,17 @@ class TrajectoryFollower:
         max_tracking_error: float | None = None,
         max_contact_force: float | None = None,
         allowed_contacts: Sequence[tuple[str, str]] = (),
+        settle_tolerance: float = SETTLE_TOLERANCE,
+        report_tracking_error: float | None = REPORT,
     ) -> None:
         if not isinstance(robot, Robot):
             raise SpecTypeError(f"TrajectoryFollower: robot must be a Robot, got {robot!r}")
+        self._settle_tolerance = _number(settle_tolerance, "settle_tolerance", positive=True)
+        self._report = (
+            None
+            if report_tracking_error is None
+            else _number(report_tracking_error, "report_tracking_error", positive=True)
+        )
         self._robot = robot
         self._n = robot.n_joints
         self._max_error = (
@@ -92,6 +122,9 @@ class TrajectoryFollower:
         self._q, self._qd, self._qdd = np.zeros(self._n), np.zeros(self._n), np.zeros(self._n)
         self._u = np.zeros(self._n)
         self.max_error = 0.0  # largest joint error (rad) seen since `start`
+        self.max_error_joint = ""  # where and when (s into the trajectory) it was
+        self.max_error_time = 0.0
+        self.final_error = math.nan  # largest joint distance (rad) from the goal after `run`
 
     @property
     def trajectory(self) -> JointTrajectory | None:
@@ -140,6 +173,8 @@ class TrajectoryFollower:
         self._trajectory = trajectory
         self._t0 = robot.scene.time()
         self.max_error = 0.0
+        self.max_error_joint = ""
+        self.max_error_time = 0.0
         self.stop = None
 
     def _watch_bodies(self, robot: Robot) -> None:
@@ -168,9 +203,17 @@ class TrajectoryFollower:
         q, qd, qdd = self._q, self._qd, self._qdd
         q_msr = robot.jnt_pos_msr
         if self.stop is None:
-            trajectory.sample_into(robot.scene.time() - self._t0, q, qd, qdd)
-            self.max_error = max(self.max_error, float(np.abs(q - q_msr).max()))
-            self._watch(q, q_msr)
+            t = robot.scene.time() - self._t0
+            trajectory.sample_into(t, q, qd, qdd)
+            error = self._error
+            np.subtract(q, q_msr, out=error)
+            np.abs(error, out=error)
+            i = int(error.argmax())
+            if error[i] > self.max_error:
+                self.max_error = float(error[i])
+                self.max_error_joint = robot.joint_names[i]
+                self.max_error_time = t
+            self._watch(q_msr)
         if self.stop is not None:  # hold the arm where it stopped
             np.copyto(q, self.stop.q)
             qd[:] = 0.0
@@ -198,14 +241,13 @@ class TrajectoryFollower:
         u += q
         robot.jnt_pos_cmd = u
 
-    def _watch(self, q: np.ndarray, q_msr: np.ndarray) -> None:
-        """Stop when the tracking error or a contact force passes its bound."""
+    def _watch(self, q_msr: np.ndarray) -> None:
+        """Stop when the tracking error (`_error`, this step's) or a contact force passes
+        its bound."""
         robot = self._robot
         t = robot.scene.time() - self._t0
         if self._max_error is not None:
             error = self._error
-            np.subtract(q, q_msr, out=error)
-            np.abs(error, out=error)
             i = int(error.argmax())
             if error[i] > self._max_error:
                 self.stop = FollowerStop(
@@ -237,10 +279,17 @@ class TrajectoryFollower:
                 return
 
     def run(
-        self, trajectory: JointTrajectory, after_step: Callable[[], None] | None = None
+        self,
+        trajectory: JointTrajectory,
+        after_step: Callable[[], None] | None = None,
+        *,
+        settle: float = SETTLE,
     ) -> float:
         """Play `trajectory` to its end, or until the follower stops the arm (update,
-        command, step); the largest joint error."""
+        command, step), then hold the goal until every joint is within `settle_tolerance`
+        of it or `settle` seconds have passed; the largest joint error while playing
+        (`final_error`: the distance from the goal at the end)."""
+        settle = _number(settle, "settle")
         self.start(trajectory)
         robot = self._robot
         while not self.finished:
@@ -249,7 +298,29 @@ class TrajectoryFollower:
             robot.step()
             if after_step is not None:
                 after_step()
+        goal = trajectory.positions[-1]
+        until = robot.scene.time() + settle
         robot.update()
+        while self.stop is None and robot.scene.time() < until:
+            if np.abs(robot.jnt_pos_msr - goal).max() <= self._settle_tolerance:
+                break
+            if np.abs(robot.jnt_vel_msr).max() < SETTLE_SPEED:
+                break  # at rest off the goal (held by friction, a load): waiting gains nothing
+            self.command()
+            robot.step()
+            if after_step is not None:
+                after_step()
+            robot.update()
+        self.final_error = float(np.abs(robot.jnt_pos_msr - goal).max())
+        if self._report is not None and self.stop is None and self.max_error > self._report:
+            warnings.warn(
+                f"TrajectoryFollower: joint {self.max_error_joint!r} lagged "
+                f"{self.max_error:.4f} rad behind the trajectory at t={self.max_error_time:.3f} "
+                f"s (report_tracking_error {self._report:g}); the arm ended "
+                f"{self.final_error:.4f} rad from the goal. Slower timing (velocity_scaling, "
+                "acceleration_scaling), torque limits or stiffer servos track closer",
+                stacklevel=2,
+            )
         return self.max_error
 
 

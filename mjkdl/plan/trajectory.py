@@ -8,7 +8,8 @@ accelerations jump at its grid points; a polynomial through them would ring past
 A `TimeParametrizer` times a path of joint waypoints under per-joint velocity and acceleration
 limits with TOPP-RA, toppra's algorithm solved in closed form for box limits (the same path
 velocities as toppra's, 3-5x faster; tests compare the two): a cubic spline through the
-waypoints is followed as fast as the limits allow, at rest at both ends.
+waypoints is followed as fast as the limits allow, at rest at both ends (the last knot's
+velocity and acceleration zero: a follower holding the goal holds no braking acceleration).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,6 +30,11 @@ from ..errors import SpecError
 KNOT_PERIOD = 0.01
 # Path-parameter spacing (rad of joint-space distance) of the timing grid, within 30..100 points.
 GRID_STEP = 0.05
+# A timing under velocity and acceleration limits is checked for the torque limits at every
+# this-many grid points, against this share of them (room for the points between): a path
+# that comes closer is timed again with the torque rows, exactly.
+TORQUE_STRIDE = 4
+TORQUE_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -36,7 +43,8 @@ class JointTrajectory:
 
     Arrays: `times` (k,), `positions`, `velocities`, `accelerations` (k, n). `sample(t)`
     interpolates between the knots (cubic Hermite positions and velocities, linear
-    accelerations); before 0 and after `duration` it holds the ends.
+    accelerations); before 0 and after `duration` it holds the end positions at rest (zero
+    velocity and acceleration), so a follower sampling past the end holds the goal.
     """
 
     times: np.ndarray
@@ -88,13 +96,13 @@ class JointTrajectory:
     def sample_into(self, t: float, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> None:
         """`sample(t)` written into the given arrays (a control loop allocates nothing)."""
         times: list[float] = self._list  # type: ignore[attr-defined]
-        if not t > 0.0:  # NaN too: the start
-            np.copyto(q, self.positions[0])
-            np.copyto(qd, self.velocities[0])
-            np.copyto(qdd, self.accelerations[0])
-            return
         last = len(times) - 1
-        if t >= times[last]:
+        if not t >= 0.0 or t > times[last]:  # NaN too: before the start or past the end, at rest
+            np.copyto(q, self.positions[0] if not t > 0.0 else self.positions[last])
+            qd[:] = 0.0
+            qdd[:] = 0.0
+            return
+        if t == times[last]:
             np.copyto(q, self.positions[last])
             np.copyto(qd, self.velocities[last])
             np.copyto(qdd, self.accelerations[last])
@@ -147,12 +155,54 @@ class TimeParametrizer:
     at both ends: a natural cubic spline through the waypoints, parametrised by their
     cumulative joint-space distance, is timed by TOPP-RA (`_reachability`: toppra's algorithm
     and constraint discretisation, solved in closed form for box limits), and the result is
-    sampled every `KNOT_PERIOD`.
+    sampled every `KNOT_PERIOD`. With `torque_limits` and `inverse_dynamics(q, qd, qdd)`,
+    the joint torques are kept too (toppra's joint torque constraint): a timing that asks
+    for more torque at a grid point is computed again with the torque rows.
     """
 
-    def __init__(self, velocity_limits: np.ndarray, acceleration_limits: np.ndarray) -> None:
+    def __init__(
+        self,
+        velocity_limits: np.ndarray,
+        acceleration_limits: np.ndarray,
+        torque_limits: np.ndarray | None = None,
+        inverse_dynamics: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None,
+    ) -> None:
         self._v = np.asarray(velocity_limits, dtype=float)
         self._a = np.asarray(acceleration_limits, dtype=float)
+        if (torque_limits is None) != (inverse_dynamics is None):
+            raise SpecError("TimeParametrizer: torque_limits need inverse_dynamics, and back")
+        self._torque = None if torque_limits is None else np.asarray(torque_limits, dtype=float)
+        self._dynamics = inverse_dynamics
+
+    def _over_torque(
+        self, grid: np.ndarray, q: np.ndarray, d1: np.ndarray, d2: np.ndarray, x: np.ndarray
+    ) -> bool:
+        """Whether the timing `x` (ṡ² on `grid`) asks any joint for more than `TORQUE_SHARE`
+        of its torque limit at every `TORQUE_STRIDE`th grid point or the last (with the path
+        acceleration of the stage starting there): a twelfth of the torque rows' inverse
+        dynamics; most paths never come near the limits and are not timed again."""
+        assert self._torque is not None and self._dynamics is not None
+        u = np.diff(x) / (2.0 * np.diff(grid))
+        u = np.append(u, u[-1])
+        speed = np.sqrt(x)
+        for k in [*range(0, len(grid) - 1, TORQUE_STRIDE), len(grid) - 1]:
+            tau = self._dynamics(q[k], d1[k] * speed[k], d1[k] * u[k] + d2[k] * x[k])
+            if np.any(np.abs(tau) > TORQUE_SHARE * self._torque):
+                return True
+        return False
+
+    def _torque_rows(
+        self, q: np.ndarray, d1: np.ndarray, d2: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The joint torques along the path as rows a u + b x + g (toppra's joint torque
+        constraint): τ = M q' s̈ + (M q'' + C(q, q') q') ṡ² + g(q), each term by inverse
+        dynamics; bounded by ±`torque_limits` (infinite: unbounded)."""
+        assert self._torque is not None and self._dynamics is not None
+        dynamics, zero = self._dynamics, np.zeros(q.shape[1])
+        g = np.array([dynamics(x, zero, zero) for x in q])
+        a = np.array([dynamics(x, zero, v) for x, v in zip(q, d1, strict=True)]) - g
+        b = np.array([dynamics(x, v, w) for x, v, w in zip(q, d1, d2, strict=True)]) - g
+        return a, b, -self._torque - g, self._torque - g
 
     def grid(self, waypoints: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray] | None:
         """The spline through `waypoints` (repeats dropped), its grid and the waypoints'
@@ -183,50 +233,77 @@ class TimeParametrizer:
                 np.array([0.0, KNOT_PERIOD]), np.repeat(points[:1], 2, 0), zero, zero
             )
         path, grid, points = gridded
-        sd = np.sqrt(_reachability(grid, path(grid, 1), path(grid, 2), self._v, self._a))
+        q, d1, d2 = path(grid), path(grid, 1), path(grid, 2)
+        constraints = [
+            (d1, d2, np.broadcast_to(-self._a, d1.shape), np.broadcast_to(self._a, d1.shape))
+        ]
+        x = _reachability(grid, d1, self._v, constraints)
+        if self._torque is not None and self._over_torque(grid, q, d1, d2, x):
+            constraints.append(self._torque_rows(q, d1, d2))
+            x = _reachability(grid, d1, self._v, constraints)
+        sd = np.sqrt(x)
         if not np.isfinite(sd).all():
             raise SpecError("no timing for the path (limits too tight?)")
         times, positions, velocities, accelerations = _const_accel(path, grid, sd)
-        velocities[0] = velocities[-1] = 0.0
+        # At rest at the end: toppra's last knot carries the braking acceleration, which a
+        # follower holding the goal would turn into a steady offset.
+        velocities[0] = velocities[-1] = accelerations[-1] = 0.0
         positions[0], positions[-1] = points[0], points[-1]
         return JointTrajectory(times, positions, velocities, accelerations)
 
 
 def _reachability(
-    grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, vmax: np.ndarray, amax: np.ndarray
+    grid: np.ndarray,
+    d1: np.ndarray,
+    vmax: np.ndarray,
+    constraints: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
 ) -> np.ndarray:
     """Squared path velocities x = ṡ² on `grid` of the time-optimal motion along a path with
-    derivatives `d1` = q'(s), `d2` = q''(s) there, at rest at both ends, |q̇| <= vmax and
-    |q̈| <= amax: TOPP-RA (Pham & Pham 2018) as toppra runs it with its joint velocity and
-    acceleration constraints (the latter in its "interpolation" discretisation: on each
-    stage at both grid points). toppra solves each stage's 2-variable LP with a general solver
-    from Python; for box limits the stage's feasible x is an interval from 0, whose top
-    follows by eliminating u (Fourier-Motzkin) for all stages at once, leaving one affine
-    minimum per stage in the backward pass."""
+    derivative `d1` = q'(s) there, at rest at both ends, |q̇| <= vmax and each constraint
+    low <= a u + b x <= high (u = s̈; the joint accelerations: a = q', b = q'', ±amax; the
+    joint torques through the dynamics: a = M q', b = the velocity product terms, the
+    bounds ± the torque limit less gravity): TOPP-RA (Pham & Pham 2018) as toppra runs it
+    (the "interpolation" discretisation: each stage at both of its grid points). toppra
+    solves each stage's 2-variable LP with a general solver from Python; here each row
+    bounds u within [m x + lower, m x + upper] (or x alone), the stage's feasible x is an
+    interval from 0, and its top follows by eliminating u (Fourier-Motzkin) for all stages
+    at once, leaving one affine minimum per stage in the backward pass."""
     delta = np.diff(grid)[:, None]  # (N, 1)
-    # Stage i's joint rows |A u + B x| <= a: the limits at grid point i, and at i + 1 where
-    # x_{i+1} = x + 2 delta u. Each bounds u to [m x - w, m x + w] (A != 0) or x alone.
-    a_rows = np.concatenate([d1[:-1], d1[1:] + 2.0 * delta * d2[1:]], axis=1)
-    b_rows = np.concatenate([d2[:-1], d2[1:]], axis=1)
-    bound = np.concatenate([amax, amax])
+    a_parts, b_parts, lo_parts, hi_parts = [], [], [], []
+    for a, b, floor, ceiling in constraints:
+        a_parts += [a[:-1], a[1:] + 2.0 * delta * b[1:]]
+        b_parts += [b[:-1], b[1:]]
+        lo_parts += [floor[:-1], floor[1:]]
+        hi_parts += [ceiling[:-1], ceiling[1:]]
+    a_rows, b_rows = np.concatenate(a_parts, axis=1), np.concatenate(b_parts, axis=1)
+    lo_rows, hi_rows = np.concatenate(lo_parts, axis=1), np.concatenate(hi_parts, axis=1)
     tiny = 1e-12
     moves = np.abs(a_rows) > tiny
+    up = a_rows > 0
     with np.errstate(divide="ignore", invalid="ignore"):
         slope = np.where(moves, -b_rows / a_rows, 0.0)
-        width = np.where(moves, bound / np.abs(a_rows), np.inf)
-        # Rows without u bound x directly.
-        direct = np.where(~moves & (np.abs(b_rows) > tiny), bound / np.abs(b_rows), np.inf)
-        # Every lower bound on u below every upper one: (m_l - m_k) x <= w_k + w_l.
+        lower = np.where(moves, np.where(up, lo_rows, hi_rows) / a_rows, -np.inf)
+        upper = np.where(moves, np.where(up, hi_rows, lo_rows) / a_rows, np.inf)
+        # Rows without u bound x directly (from above; low <= 0 <= high at rest).
+        direct = np.where(
+            ~moves & (b_rows > tiny),
+            hi_rows / b_rows,
+            np.where(~moves & (b_rows < -tiny), lo_rows / b_rows, np.inf),
+        )
+        # Every lower bound on u below every upper one: (m_k - m_l) x <= upper_l - lower_k.
         coef = slope[:, :, None] - slope[:, None, :]
-        pairs = np.where(coef > tiny, (width[:, :, None] + width[:, None, :]) / coef, np.inf)
+        room = upper[:, None, :] - lower[:, :, None]
+        pairs = np.where(
+            coef > tiny, room / coef, np.where(room < 0, 0.0, np.inf)
+        )  # parallel bounds that cross: only rest
         # x_{i+1} = x + 2 delta u >= 0 below each upper bound.
         coef0 = -1.0 / (2.0 * delta) - slope
-        zero = np.where(coef0 > tiny, width / coef0, np.inf)
+        zero = np.where(coef0 > tiny, upper / coef0, np.inf)
         # Each lower bound below x + 2 delta u <= h (the next controllable set's top):
-        # x <= (h + 2 delta w) / (1 + 2 delta m).
+        # x <= (h - 2 delta lower) / (1 + 2 delta m).
         scale = 1.0 + 2.0 * delta * slope
         p = np.where(scale > tiny, 1.0 / scale, 0.0)
-        r = np.where(scale > tiny, 2.0 * delta * width / scale, np.inf)
+        r = np.where(scale > tiny, -2.0 * delta * lower / scale, np.inf)
         speed = np.where(np.abs(d1) > tiny, (vmax / np.abs(d1)) ** 2, np.inf).min(axis=1)
     top = np.minimum(
         np.minimum(direct.min(axis=1), pairs.min(axis=(1, 2))),
@@ -239,14 +316,14 @@ def _reachability(
     h = 0.0
     for i in range(count - 1, -1, -1):
         h = min(top_list[i], *[pk * h + rk for pk, rk in zip(p_list[i], r_list[i], strict=True)])
-        high[i] = h
+        high[i] = max(h, 0.0)
     # Forward: from rest, the largest u keeping x_{i+1} controllable.
     x = [0.0] * (count + 1)
     two_delta = (2.0 * delta[:, 0]).tolist()
-    slope_list, width_list = slope.tolist(), width.tolist()
+    slope_list, upper_list = slope.tolist(), upper.tolist()
     xi = 0.0
     for i in range(count):
-        u = min([m * xi + w for m, w in zip(slope_list[i], width_list[i], strict=True)])
+        u = min([m * xi + w for m, w in zip(slope_list[i], upper_list[i], strict=True)])
         xi = min(max(xi + two_delta[i] * u, 0.0), high[i + 1])
         x[i + 1] = xi
     return np.array(x)
@@ -328,5 +405,6 @@ class JerkLimitedParametrizer:
             q, qd, qdd = segments[i].at_time(min(t - ends[i], segments[i].duration))
             out[0, k], out[1, k], out[2, k] = q, qd, qdd
         out[1, [0, -1]] = 0.0
+        out[2, -1] = 0.0
         out[0, 0], out[0, -1] = points[0], points[-1]
         return JointTrajectory(times, out[0], out[1], out[2])
