@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from ..errors import SpecError
-from .episodes import make_env, observe, scene_of
+from .episodes import file_env, restore, scene_of
 from .hdf5 import STATE, Demo, DemoFile, DemoFileError, EpisodeWriter, scene_model
 
 CONVERT_MODES = ("actions", "states")
@@ -51,7 +51,7 @@ def convert(
     with DemoFile(src) as f:
         _not_an_input(out, [f.path])
         kwargs = {**f.env_kwargs, **dict(env_kwargs or {})}
-        env = make_env(f.env_name, kwargs)
+        env = file_env(f, kwargs)
         try:
             run = _by_actions if mode == "actions" else _by_states
             return _write(out, f.env_name, kwargs, (run(env, d, f.path) for d in f), overwrite)
@@ -79,8 +79,7 @@ def _by_actions(env: gym.Env, demo: Demo, path: Path) -> Demo:
 
 def _by_states(env: gym.Env, demo: Demo, path: Path) -> Demo:
     obs, _ = env.reset(seed=demo.seed)
-    scene = scene_of(env)
-    model, data = scene.model, scene.data
+    model = scene_of(env).model
     if demo.states.shape[1] != mujoco.mj_stateSize(model, STATE):
         raise DemoFileError(
             f"{path}:{demo.name} has states of size {demo.states.shape[1]}; "
@@ -88,9 +87,7 @@ def _by_states(env: gym.Env, demo: Demo, path: Path) -> Demo:
         )
     rows: dict[str, list[np.ndarray]] = {k: [] for k in obs}
     for state in demo.states:
-        mujoco.mj_setState(model, data, state, STATE)
-        mujoco.mj_forward(model, data)
-        for k, v in observe(env).items():
+        for k, v in restore(env, state)[0].items():
             rows[k].append(v)
     final, *_ = env.step(demo.actions[-1])
     return _with_obs(env, demo, rows, final)

@@ -55,6 +55,10 @@ class DemoFileError(MjkdlError, ValueError):
     """A file that is not a readable demonstration file (foreign, truncated, incomplete)."""
 
 
+class StoredModelWarning(MjkdlError, UserWarning):
+    """An env was built on the compiled model a file stores: its asset files are missing."""
+
+
 class DemoWriteError(MjkdlError, OSError):
     """A demo could not be written (disk full, file not writable); finished demos stay."""
 
@@ -148,6 +152,12 @@ def scene_model(scene: Scene) -> tuple[str, str, bytes]:
 _SCENE_MODELS: weakref.WeakKeyDictionary[Scene, tuple[str, str, bytes]] = (
     weakref.WeakKeyDictionary()
 )
+
+
+def adopt_scene_model(scene: Scene, model: tuple[str, str, bytes]) -> None:
+    """Let `scene_model(scene)` answer `model` (MJCF, `model_hash`, MJB): a scene built on a
+    file's stored model, whose spec cannot be compiled here."""
+    _SCENE_MODELS[scene] = model
 
 
 def model_binary(model: mujoco.MjModel) -> bytes:
@@ -611,6 +621,12 @@ class DemoFile(Closable):
                 known = zlib.decompress(known)
             self._models[fingerprint] = known
         return known
+
+    def stored_model(self, key: int | str = 0) -> tuple[str, str, bytes]:
+        """Demo `key`'s `model_file` (MJCF), `model_hash` and MJB bytes (b"" without)."""
+        attrs = self._group(key).attrs
+        fingerprint = str(attrs.get("model_hash", ""))
+        return str(attrs.get("model_file", "")), fingerprint, self._model_bytes(fingerprint)
 
     def model(self, key: int | str = 0) -> mujoco.MjModel:
         """The compiled model demo `key` was recorded with, from the MJB bytes the file

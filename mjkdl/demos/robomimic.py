@@ -33,7 +33,7 @@ import torchvision  # noqa: F401
 from .. import __version__ as mjkdl_version
 from ..errors import SpecError
 from ..record import offscreen_renderer
-from .episodes import make_env, scene_of, success_of
+from .episodes import make_env, restore, scene_of, success_of
 from .hdf5 import ENV_TYPE, STATE, scene_model
 
 
@@ -85,26 +85,21 @@ class EnvMjkdl(env_base.EnvBase):
         return self.get_observation(obs)
 
     def reset_to(self, state: Mapping[str, Any]) -> dict[str, np.ndarray]:
-        """Set `state["states"]` (a row of a demo's `states`) and observe it; a `model` entry
-        (robosuite's) is not needed: the env builds its own."""
-        model, data = self._scene.model, self._scene.data
+        """Set `state["states"]` (a row of a demo's `states`, which holds the controllers'
+        commands and the episode's counters too) and observe it: the observation, reward and
+        end recorded with it (`TaskEnv.observe`); a `model` entry (robosuite's) is not
+        needed: the env builds its own."""
         flat = np.asarray(state["states"], dtype=np.float64)
-        size = mujoco.mj_stateSize(model, STATE)
+        size = mujoco.mj_stateSize(self._scene.model, STATE)
         if flat.shape != (size,):
             raise SpecError(
                 f"reset_to: states must have shape ({size},) (mjSTATE_INTEGRATION of "
                 f"{self._env_name}), got {flat.shape}"
             )
-        mujoco.mj_setState(model, data, flat, STATE)
-        mujoco.mj_forward(model, data)
-        task: Any = self.env.unwrapped
-        every = task._observe()  # the rewards and success read hidden observations too
-        spec = task.task_spec
-        self._reward = 0.0 if spec.reward is None else float(spec.reward(every))
-        self._success = task._success(every)
-        self._done = False
-        self._obs = task._shown_part(every)
-        return self.get_observation(self._obs)
+        obs, reward, terminated, truncated, info = restore(self.env, flat)
+        self._obs, self._reward = obs, float(reward)
+        self._done, self._success = bool(terminated or truncated), success_of(info)
+        return self.get_observation(obs)
 
     def render(
         self,
