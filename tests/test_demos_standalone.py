@@ -70,3 +70,20 @@ def test_assets_missing_and_no_stored_model_is_the_assets_error(tmp_path: Path) 
                        str(tmp_path / "x.hdf5"), folder=tmp_path)  # fmt: skip
     assert r.returncode != 0
     assert "MuJoCo Menagerie model 'franka_emika_panda' is not available" in r.stderr
+
+
+def test_evaluate_takes_a_file_and_runs_on_its_model(picks: Path, tmp_path: Path) -> None:
+    r = without_assets("evaluate", str(picks), "--expert", "--episodes", "2", "--seed", "0",
+                       folder=tmp_path)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines()[-1].startswith("success: 100.0 % (95 % CI 34.2-100.0 %, 2/2)")
+    assert r.stderr.count("StoredModelWarning") == 1
+
+
+def test_collect_refuses_a_file_for_an_env_id(picks: Path, tmp_path: Path) -> None:
+    r = without_assets("collect", str(picks), "--expert", "--episodes", "1", "--out",
+                       str(tmp_path / "y.hdf5"), folder=tmp_path)  # fmt: skip
+    assert r.returncode == 2
+    assert f"collect records into a Gymnasium id's env, got the demonstration file {picks}" in (
+        r.stderr
+    )

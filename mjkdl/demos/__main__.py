@@ -36,7 +36,12 @@ def _source(args: argparse.Namespace) -> PolicySource:
 
 
 def _run_flags(p: argparse.ArgumentParser) -> None:
-    p.add_argument("env_id", metavar="ENV_ID", help="a Gymnasium id, e.g. mjkdl/PandaPickCube-v0")
+    p.add_argument(
+        "env_id",
+        metavar="ENV_ID",
+        help="a Gymnasium id, e.g. mjkdl/PandaPickCube-v0 (evaluate: or a demonstration file, "
+        "its env and model)",
+    )
     _policy_flags(p)
     p.add_argument("--episodes", type=int, required=True, help="episodes to run")
     p.add_argument(

@@ -66,12 +66,22 @@ class EpisodeResult:
 
 def make_env(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
     """`gymnasium.make(env_id, **env_kwargs)` with mjkdl's tasks registered; an unknown id
-    lists the registered ones."""
+    lists the registered ones. `env_id` may be a demonstration file (`.hdf5`) instead: the env
+    its demos were recorded in, the recorded keywords updated by `env_kwargs`, on the model
+    it stores where the asset files are missing (`file_env`)."""
     if not isinstance(env_id, str):
         raise SpecTypeError(f"env id must be a string, got {env_id!r}")
+    if is_demo_file(env_id):
+        with DemoFile(env_id) as f:
+            return file_env(f, {**f.env_kwargs, **dict(env_kwargs or {})})
     if ":" not in env_id and env_id not in gym.registry:  # "module:id" imports module first
         raise unknown_name("env id", env_id, list(gym.registry), "Gymnasium's registry")
     return gym.make(env_id, **dict(env_kwargs or {}))
+
+
+def is_demo_file(env_id: str) -> bool:
+    """Whether `env_id` names a demonstration file (`.hdf5`, existing) rather than an id."""
+    return env_id.endswith(".hdf5") and Path(env_id).is_file()
 
 
 def file_env(file: DemoFile, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
