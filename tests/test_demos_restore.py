@@ -106,3 +106,27 @@ def test_scene_userdata_is_checked() -> None:
     spec.userdata = 3
     with mjk.Env.build(spec) as scene:
         assert scene.model.nuserdata == 3
+
+
+def test_a_resumed_controller_solves_as_if_fresh() -> None:
+    """`resume(previous)`: the solution depends on the state and `previous` alone, not on
+    what the controller solved before (DAQP's warm start would change its last bits)."""
+    env = make_env("mjkdl/PandaPickCube-v0")
+    try:
+        env.reset(seed=0)
+        eff = env.unwrapped.effectors[0]  # type: ignore[attr-defined]
+        busy, robot = eff.controller, eff.robot
+        fresh = mjk.CartesianVelocityController(robot, posture=busy.posture)
+        twist, previous = np.array([0.05, -0.02, 0.03, 0.2, 0.0, -0.1]), np.full(7, 0.01)
+        for k in range(5):  # a history: other twists, warm-started solves
+            busy.solve(twist * (k - 2), 0.1)
+        robot.update()
+        busy.resume(previous)
+        fresh.resume(previous)
+        assert np.array_equal(busy.solve(twist, 0.1), fresh.solve(twist, 0.1))
+        with pytest.raises(ValueError, match=r"resume\(previous\) needs 7 finite joint"):
+            busy.resume(np.zeros(6))
+        with pytest.raises(ValueError, match=r"resume\(previous\) needs 7 finite joint"):
+            busy.resume([0.0] * 6 + [np.nan])
+    finally:
+        env.close()

@@ -641,7 +641,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             self._diverged = why
             obs = {k: b.copy() for k, b in self._buffers if k in self._task_space.spaces}
             info = {"is_success": False, "diverged": True, "error": why}  # obs: the last finite
-            return obs, 0.0, True, counters[0] >= self._max_steps, info
+            return obs, 0.0, True, bool(counters[0] >= self._max_steps), info
         # Everything derived (poses, cameras, contacts, forces, sensordata) recomputed from the
         # state reached: each observation, image included, is of the state recorded with it.
         # MuJoCo's next mj_step recomputes the same from the same state (qacc_warmstart is
