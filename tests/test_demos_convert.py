@@ -64,12 +64,20 @@ def test_convert_adds_a_camera_by_exact_replay(picks: Path, tmp_path: Path) -> N
 
 
 def test_convert_from_states(picks: Path, tmp_path: Path) -> None:
+    """Every row as recorded, the last `next_obs` (the last action stepped from the set last
+    state) too: a recorded state is the whole state (#37 item 1)."""
     out = convert(picks, tmp_path / "s.hdf5", WRIST, mode="states").path
     with DemoFile(picks) as a, DemoFile(out) as b:
         for da, db in zip(a, b, strict=True):
-            for key in ("panda_joint_pos", "panda_tcp_pos", "cube_pose"):
-                np.testing.assert_allclose(db.obs[key], da.obs[key], rtol=0, atol=1e-12)
+            for key, rows in da.obs.items():
+                assert np.array_equal(db.obs[key], rows), key
+                assert np.array_equal(db.final_obs[key], da.final_obs[key]), key
             assert db.obs["wrist_rgb"].shape == (8, 32, 40, 3)
+    with h5py.File(picks, "r") as fa, h5py.File(out, "r") as fb:
+        for name in fa["data"]:
+            for key in fa[f"data/{name}/next_obs"]:
+                recorded = fa[f"data/{name}/next_obs/{key}"][()]
+                assert np.array_equal(fb[f"data/{name}/next_obs/{key}"][()], recorded), key
 
 
 def test_frames_from_states_are_the_frames_of_replay(picks: Path, tmp_path: Path) -> None:
