@@ -130,3 +130,22 @@ def test_a_resumed_controller_solves_as_if_fresh() -> None:
             busy.resume([0.0] * 6 + [np.nan])
     finally:
         env.close()
+
+
+def test_the_users_userdata_comes_first_and_is_left_alone() -> None:
+    from mjkdl.task.registry import panda_pick_cube_spec
+
+    spec = panda_pick_cube_spec()
+    spec.scene.userdata = 3
+    env = TaskEnv(spec)
+    try:
+        env.reset(seed=0)
+        userdata = env.scene.data.userdata
+        assert len(userdata) == 3 + 2 + 2 * 7  # the user's, the counters, command + solution
+        userdata[:3] = [1.0, 2.0, 3.0]
+        env.step(np.zeros(7, np.float32))
+        env.step(np.zeros(7, np.float32))
+        assert userdata[:3].tolist() == [1.0, 2.0, 3.0] and userdata[3] == env.elapsed_steps == 2
+        assert env.task_spec.scene.userdata == 3  # the spec as given
+    finally:
+        env.close()
