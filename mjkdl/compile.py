@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import stat
 import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree
@@ -67,8 +69,41 @@ _NAMESPACES = (
 
 
 def compile_scene(spec: SceneSpec) -> mujoco.MjModel:
-    """Build the `MjSpec` for `spec` and compile it; raises a clear error on bad input."""
-    return compile_mjspec(build_mjspec(spec))
+    """Build the `MjSpec` for `spec` and compile it; raises a clear error on bad input.
+    Inside `stand_in(load)`, a scene whose model files are missing compiles to `load()`."""
+    try:
+        return compile_mjspec(build_mjspec(spec))
+    except ModelFileError as err:
+        if not _STAND_INS:
+            raise
+        load, why = _STAND_INS[-1]
+        why.append(str(err))
+        return load()
+
+
+_STAND_INS: list[tuple[Callable[[], mujoco.MjModel], list[str]]] = []
+
+
+def note_missing(message: str) -> bool:
+    """Inside `stand_in`: keep `message` (why a model file is missing) and return True, so
+    the caller goes on to the compile that the stand-in answers; outside, False."""
+    if not _STAND_INS:
+        return False
+    _STAND_INS[-1][1].append(message)
+    return True
+
+
+@contextmanager
+def stand_in(load: Callable[[], mujoco.MjModel]) -> Iterator[list[str]]:
+    """While open, `compile_scene` returns `load()` (a fresh compiled model, e.g. the one a
+    demonstration file stores) for a scene whose model or asset files are missing, instead of
+    raising `ModelFileError`; the list it yields collects those errors, one per use."""
+    why: list[str] = []
+    _STAND_INS.append((load, why))
+    try:
+        yield why
+    finally:
+        _STAND_INS.pop()
 
 
 def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
@@ -81,6 +116,7 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
     s.compiler.conflict = mujoco.mjtConflict.mjCONFLICT_MERGE
     s.option.timestep = float(spec.timestep)
     s.option.gravity = [0.0, 0.0, float(spec.gravity_z)]
+    s.nuserdata = int(spec.userdata)
     s.visual.global_.offwidth = OFFSCREEN_WIDTH
     s.visual.global_.offheight = OFFSCREEN_HEIGHT
     _add_environment(s, floor=bool(spec.add_floor), skybox=bool(spec.add_skybox))

@@ -693,6 +693,8 @@ def _transfer_state(
             new_d.mocap_quat[mocap] = old_d.mocap_quat[old_mocap]
     for e, k in _pairs(old_m, new_m, mujoco.mjtObj.mjOBJ_EQUALITY):
         new_d.eq_active[e] = old_d.eq_active[k]
+    n = min(old_m.nuserdata, new_m.nuserdata)
+    new_d.userdata[:n] = old_d.userdata[:n]
 
 
 # Model fields a user may edit at run time, carried over by element (see `_transfer_model`).

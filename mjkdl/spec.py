@@ -299,6 +299,10 @@ class SceneSpec:
     physics: PhysicsOptions = field(default_factory=PhysicsOptions)
     """Contact and solver options over the models' own (`PhysicsOptions.grasping()` for
     grasping); the default keeps the models' own."""
+    userdata: int = 0
+    """Entries of MuJoCo's `data.userdata` (`nuserdata`): values of the user's that
+    `mj_getState`/`mj_setState` save and restore with the physics (`mjSTATE_USERDATA`, part
+    of `mjSTATE_INTEGRATION`). A `TaskEnv` adds its own after them."""
 
 
 @dataclass

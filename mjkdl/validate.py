@@ -37,6 +37,7 @@ from .spec import (
 # Sane ranges: beyond them MuJoCo either fails deep inside or simulates nonsense.
 TIMESTEP_RANGE = (1e-6, 1.0)  # s
 MAX_GRAVITY = 1e3  # m/s^2, magnitude
+MAX_USERDATA = 1_000_000  # SceneSpec.userdata entries
 MAX_LENGTH = 1e4  # m: positions and offsets
 SIZE_RANGE = (1e-4, 1e4)  # m: primitive half-sizes and radii
 MAX_ANGLE = 1e4  # degrees, magnitude of each Euler angle
@@ -80,6 +81,15 @@ def validate_scene_spec(spec: SceneSpec) -> None:
     for i, cam in enumerate(spec.cameras):
         _check_camera(cam, f"cameras[{i}] ({cam.name!r})")
     _check_physics(spec.physics)
+    _check_userdata(spec.userdata)
+
+
+def _check_userdata(n: object) -> None:
+    field = "SceneSpec.userdata"
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+        raise SpecTypeError(f"{field} must be a whole number of entries, got {n!r}")
+    if not 0 <= n <= MAX_USERDATA:
+        raise SpecError(f"{field} must be from 0 to {MAX_USERDATA}, got {n}")
 
 
 CONES = ("pyramidal", "elliptic")

@@ -64,12 +64,20 @@ def test_convert_adds_a_camera_by_exact_replay(picks: Path, tmp_path: Path) -> N
 
 
 def test_convert_from_states(picks: Path, tmp_path: Path) -> None:
+    """Every row as recorded, the last `next_obs` (the last action stepped from the set last
+    state) too: a recorded state is the whole state (#37 item 1)."""
     out = convert(picks, tmp_path / "s.hdf5", WRIST, mode="states").path
     with DemoFile(picks) as a, DemoFile(out) as b:
         for da, db in zip(a, b, strict=True):
-            for key in ("panda_joint_pos", "panda_tcp_pos", "cube_pose"):
-                np.testing.assert_allclose(db.obs[key], da.obs[key], rtol=0, atol=1e-12)
+            for key, rows in da.obs.items():
+                assert np.array_equal(db.obs[key], rows), key
+                assert np.array_equal(db.final_obs[key], da.final_obs[key]), key
             assert db.obs["wrist_rgb"].shape == (8, 32, 40, 3)
+    with h5py.File(picks, "r") as fa, h5py.File(out, "r") as fb:
+        for name in fa["data"]:
+            for key in fa[f"data/{name}/next_obs"]:
+                recorded = fa[f"data/{name}/next_obs/{key}"][()]
+                assert np.array_equal(fb[f"data/{name}/next_obs/{key}"][()], recorded), key
 
 
 def test_frames_from_states_are_the_frames_of_replay(picks: Path, tmp_path: Path) -> None:
@@ -141,3 +149,42 @@ def test_merge_and_filter(tmp_path: Path) -> None:
         parse_seeds("1,x")
     with pytest.raises(ValueError, match="--seeds range 9-7 runs backwards"):
         parse_seeds("9-7")
+
+
+def masks(path: Path) -> dict[str, list[str]]:
+    with h5py.File(path, "r") as f:
+        return {k: [n.decode() for n in f["mask"][k][()]] for k in ("train", "valid")}
+
+
+def test_merge_and_filter_are_atomic_and_keep_the_masks(tmp_path: Path) -> None:
+    """#37 item 4: a refused merge leaves nothing behind (an existing output stays as it was);
+    a filtered file of under ten demos still has `mask/valid`; `--valid-fraction`."""
+    kw = {"max_episode_steps": 2}
+    a = collect(REACH, "random", tmp_path / "a.hdf5", episodes=5, seed=0, env_kwargs=kw,
+                keep_failures=True, progress=False).path  # fmt: skip
+    out = tmp_path / "aa.hdf5"
+    r = cli("merge", str(a), str(a), "--out", str(out))
+    assert r.returncode == 2 and "already holds seed 0 (demo_0)" in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.hdf5"]  # no partial file
+    out.write_bytes(b"kept")
+    with pytest.raises(DemoFileError, match=r"already holds seed 0"):
+        merge([a, a], out, overwrite=True)
+    assert out.read_bytes() == b"kept"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.hdf5", "aa.hdf5"]
+    with pytest.raises(DemoFileError, match=r"aa\.hdf5 exists: pass --overwrite to replace it"):
+        filter_demos(a, out)
+
+    r = cli("filter", str(a), str(tmp_path / "f.hdf5"), "--seeds", "0-2")
+    assert r.returncode == 0, r.stderr
+    assert masks(tmp_path / "f.hdf5") == {"train": ["demo_0", "demo_1"], "valid": ["demo_2"]}
+    r = cli("merge", str(a), "--out", str(tmp_path / "m.hdf5"), "--valid-fraction", "0.4")
+    assert r.returncode == 0, r.stderr
+    assert masks(tmp_path / "m.hdf5") == {
+        "train": ["demo_0", "demo_1", "demo_3"],
+        "valid": ["demo_2", "demo_4"],
+    }
+    filter_demos(a, tmp_path / "z.hdf5", valid_fraction=0.0)
+    assert masks(tmp_path / "z.hdf5")["valid"] == []
+    with pytest.raises(ValueError, match=r"valid_fraction must be in \[0, 1\), got 1\.0"):
+        filter_demos(a, tmp_path / "one.hdf5", valid_fraction=1.0)
+    assert not (tmp_path / "one.hdf5").exists()

@@ -14,7 +14,7 @@ from conftest import menagerie
 from demo_envs import CAMERA
 from test_demos_hdf5 import PICK, cli
 
-from mjkdl.demos import DemoFile, ReplayWarning, collect, make_env, replay, replay_all
+from mjkdl.demos import DemoFile, ReplayWarning, collect, file_env, replay, replay_all
 
 
 @pytest.fixture(autouse=True)
@@ -63,11 +63,11 @@ def test_replaying_all_demos_builds_one_env(twenty: Path, monkeypatch: pytest.Mo
     replay_module = sys.modules["mjkdl.demos.replay"]
     built = []
 
-    def counting(env_id: str, kwargs: dict) -> object:
-        built.append(env_id)
-        return make_env(env_id, kwargs)
+    def counting(file: DemoFile) -> object:
+        built.append(file.env_name)
+        return file_env(file)
 
-    monkeypatch.setattr(replay_module, "make_env", counting)
+    monkeypatch.setattr(replay_module, "file_env", counting)
     results = list(replay_all(twenty, [0, 5, "demo_7"]))
     assert [r.demo for r in results] == ["demo_0", "demo_5", "demo_7"]
     assert all(r.max_state_error == 0.0 for r in results)

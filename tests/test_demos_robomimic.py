@@ -58,15 +58,29 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return out
 
 
-def robomimic(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    """`python -m mjkdl.demos.robomimic SCRIPT ...`: robomimic's own script, in a fresh
-    process."""
+def robomimic(
+    *args: str, cwd: Path, direct: bool = False, rc: int = 0, menagerie_root: Path | None = None
+) -> subprocess.CompletedProcess:
+    """robomimic's own script in a fresh process: `python -m mjkdl.demos.robomimic SCRIPT
+    ...`, or with `direct` `python robomimic/scripts/SCRIPT.py ...` as robomimic documents it
+    (after `python -m mjkdl.demos.robomimic install`, the one step its docs add)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    r = subprocess.run(
-        [sys.executable, "-m", "mjkdl.demos.robomimic", *args],
-        capture_output=True, text=True, env=env, cwd=cwd, timeout=900,
-    )  # fmt: skip
-    assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
+    if menagerie_root is not None:
+        env["MENAGERIE_ROOT"] = str(menagerie_root)
+    if direct:
+        import robomimic as rm
+
+        done = subprocess.run([sys.executable, "-m", "mjkdl.demos.robomimic", "install"],
+                              capture_output=True, text=True, env=env)  # fmt: skip
+        assert done.returncode == 0 and "macros_private.py: robomimic's scripts build" in (
+            done.stdout
+        ), done.stderr[-2000:]
+        command = [sys.executable, str(Path(rm.__file__).parent / "scripts" / f"{args[0]}.py")]
+        command += args[1:]
+    else:
+        command = [sys.executable, "-m", "mjkdl.demos.robomimic", *args]
+    r = subprocess.run(command, capture_output=True, text=True, env=env, cwd=cwd, timeout=900)
+    assert r.returncode == rc, (r.stdout + r.stderr)[-3000:]
     return r
 
 
@@ -88,10 +102,14 @@ def test_create_env_from_metadata_builds_the_task(files: dict[str, Path]) -> Non
     obs = env.reset_to({"states": demo.states[4]})
     for key in ("panda_joint_pos", "panda_tcp_pos", "cube_pose"):
         np.testing.assert_allclose(obs[key], demo.obs[key][4], rtol=0, atol=1e-12)
-    assert env.get_reward() == pytest.approx(demo.rewards[3], abs=1e-12)
+    assert env.get_reward() == demo.rewards[3]
     assert np.array_equal(env.get_state()["states"], demo.states[4])
     frame = env.render(mode="rgb_array", height=40, width=30, camera_name="front")
     assert frame.shape == (40, 30, 3) and frame.std() > 0
+    last = env.reset_to({"states": demo.states[-1]})
+    assert all(np.array_equal(last[k], demo.obs[k][-1]) for k in demo.obs)
+    env.step(demo.actions[-1])  # the bonus of the step that ends it, as recorded (#37 item 6)
+    assert env.get_reward() == demo.rewards[-1] > 1 and env.is_done()
     with pytest.raises(ValueError, match=r"states must have shape \(\d+,\)"):
         env.reset_to({"states": demo.states[4][:-1]})
 
@@ -123,14 +141,22 @@ def config(data: Path, out: Path, low_dim: list[str], rgb: list[str]) -> Path:
 
 
 @pytest.mark.parametrize(
-    ("kind", "low_dim", "rgb"),
-    [("low_dim", LOW_DIM, []), ("image", ["panda_tcp_pos", "panda_gripper"], ["wrist_rgb"])],
+    ("kind", "low_dim", "rgb", "direct"),
+    [
+        ("low_dim", LOW_DIM, [], True),  # robomimic's own command line
+        ("image", ["panda_tcp_pos", "panda_gripper"], ["wrist_rgb"], False),
+    ],
 )
 def test_robomimics_train_py_trains_bc_and_rolls_out_in_mjkdl(
-    files: dict[str, Path], tmp_path: Path, kind: str, low_dim: list[str], rgb: list[str]
+    files: dict[str, Path],
+    tmp_path: Path,
+    kind: str,
+    low_dim: list[str],
+    rgb: list[str],
+    direct: bool,
 ) -> None:
     cfg = config(files[kind], tmp_path / f"bc_{kind}", low_dim, rgb)
-    r = robomimic("train", "--config", str(cfg), cwd=tmp_path)
+    r = robomimic("train", "--config", str(cfg), cwd=tmp_path, direct=direct)
     log = r.stdout + r.stderr
     assert "Created environment with name mjkdl/PandaPickCube-v0" in log
     assert "finished run successfully!" in log, log[-3000:]  # train.py exits 0 either way
@@ -143,11 +169,26 @@ def test_robomimics_train_py_trains_bc_and_rolls_out_in_mjkdl(
     assert list((run / "models").glob("model_epoch_*.pth"))
 
 
-def test_playback_dataset_replays_our_files(files: dict[str, Path], tmp_path: Path) -> None:
+def test_a_failed_training_run_exits_non_zero(files: dict[str, Path], tmp_path: Path) -> None:
+    """robomimic's train.py catches the error, prints it and exits 0; ours exits 1."""
+    cfg = config(files["low_dim"], tmp_path / "bad", ["no_such_key"], [])
+    r = robomimic("train", "--config", str(cfg), cwd=tmp_path, rc=1)
+    assert "run failed with error" in r.stdout
+    assert "error: robomimic's train.py reported a failed run (above)" in r.stderr
+
+
+def test_playback_dataset_replays_our_files_on_their_stored_model(
+    files: dict[str, Path], tmp_path: Path
+) -> None:
+    """robomimic's own script, run directly, with no Menagerie: the file's model (#37 items 2
+    and 3)."""
     video = tmp_path / "playback.mp4"
+    (tmp_path / "empty").mkdir()
     r = robomimic("playback_dataset", "--dataset", str(files["low_dim"]), "--use-actions",
                   "--video_path", str(video), "--render_image_names", "front",
-                  cwd=tmp_path)  # fmt: skip
+                  cwd=tmp_path, direct=True, menagerie_root=tmp_path / "empty")  # fmt: skip
+    assert "StoredModelWarning: MuJoCo Menagerie model 'franka_emika_panda' is not" in r.stderr
+    assert f"runs on the model {files['low_dim']} stores instead" in r.stderr
     assert r.stdout.count("Playing back episode: demo_") == 3
     assert "playback diverged" not in r.stdout  # robomimic's own state check, every step
     assert video.stat().st_size > 0
@@ -160,21 +201,18 @@ def test_dataset_states_to_obs_regenerates_observations(
     copy.write_bytes(files["low_dim"].read_bytes())
     robomimic("dataset_states_to_obs", "--dataset", str(copy), "--output_name", "obs.hdf5",
               "--camera_names", "front", "--camera_height", "32", "--camera_width", "40",
-              "--done_mode", "2", cwd=tmp_path)  # fmt: skip
+              "--done_mode", "2", cwd=tmp_path, direct=True)  # fmt: skip
     with h5py.File(tmp_path / "obs.hdf5", "r") as out, DemoFile(copy) as f:
         assert sorted(out["data"]) == f.names
         for demo in f:
             g = out["data"][demo.name]
             assert g["obs/front_rgb"].shape == (demo.num_samples, 32, 40, 3)
             assert np.array_equal(g["actions"][()], demo.actions)
-            np.testing.assert_allclose(g["obs/cube_pose"][()], demo.obs["cube_pose"], atol=1e-12)
-            # the rewards of the states where the contact readings agree (a recorded one is of
-            # the forces before the step: #30 item 1); robomimic steps the last action from a
-            # set state, and the recorded last reward also pays the steps a success cuts off
-            recorded = np.vstack([demo.obs["cube_contacts"][1:], demo.final_obs["cube_contacts"]])
-            same = np.all(g["next_obs/cube_contacts"][()] == recorded, axis=1)
-            assert same.mean() > 0.8
-            np.testing.assert_allclose(
-                g["rewards"][:-1][same[:-1]], demo.rewards[:-1][same[:-1]], atol=1e-12
-            )
+            # every row, the last next_obs (the last action stepped from a set state) too: a
+            # recorded state is the whole state (#37 item 1)
+            for key, rows in demo.obs.items():
+                assert np.array_equal(g[f"obs/{key}"][()], rows), key
+                recorded = np.concatenate([rows[1:], demo.final_obs[key][None]])
+                assert np.array_equal(g[f"next_obs/{key}"][()], recorded), key
+            assert np.array_equal(g["rewards"][()], demo.rewards)
             assert "seed" not in g.attrs  # robomimic's copy drops it: mjkdl's convert keeps it

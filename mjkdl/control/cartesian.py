@@ -208,6 +208,8 @@ class CartesianVelocityController:
         self._clash = np.zeros(n, dtype=bool)
         self._solver = daqp.Model()
         self._ready = False
+        self._cold = False  # whether the next solve starts from an empty active set
+        self._no_active = np.zeros(n + rows, dtype=np.int32)  # DAQP's sense flags: none active
         self.last_status = SolveStatus.OPTIMAL
         self._warned = False
 
@@ -364,6 +366,22 @@ class CartesianVelocityController:
         """
         self._last_time = math.inf
         self._ready = False
+
+    def resume(self, previous: ArrayLike) -> None:
+        """Continue from a saved state: `previous`, the joint velocities of the solution
+        before it, is where the acceleration bounds start, and the next solve starts from an
+        empty active set as the first one does. The same robot state and `previous` then give
+        the same solution bit for bit whatever was solved before (DAQP's warm start from the
+        last active set changes the last bits of a solution)."""
+        if not (isinstance(previous, np.ndarray) and previous.dtype == np.float64):
+            previous = real_array(previous, "previous")
+        if previous.shape != (self._n,) or not math.isfinite(previous.dot(previous)):
+            raise SpecError(
+                f"resume(previous) needs {self._n} finite joint velocities, got {previous!r}"
+            )
+        np.copyto(self._last, previous)
+        self._last_time = -math.inf  # the clock's reset detection would overwrite `previous`
+        self._cold = True
 
     def solve(self, twist: ArrayLike, dt: float | None = None) -> np.ndarray:
         """Joint velocities for `twist` (6: linear then angular, along the control frame).
@@ -592,11 +610,13 @@ class CartesianVelocityController:
             self._ready = True
         else:
             A = self._A if self._rows else None  # DAQP rejects an update with no rows
+            sense = self._no_active if self._cold else None  # None: warm start
             exitflag = self._solver.update(
-                H=self._H, f=self._f, A=A, bupper=self._bu, blower=self._bl
+                H=self._H, f=self._f, A=A, bupper=self._bu, blower=self._bl, sense=sense
             )
             if exitflag < 0:
                 return self._zero, int(exitflag)
+        self._cold = False
         x, _, exitflag, _ = self._solver.solve()
         return x, int(exitflag)
 

@@ -6,7 +6,7 @@ export-lerobot`; each command is a function here too.
 """
 
 from .collect import CollectResult, collect
-from .episodes import EpisodeResult, make_env, run_episode, run_seeds
+from .episodes import EpisodeResult, file_env, make_env, restore, run_episode, run_seeds
 from .evaluate import Evaluation, evaluate, wilson_interval
 from .hdf5 import (
     Demo,
@@ -16,6 +16,7 @@ from .hdf5 import (
     EpisodeBuffer,
     EpisodeData,
     EpisodeWriter,
+    StoredModelWarning,
 )
 from .lerobot import ExportError, LeRobotExport, export_lerobot
 from .lerobot_policy import LeRobotPolicy  # registers `lerobot:PATH` policy sources
@@ -41,13 +42,16 @@ __all__ = [
     "PolicySource",
     "ReplayResult",
     "ReplayWarning",
+    "StoredModelWarning",
     "collect",
     "evaluate",
     "export_lerobot",
+    "file_env",
     "make_env",
     "make_policy",
     "replay",
     "replay_all",
+    "restore",
     "run_episode",
     "run_seeds",
     "wilson_interval",

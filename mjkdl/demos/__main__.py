@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..errors import MjkdlError
+from .hdf5 import VALID_FRACTION
 from .policy import PolicySource
 
 
@@ -35,7 +36,12 @@ def _source(args: argparse.Namespace) -> PolicySource:
 
 
 def _run_flags(p: argparse.ArgumentParser) -> None:
-    p.add_argument("env_id", metavar="ENV_ID", help="a Gymnasium id, e.g. mjkdl/PandaPickCube-v0")
+    p.add_argument(
+        "env_id",
+        metavar="ENV_ID",
+        help="a Gymnasium id, e.g. mjkdl/PandaPickCube-v0 (evaluate: or a demonstration file, "
+        "its env and model)",
+    )
     _policy_flags(p)
     p.add_argument("--episodes", type=int, required=True, help="episodes to run")
     p.add_argument(
@@ -115,11 +121,13 @@ def parser() -> argparse.ArgumentParser:
         help="replay the actions exactly (default) or set the recorded states",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+    _valid_fraction_flag(p)
 
     p = sub.add_parser("merge", help="one file of several files' demos (same env, new masks)")
     p.add_argument("files", metavar="IN", nargs="+")
     p.add_argument("--out", required=True)
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    _valid_fraction_flag(p)
 
     p = sub.add_parser("filter", help="the demos that pass tests, in a new file (new masks)")
     p.add_argument("file", metavar="IN")
@@ -131,6 +139,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--max-length", type=int, default=None, help="at most this many steps")
     p.add_argument("--seeds", default=None, help="seeds to keep, e.g. 1,4,10-19")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+    _valid_fraction_flag(p)
 
     p = sub.add_parser("export-lerobot", help="write a LeRobot v3.0 dataset")
     p.add_argument("file", metavar="FILE")
@@ -183,15 +192,31 @@ def _convert(args: argparse.Namespace) -> int:
     from .episodes import parse_env_kwargs
 
     kwargs = parse_env_kwargs(args.env_kwargs)
-    w = convert(args.file, args.out, kwargs, mode=args.mode, overwrite=args.overwrite)
+    w = convert(
+        args.file,
+        args.out,
+        kwargs,
+        mode=args.mode,
+        overwrite=args.overwrite,
+        valid_fraction=args.valid_fraction,
+    )
     print(f"{w.path}: {w.demos} demos, observations by {args.mode}")
     return 0
+
+
+def _valid_fraction_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--valid-fraction",
+        type=float,
+        default=VALID_FRACTION,
+        help=f"share of the demos in mask/valid (default {VALID_FRACTION})",
+    )
 
 
 def _merge(args: argparse.Namespace) -> int:
     from .convert import merge
 
-    w = merge(args.files, args.out, overwrite=args.overwrite)
+    w = merge(args.files, args.out, overwrite=args.overwrite, valid_fraction=args.valid_fraction)
     print(f"{w.path}: {w.demos} demos from {len(args.files)} files")
     return 0
 
@@ -207,6 +232,7 @@ def _filter(args: argparse.Namespace) -> int:
         max_length=args.max_length,
         seeds=None if args.seeds is None else parse_seeds(args.seeds),
         overwrite=args.overwrite,
+        valid_fraction=args.valid_fraction,
     )
     print(f"{w.path}: {w.demos} demos kept")
     return 0

@@ -10,8 +10,9 @@ from typing import Any
 
 from tqdm import tqdm
 
+from ..errors import SpecError
 from ..task._check import integer
-from .episodes import run_seeds
+from .episodes import is_demo_file, run_seeds
 from .hdf5 import DemoFile, DemoFileError, EpisodeWriter
 from .policy import PolicySource
 
@@ -44,6 +45,11 @@ def collect(
     (all with `keep_failures`) to `out`, each flushed as it is written. An existing `out` is
     refused unless `append` (add to it) or `overwrite` (replace it). `seed` defaults to 0, or
     when appending to the seed after the file's last; a seed the file holds is refused."""
+    if isinstance(env_id, str) and is_demo_file(env_id):
+        raise SpecError(
+            f"collect records into a Gymnasium id's env, got the demonstration file {env_id} "
+            "(evaluate and replay take files)"
+        )
     episodes = integer(episodes, "--episodes")
     held = _held_seeds(out) if append else []
     seed = 1 + max(held, default=-1) if seed is None else integer(seed, "--seed", least=0)

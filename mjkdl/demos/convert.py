@@ -1,6 +1,8 @@
 """New files from recorded ones: observations regenerated for other env keywords (cameras,
 sizes, observation keys), files merged, demos filtered. Each writes through `EpisodeWriter`,
-so the output is a complete file of its own: masks rebuilt, the model stored, seeds unique."""
+so the output is a complete file of its own: masks rebuilt (`valid_fraction` of the demos in
+`mask/valid`), the model stored, seeds unique. The output appears whole or not at all: it is
+written beside `out` under a hidden name and renamed when complete."""
 
 from __future__ import annotations
 
@@ -15,8 +17,17 @@ import mujoco
 import numpy as np
 
 from ..errors import SpecError
-from .episodes import make_env, observe, scene_of
-from .hdf5 import STATE, Demo, DemoFile, DemoFileError, EpisodeWriter, scene_model
+from .episodes import file_env, restore, scene_of
+from .hdf5 import (
+    STATE,
+    VALID_FRACTION,
+    Demo,
+    DemoFile,
+    DemoFileError,
+    EpisodeWriter,
+    scene_model,
+    valid_positions,
+)
 
 CONVERT_MODES = ("actions", "states")
 
@@ -36,6 +47,7 @@ def convert(
     *,
     mode: str = "actions",
     overwrite: bool = False,
+    valid_fraction: float = VALID_FRACTION,
 ) -> Written:
     """Write `src`'s demos to `out` with observations of an env built with the recorded
     keywords updated by `env_kwargs` (e.g. `{"camera_names": ["wrist"], "camera_size": [84,
@@ -51,10 +63,11 @@ def convert(
     with DemoFile(src) as f:
         _not_an_input(out, [f.path])
         kwargs = {**f.env_kwargs, **dict(env_kwargs or {})}
-        env = make_env(f.env_name, kwargs)
+        env = file_env(f, kwargs)
         try:
             run = _by_actions if mode == "actions" else _by_states
-            return _write(out, f.env_name, kwargs, (run(env, d, f.path) for d in f), overwrite)
+            demos = (run(env, d, f.path) for d in f)
+            return _write(out, f.env_name, kwargs, demos, overwrite, valid_fraction)
         finally:
             env.close()
 
@@ -79,8 +92,7 @@ def _by_actions(env: gym.Env, demo: Demo, path: Path) -> Demo:
 
 def _by_states(env: gym.Env, demo: Demo, path: Path) -> Demo:
     obs, _ = env.reset(seed=demo.seed)
-    scene = scene_of(env)
-    model, data = scene.model, scene.data
+    model = scene_of(env).model
     if demo.states.shape[1] != mujoco.mj_stateSize(model, STATE):
         raise DemoFileError(
             f"{path}:{demo.name} has states of size {demo.states.shape[1]}; "
@@ -88,9 +100,7 @@ def _by_states(env: gym.Env, demo: Demo, path: Path) -> Demo:
         )
     rows: dict[str, list[np.ndarray]] = {k: [] for k in obs}
     for state in demo.states:
-        mujoco.mj_setState(model, data, state, STATE)
-        mujoco.mj_forward(model, data)
-        for k, v in observe(env).items():
+        for k, v in restore(env, state)[0].items():
             rows[k].append(v)
     final, *_ = env.step(demo.actions[-1])
     return _with_obs(env, demo, rows, final)
@@ -121,6 +131,7 @@ def merge(
     out: str | os.PathLike[str],
     *,
     overwrite: bool = False,
+    valid_fraction: float = VALID_FRACTION,
 ) -> Written:
     """One file of all `inputs`' demos, in order. The inputs must hold demos of the same env
     and keywords, under different seeds."""
@@ -136,7 +147,8 @@ def merge(
                     f"{f.path} holds demos of {f.env_name} with {f.env_kwargs}, {first.path} of "
                     f"{first.env_name} with {first.env_kwargs}: merge files of one env"
                 )
-        return _write(out, first.env_name, first.env_kwargs, _demos_with_models(files), overwrite)
+        demos = _demos_with_models(files)
+        return _write(out, first.env_name, first.env_kwargs, demos, overwrite, valid_fraction)
     finally:
         for f in files:
             f.close()
@@ -151,6 +163,7 @@ def filter_demos(
     max_length: int | None = None,
     seeds: Iterable[int] | None = None,
     overwrite: bool = False,
+    valid_fraction: float = VALID_FRACTION,
 ) -> Written:
     """The demos of `src` that pass every given test: `success` (True: successes, False:
     failures), `min_length` <= steps <= `max_length`, seed in `seeds`."""
@@ -166,7 +179,8 @@ def filter_demos(
 
     with DemoFile(src) as f:
         _not_an_input(out, [f.path])
-        return _write(out, f.env_name, f.env_kwargs, _demos_with_models([f], keep), overwrite)
+        demos = _demos_with_models([f], keep)
+        return _write(out, f.env_name, f.env_kwargs, demos, overwrite, valid_fraction)
 
 
 def _demos_with_models(
@@ -190,13 +204,27 @@ def _write(
     env_kwargs: Mapping[str, Any],
     demos: Iterable[Demo],
     overwrite: bool,
+    valid_fraction: float,
 ) -> Written:
+    """Write `demos` to a hidden file beside `out`, masks split, then rename it to `out`: a
+    refusal or error on the way leaves nothing behind (and an existing `out` as it was)."""
+    target = Path(out)
+    valid_positions(0, valid_fraction)  # a bad fraction before any work
+    if target.exists() and not overwrite:
+        raise DemoFileError(f"{target} exists: pass --overwrite to replace it")
+    partial = target.with_name(f".{target.name}.partial")
     n = 0
-    with EpisodeWriter(out, env_name, env_kwargs, overwrite=overwrite) as w:
-        for d in demos:
-            w.write(d)
-            n += 1
-        return Written(w.path, n)
+    try:
+        with EpisodeWriter(partial, env_name, env_kwargs, overwrite=True) as w:
+            for d in demos:
+                w.write(d)
+                n += 1
+            w.split(valid_fraction)
+        os.replace(partial, target)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
+    return Written(target, n)
 
 
 def parse_seeds(text: str) -> list[int]:

@@ -12,6 +12,7 @@ import dataclasses
 import json
 import multiprocessing
 import os
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -19,13 +20,22 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 
-from .. import task  # noqa: F401  (registers the tasks with Gymnasium)
+from ..compile import stand_in
 from ..errors import SpecError, SpecTypeError, unknown_name
 from ..record import VideoRecorder
 from ..scene import Scene
-from .hdf5 import EpisodeBuffer, EpisodeData
+from ..task import TaskEnv  # importing mjkdl.task registers the tasks with Gymnasium
+from .hdf5 import (
+    STATE,
+    DemoFile,
+    EpisodeBuffer,
+    EpisodeData,
+    StoredModelWarning,
+    adopt_scene_model,
+)
 from .policy import Policy, PolicySource, checked_action, make_policy
 
 MAX_WORKERS = 256
@@ -56,12 +66,42 @@ class EpisodeResult:
 
 def make_env(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
     """`gymnasium.make(env_id, **env_kwargs)` with mjkdl's tasks registered; an unknown id
-    lists the registered ones."""
+    lists the registered ones. `env_id` may be a demonstration file (`.hdf5`) instead: the env
+    its demos were recorded in, the recorded keywords updated by `env_kwargs`, on the model
+    it stores where the asset files are missing (`file_env`)."""
     if not isinstance(env_id, str):
         raise SpecTypeError(f"env id must be a string, got {env_id!r}")
+    if is_demo_file(env_id):
+        with DemoFile(env_id) as f:
+            return file_env(f, {**f.env_kwargs, **dict(env_kwargs or {})})
     if ":" not in env_id and env_id not in gym.registry:  # "module:id" imports module first
         raise unknown_name("env id", env_id, list(gym.registry), "Gymnasium's registry")
     return gym.make(env_id, **dict(env_kwargs or {}))
+
+
+def is_demo_file(env_id: str) -> bool:
+    """Whether `env_id` names a demonstration file (`.hdf5`, existing) rather than an id."""
+    return env_id.endswith(".hdf5") and Path(env_id).is_file()
+
+
+def file_env(file: DemoFile, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
+    """`make_env(file.env_name, env_kwargs)` (default: the recorded keywords); where the
+    scene's model or asset files are missing (no Menagerie here), built on the compiled model
+    the file stores for its first demo, with a `StoredModelWarning` saying so."""
+    kwargs = file.env_kwargs if env_kwargs is None else dict(env_kwargs)
+    with stand_in(lambda: file.model(0)) as missing:
+        env = make_env(file.env_name, kwargs)
+    if missing:
+        xml, fingerprint, mjb = file.stored_model(0)
+        adopt_scene_model(scene_of(env), (xml, fingerprint, mjb))
+        warnings.warn(
+            f"{missing[0]}; {file.env_name} runs on the model {file.path} stores instead "
+            f"(models/{fingerprint[:12]}..., recorded with MuJoCo "
+            f"{file.env_args.get('mujoco_version')})",
+            StoredModelWarning,
+            stacklevel=2,
+        )
+    return env
 
 
 def parse_env_kwargs(text: str | None) -> dict[str, Any]:
@@ -140,11 +180,18 @@ def scene_of(env: gym.Env) -> Scene:
     return scene
 
 
-def observe(env: gym.Env) -> dict[str, np.ndarray]:
-    """The observation of the state the env's scene holds now (one just set), as `step`
-    returns it: the task's sensors read again."""
-    unwrapped: Any = env.unwrapped
-    return dict(unwrapped._shown_part(unwrapped._observe()))
+def restore(
+    env: gym.Env, state: np.ndarray
+) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+    """Set a recorded `mjSTATE_INTEGRATION` row in `env` (after a reset) and return what
+    `step` returned on reaching it (`TaskEnv.observe`): the controllers' commands and the
+    episode's counters come back with the physics, so `step` goes on as recorded."""
+    scene = scene_of(env)
+    unwrapped = env.unwrapped
+    if not isinstance(unwrapped, TaskEnv):
+        raise SpecError(f"{type(unwrapped).__name__} is not a TaskEnv: it cannot restore a state")
+    mujoco.mj_setState(scene.model, scene.data, state, STATE)
+    return unwrapped.observe()
 
 
 def video_recorder(env: gym.Env, video: Video) -> VideoRecorder:

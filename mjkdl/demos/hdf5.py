@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import shutil
 import warnings
@@ -41,18 +42,25 @@ except ImportError:  # pragma: no cover (Windows)
 from .. import __version__ as mjkdl_version
 from ..closable import Closable
 from ..compile import build_mjspec
-from ..errors import MjkdlError, unknown_name
+from ..errors import MjkdlError, SpecError, unknown_name
 from ..scene import Scene, mujoco_version
+from ..validate import real
 
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 ENV_TYPE = 100
 """robomimic's `EnvType` of mjkdl files (robomimic's own are 1-3); `mjkdl.demos.robomimic`
 makes robomimic's `env_utils` build an mjkdl env for it."""
+VALID_FRACTION = 0.1
+"""Share of the demos `merge`, `filter` and `convert` put in `mask/valid` by default."""
 _IMAGE_COMPRESSION = {"compression": "gzip", "compression_opts": 4}
 
 
 class DemoFileError(MjkdlError, ValueError):
     """A file that is not a readable demonstration file (foreign, truncated, incomplete)."""
+
+
+class StoredModelWarning(MjkdlError, UserWarning):
+    """An env was built on the compiled model a file stores: its asset files are missing."""
 
 
 class DemoWriteError(MjkdlError, OSError):
@@ -152,6 +160,12 @@ def scene_model(scene: Scene) -> tuple[str, str, bytes]:
 _SCENE_MODELS: weakref.WeakKeyDictionary[Scene, tuple[str, str, bytes]] = (
     weakref.WeakKeyDictionary()
 )
+
+
+def adopt_scene_model(scene: Scene, model: tuple[str, str, bytes]) -> None:
+    """Let `scene_model(scene)` answer `model` (MJCF, `model_hash`, MJB): a scene built on a
+    file's stored model, whose spec cannot be compiled here."""
+    _SCENE_MODELS[scene] = model
 
 
 def model_binary(model: mujoco.MjModel) -> bytes:
@@ -319,6 +333,28 @@ class EpisodeWriter(Closable):
         self._next += 1
         return name
 
+    def split(self, valid_fraction: float = VALID_FRACTION) -> None:
+        """Rebuild `mask/train` and `mask/valid` over the finished demos: `valid_fraction` of
+        them, evenly spread (`valid_positions`), validate and the rest train. Both masks
+        always exist (robomimic's training reads both)."""
+        self._check_open()
+        f = self._file
+        assert f is not None
+        valid = valid_positions(len(self._demos), valid_fraction)
+        for key, names in (
+            ("train", [d for i, d in enumerate(self._demos) if i not in valid]),
+            ("valid", [d for i, d in enumerate(self._demos) if i in valid]),
+        ):
+            if key in f["mask"]:
+                del f["mask"][key]
+            f["mask"].create_dataset(
+                key,
+                data=np.array([n.encode() for n in names], dtype=_MASK_NAME),
+                maxshape=(None,),
+                chunks=(256,),
+            )
+        f.flush()
+
     def _check_room(self, name: str, ep: EpisodeData) -> None:
         """Refuse a demo the disk (or the process's file-size limit) cannot hold, before HDF5
         writes any of it: HDF5 fails mid-write inconsistently, up to a crash at the next
@@ -415,6 +451,20 @@ class EpisodeWriter(Closable):
                 self._file.close()
             finally:
                 self._file = None
+
+
+def valid_positions(n: int, fraction: float) -> set[int]:
+    """Which of `n` demos validate: the last of every `1 / fraction` (at 0.1 the tenth, the
+    twentieth, ..., as `collect`'s masks have it), and of two or more demos at least the last
+    one when the fraction is positive."""
+    fraction = real(fraction, "valid_fraction")
+    if not 0.0 <= fraction < 1.0:
+        raise SpecError(f"valid_fraction must be in [0, 1), got {fraction!r}")
+    shares = [math.floor(i * fraction + 1e-9) for i in range(n + 1)]
+    out = {i for i in range(n) if shares[i + 1] > shares[i]}
+    if not out and fraction > 0 and n >= 2:
+        out = {n - 1}
+    return out
 
 
 def _is_frames(value: np.ndarray) -> bool:
@@ -618,6 +668,12 @@ class DemoFile(Closable):
                 known = zlib.decompress(known)
             self._models[fingerprint] = known
         return known
+
+    def stored_model(self, key: int | str = 0) -> tuple[str, str, bytes]:
+        """Demo `key`'s `model_file` (MJCF), `model_hash` and MJB bytes (b"" without)."""
+        attrs = self._group(key).attrs
+        fingerprint = str(attrs.get("model_hash", ""))
+        return str(attrs.get("model_file", "")), fingerprint, self._model_bytes(fingerprint)
 
     def model(self, key: int | str = 0) -> mujoco.MjModel:
         """The compiled model demo `key` was recorded with, from the MJB bytes the file

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import MjkdlError, SpecError
 from ..record import VideoRecorder, offscreen_renderer
 from ..scene import mujoco_version
-from .episodes import Video, make_env, scene_of, success_of, video_recorder
+from .episodes import Video, file_env, scene_of, success_of, video_recorder
 from .hdf5 import STATE, Demo, DemoFile, mjkdl_version, scene_model
 
 MODES = ("actions", "states")
@@ -85,13 +85,14 @@ def replay_all(
     mode: str = "actions",
     video: Video | None = None,
 ) -> Iterator[ReplayResult]:
-    """Replay `demos` (default: all) one after another in one env, built once: a result per
-    demo as it finishes. `video` films the first."""
+    """Replay `demos` (default: all) one after another in one env, built once (on the model
+    the file stores where the asset files are missing: `file_env`): a result per demo as it
+    finishes. `video` films the first."""
     if mode not in MODES:
         raise SpecError(f"--mode must be one of {', '.join(MODES)}, got {mode!r}")
     with DemoFile(path) as file:
         names = file.names if demos is None else [file.demo(d).name for d in demos]
-        env = make_env(file.env_name, file.env_kwargs)
+        env = file_env(file)
         try:
             checked: set[str] = set()
             for name in names:

@@ -12,17 +12,23 @@ is left to robomimic. `python -m mjkdl.demos.robomimic SCRIPT ARGS...` registers
 
 from __future__ import annotations
 
+import io
 import json
+import os
 import runpy
 import sys
 from collections.abc import Mapping, Sequence
 from copy import deepcopy
-from typing import Any
+from pathlib import Path
+from typing import Any, TextIO
 
+import gymnasium as gym
 import mujoco
 import numpy as np
+import robomimic
 import robomimic.envs.env_base as env_base
 import robomimic.utils.env_utils as env_utils
+import robomimic.utils.file_utils as file_utils
 import robomimic.utils.obs_utils as obs_utils
 
 # torchvision loads torch._dynamo, which loads Triton's LLVM: loaded after an EGL context of
@@ -33,8 +39,21 @@ import torchvision  # noqa: F401
 from .. import __version__ as mjkdl_version
 from ..errors import SpecError
 from ..record import offscreen_renderer
-from .episodes import make_env, scene_of, success_of
-from .hdf5 import ENV_TYPE, STATE, scene_model
+from .episodes import file_env, make_env, restore, scene_of, success_of
+from .hdf5 import ENV_TYPE, STATE, DemoFile, scene_model
+from .robomimic_hook import LINES, MARK
+
+_DATASETS: list[str] = []  # files robomimic read env metadata from (register), latest last
+
+
+def _task_env(env_name: str, kwargs: dict[str, Any]) -> gym.Env:
+    """The task, built on the stored model of the latest file robomimic read it from where
+    its asset files are missing (`file_env`)."""
+    for path in reversed(_DATASETS):
+        with DemoFile(path) as f:
+            if f.env_name == env_name:
+                return file_env(f, kwargs)
+    return make_env(env_name, kwargs)
 
 
 class EnvMjkdl(env_base.EnvBase):
@@ -61,7 +80,7 @@ class EnvMjkdl(env_base.EnvBase):
         self._init_kwargs = deepcopy(kwargs)
         self._env_name = env_name
         self._postprocess = postprocess_visual_obs
-        self.env = make_env(env_name, kwargs)
+        self.env = _task_env(env_name, kwargs)
         self._scene = scene_of(self.env)
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._obs: dict[str, np.ndarray] = {}
@@ -85,26 +104,21 @@ class EnvMjkdl(env_base.EnvBase):
         return self.get_observation(obs)
 
     def reset_to(self, state: Mapping[str, Any]) -> dict[str, np.ndarray]:
-        """Set `state["states"]` (a row of a demo's `states`) and observe it; a `model` entry
-        (robosuite's) is not needed: the env builds its own."""
-        model, data = self._scene.model, self._scene.data
+        """Set `state["states"]` (a row of a demo's `states`, which holds the controllers'
+        commands and the episode's counters too) and observe it: the observation, reward and
+        end recorded with it (`TaskEnv.observe`); a `model` entry (robosuite's) is not
+        needed: the env builds its own."""
         flat = np.asarray(state["states"], dtype=np.float64)
-        size = mujoco.mj_stateSize(model, STATE)
+        size = mujoco.mj_stateSize(self._scene.model, STATE)
         if flat.shape != (size,):
             raise SpecError(
                 f"reset_to: states must have shape ({size},) (mjSTATE_INTEGRATION of "
                 f"{self._env_name}), got {flat.shape}"
             )
-        mujoco.mj_setState(model, data, flat, STATE)
-        mujoco.mj_forward(model, data)
-        task: Any = self.env.unwrapped
-        every = task._observe()  # the rewards and success read hidden observations too
-        spec = task.task_spec
-        self._reward = 0.0 if spec.reward is None else float(spec.reward(every))
-        self._success = task._success(every)
-        self._done = False
-        self._obs = task._shown_part(every)
-        return self.get_observation(self._obs)
+        obs, reward, terminated, truncated, info = restore(self.env, flat)
+        self._obs, self._reward = obs, float(reward)
+        self._done, self._success = bool(terminated or truncated), success_of(info)
+        return self.get_observation(obs)
 
     def render(
         self,
@@ -225,7 +239,20 @@ class EnvMjkdl(env_base.EnvBase):
 
 
 def register() -> None:
-    """Make robomimic's `env_utils` build `EnvMjkdl` for files of `ENV_TYPE` (idempotent)."""
+    """Make robomimic's `env_utils` build `EnvMjkdl` for files of `ENV_TYPE`, and remember the
+    files robomimic reads env metadata from (`EnvMjkdl` builds on one's stored model where
+    the asset files are missing); idempotent."""
+    read = file_utils.get_env_metadata_from_dataset
+    if not getattr(read, "mjkdl", False):
+
+        def get_env_metadata_from_dataset(dataset_path: str) -> dict:
+            meta = read(dataset_path)
+            if meta.get("type") == ENV_TYPE:
+                _DATASETS.append(os.path.expanduser(dataset_path))
+            return meta
+
+        get_env_metadata_from_dataset.mjkdl = True  # type: ignore[attr-defined]
+        file_utils.get_env_metadata_from_dataset = get_env_metadata_from_dataset
     original = env_utils.get_env_class
     if getattr(original, "mjkdl", False):
         return
@@ -240,20 +267,57 @@ def register() -> None:
     env_utils.get_env_class = get_env_class
 
 
+def install() -> Path:
+    """Make robomimic's own scripts, run directly, build mjkdl's env type: add the call of
+    `robomimic_hook.install` to robomimic's private macro file (created if absent, kept
+    otherwise; idempotent). The file's path."""
+    path = Path(robomimic.__file__).parent / "macros_private.py"
+    text = path.read_text() if path.exists() else ""
+    if MARK not in text:
+        try:
+            path.write_text(text + ("\n" if text and not text.endswith("\n") else "") + LINES)
+        except OSError as err:
+            raise SpecError(f"cannot add mjkdl's hook to {path}: {err}") from None
+    return path
+
+
+class _Watched(io.TextIOBase):
+    """stdout, noting whether robomimic's train.py reported a failed run (it catches the
+    error, prints it and exits 0)."""
+
+    def __init__(self, out: TextIO) -> None:
+        self.out, self.failed = out, False
+
+    def write(self, text: str) -> int:
+        self.failed = self.failed or "run failed with error" in text
+        return self.out.write(text)
+
+    def flush(self) -> None:
+        self.out.flush()
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """`python -m mjkdl.demos.robomimic SCRIPT ARGS...`: robomimic's `scripts/SCRIPT.py`
-    with ARGS, mjkdl's env type registered."""
+    with ARGS, mjkdl's env type registered; exits 1 when `train` reports a failed run.
+    `python -m mjkdl.demos.robomimic install`: `install()`, so that the scripts run directly
+    do the same."""
     args = list(sys.argv[1:] if argv is None else argv)
     if not args or args[0].startswith("-"):
         print(
             "usage: python -m mjkdl.demos.robomimic SCRIPT [ARGS...]  (SCRIPT: train, "
-            "playback_dataset, dataset_states_to_obs, run_trained_agent, ...)",
+            "playback_dataset, dataset_states_to_obs, run_trained_agent, ...), or "
+            "python -m mjkdl.demos.robomimic install",
             file=sys.stderr,
         )
         raise SystemExit(2)
+    if args == ["install"]:
+        print(f"{install()}: robomimic's scripts build mjkdl's env type")
+        return
     script = args[0].removesuffix(".py")
     register()
     sys.argv = [f"robomimic/scripts/{script}.py", *args[1:]]
+    watched, stderr = _Watched(sys.stdout), sys.stderr  # robomimic's logger replaces both
+    sys.stdout = watched
     try:
         runpy.run_module(f"robomimic.scripts.{script}", run_name="__main__", alter_sys=True)
     except ImportError as err:
@@ -261,6 +325,11 @@ def main(argv: Sequence[str] | None = None) -> None:
             print(f"error: robomimic has no script {script!r}", file=sys.stderr)
             raise SystemExit(2) from None
         raise
+    finally:
+        sys.stdout, sys.stderr = watched.out, stderr
+    if watched.failed:
+        print(f"error: robomimic's {script}.py reported a failed run (above)", file=stderr)
+        raise SystemExit(1)
 
 
 if __name__ == "__main__":

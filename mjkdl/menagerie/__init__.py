@@ -13,6 +13,7 @@ from pathlib import Path
 
 import mujoco_menagerie
 
+from ..compile import note_missing
 from ..errors import ModelFileError, UnknownNameError
 from ..validate import text
 
@@ -71,8 +72,19 @@ def model_path(name: str) -> str:
     """Path of the MJCF of Menagerie robot `name` (its default robot file, not the scene).
 
     Reads from `MENAGERIE_ROOT` when set, else from the package's cache (downloading once).
+    Inside `mjkdl.compile.stand_in` a missing model gives its would-be path (the scene then
+    compiles to the stand-in) instead of raising.
     """
     text(name, "menagerie.model_path(name)")
+    try:
+        return _model_path(name)
+    except ModelFileError as err:
+        if not note_missing(str(err)):
+            raise
+        return str(Path(source().root or "mujoco_menagerie") / name / f"{name}.xml")
+
+
+def _model_path(name: str) -> str:
     try:
         robot = mujoco_menagerie.get(name)
     except mujoco_menagerie.UnknownRobotError:

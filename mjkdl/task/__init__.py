@@ -30,6 +30,7 @@ from .rewards import (
     distance,
     height,
     place_reward,
+    success_bonus,
 )
 from .rollout import Episode, ray_collect, run_episode
 from .sensors import intrinsics
@@ -86,6 +87,7 @@ __all__ = [
     "place_reward",
     "ray_collect",
     "run_episode",
+    "success_bonus",
     "view",
 ]
 

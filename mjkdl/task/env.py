@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import os
 from collections.abc import Callable, Mapping
@@ -24,7 +25,7 @@ from ..spec import CtrlMode, SceneSpec
 from ..validate import flag, real, real_array, text, vector
 from ._check import integer, names
 from .randomization import Draw, Randomizer
-from .rewards import check_positions
+from .rewards import check_positions, success_bonus
 
 if TYPE_CHECKING:
     from ..hw.in_the_loop import ArmLink
@@ -143,6 +144,28 @@ class ArmEffector:
         self.slice = slice(start, start + n)
         self.grip_index = start + n if gripper is not None else -1
         self.home = None if arm.home is None else np.asarray(arm.home, dtype=float)
+        self._command = self._previous = np.zeros(0)  # views of the scene's userdata
+
+    def bind_state(self, userdata: np.ndarray, at: int) -> int:
+        """Keep what the controller carries between steps (the integrated joint command, the
+        last solution) in `userdata[at:]`; the index after it."""
+        if self.controller is None:
+            return at
+        n = self.robot.n_joints
+        self._command, self._previous = userdata[at : at + n], userdata[at + n : at + 2 * n]
+        return at + 2 * n
+
+    @property
+    def state_size(self) -> int:
+        """Entries of userdata `bind_state` takes."""
+        return 0 if self.controller is None else 2 * self.robot.n_joints
+
+    def start_state(self) -> None:
+        """The controller's state at an episode's start, once the commands hold the arm:
+        the measured positions and velocities (a fresh controller's)."""
+        if self.controller is not None:
+            np.copyto(self._command, self.robot.jnt_pos_cmd)
+            np.copyto(self._previous, self.robot.jnt_vel_msr)
 
     def new_episode(self, scene: Env) -> None:
         """Arm at home, gripper open, and a fresh controller: the QP's acceleration bounds
@@ -161,9 +184,12 @@ class ArmEffector:
         robot, arm = self.robot, self.arm.actuation
         robot.update()
         a: Any = action[self.slice]
-        if self.controller is not None:
+        if self.controller is not None:  # from the state in userdata, which a restore sets
+            robot.jnt_pos_cmd = self._command
+            self.controller.resume(self._previous)
             self._twist[self.axes] = a
-            self.controller.command(self._twist, period)
+            np.copyto(self._previous, self.controller.command(self._twist, period))
+            np.copyto(self._command, robot.jnt_pos_cmd)
         elif arm is Actuation.JOINT_POSITION:
             robot.jnt_pos_cmd = a
         elif arm is Actuation.JOINT_VELOCITY:
@@ -395,6 +421,17 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 dtype=np.float32,
             )
         self._action = np.zeros(len(labels))
+        # The episode's counters and what the controllers carry between steps live in
+        # MuJoCo's userdata, which mjSTATE_INTEGRATION saves and restores: a restored state
+        # steps on exactly as the recorded one did. Sized once the arms' joints are known.
+        size = spec.scene.userdata + _COUNTERS + sum(e.state_size for e in self._effectors)
+        if scene.model.nuserdata != size:
+            scene._rebuild(dataclasses.replace(scene.spec, userdata=size))
+        if scene.model.nuserdata != size:  # a stored model (a file's) made by an older mjkdl
+            raise SpecError(
+                f"the scene's model has {scene.model.nuserdata} userdata entries; this task "
+                f"keeps its state in {size}: the model was made by another mjkdl version"
+            )
 
         self._render_camera_name = render_camera
         self._render_size = (render_width, render_height)
@@ -406,8 +443,6 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             check_positions(getattr(spec, field), every.spaces, f"TaskSpec.{field}")
         if self.render_mode in ("rgb_array", "depth_array"):
             check_offscreen_size(scene.model, render_width, render_height)  # now, not at render()
-        self._steps = 0
-        self._held = 0
         self._needs_reset = True
         self._diverged: str | None = None
         self._randomizer = None
@@ -449,6 +484,11 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 boxes[key], owner[key] = box, where
         boxes["time"] = spaces.Box(0.0, np.inf, (1,), np.float64)
         self._time = np.zeros(1)
+        userdata = data.userdata[spec.scene.userdata :]
+        self._counters = userdata[:_COUNTERS]  # control steps since reset, steps of success
+        at = _COUNTERS
+        for eff in self._effectors:
+            at = eff.bind_state(userdata, at)
         self._buffers = [(k, b) for r in self._readers for k, b in r.buffers.items()]
         self._buffers.append(("time", self._time))
         self._render_camera: int | mujoco.MjvCamera
@@ -585,9 +625,9 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         mujoco.mj_forward(scene.model, scene.data)
         for eff in self._effectors:
             eff.robot.sync_commands()
+            eff.start_state()
         mujoco.mj_forward(scene.model, scene.data)  # torques under the synced commands
-        self._steps = 0
-        self._held = 0
+        self._counters.fill(0.0)
         self._needs_reset = False
         self._diverged = None
         obs = self._observe()
@@ -612,20 +652,46 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         for eff in self._effectors:
             eff.apply(a, self._period)
         why = self._advance()
-        self._steps += 1
-        truncated = self._steps >= self._max_steps
+        counters = self._counters
+        counters[0] += 1
         if why is not None:
             self._diverged = why
             obs = {k: b.copy() for k, b in self._buffers if k in self._task_space.spaces}
             info = {"is_success": False, "diverged": True, "error": why}  # obs: the last finite
-            return obs, 0.0, True, truncated, info
+            return obs, 0.0, True, bool(counters[0] >= self._max_steps), info
         # Everything derived (poses, cameras, contacts, forces, sensordata) recomputed from the
         # state reached: each observation, image included, is of the state recorded with it.
         # MuJoCo's next mj_step recomputes the same from the same state (qacc_warmstart is
         # only written by the integrator), so the trajectory is unchanged.
         self.scene.forward()
         obs = self._observe()  # every observation: rewards may read hidden ones
+        success = self._success(obs)
+        counters[1] = counters[1] + 1 if success else 0
+        return self._outcome(obs, success)
+
+    def observe(self) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """What `step` returned on reaching the state the scene holds now: (obs, reward,
+        terminated, truncated, info). For a state set with `mujoco.mj_setState` (a recorded
+        `mjSTATE_INTEGRATION` row, which holds the episode's step and success counters and
+        the controllers' commands too): the observation, reward and ends recorded with it;
+        `step` goes on from it as it did then."""
+        self._check_open()
+        if self._needs_reset:
+            raise RuntimeError("TaskEnv.observe() before reset(): call reset() first")
+        if self.scene.model is not self._model:
+            self._follow_rebuild()
+        self._diverged = None
+        self.scene.forward()
+        obs = self._observe()
+        return self._outcome(obs, self._success(obs))
+
+    def _outcome(
+        self, obs: dict[str, np.ndarray], success: bool
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """`step`'s result for `obs` of the state the counters are of: the one place rewards,
+        ends and the success bonus are computed."""
         spec = self.task_spec
+        steps, held = self._counters
         reward, terminated = 0.0, False
         if spec.reward is not None:
             reward = spec.reward(obs)
@@ -635,16 +701,11 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             terminated = spec.terminated(obs)
             if type(terminated) is not bool:
                 terminated = flag(terminated, "TaskSpec.terminated(obs)")
-        success = self._success(obs)
-        self._held = self._held + 1 if success else 0
-        if spec.terminate_on_success and self._held > self._hold_steps and not terminated:
+        if spec.terminate_on_success and held > self._hold_steps and not terminated:
             terminated = True
-            # The steps this end cuts off would each have paid about this step's reward.
-            horizon = self._horizon()
-            if math.isfinite(horizon):
-                reward *= 1 + max(0, horizon - self._steps)
+            reward = success_bonus(reward, int(steps), self._horizon())
         info = {"is_success": success, "diverged": False}
-        return self._shown_part(obs), reward, terminated, truncated, info
+        return self._shown_part(obs), reward, terminated, bool(steps >= self._max_steps), info
 
     def _shown_part(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """What the agent gets of an observation: all but `TaskSpec.hide`, in order."""
@@ -728,8 +789,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
     @property
     def elapsed_steps(self) -> int:
-        """Control steps since the last reset."""
-        return self._steps
+        """Control steps since the last reset (of the state the scene holds)."""
+        return int(self._counters[0])
 
     @property
     def control_substeps(self) -> int:
@@ -828,6 +889,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 # Renderers inherited through a fork: their OpenGL contexts belong to the parent, and
 # freeing them here can hang (software EGL) or fail, so they are kept until exit.
 _ORPHANED: list[mujoco.Renderer] = []
+_COUNTERS = 2  # userdata entries of the episode's own: control steps, steps of success
 _SETTLE_STEPS = 500  # physics steps a gripper gets to open at reset (1 s at 2 ms)
 _SETTLE_DAMPING = 0.1  # of the tool joints' own damping, while they settle at reset
 

@@ -150,6 +150,10 @@ class GoalTaskEnv(TaskEnv):
         obs, reward, terminated, truncated, info = super().step(action)
         return self._goal_obs(obs), reward, terminated, truncated, info
 
+    def observe(self) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = super().observe()
+        return self._goal_obs(obs), reward, terminated, truncated, info
+
     def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
         """The step reward for goals (arrays of shape (..., 3)), vectorised over leading
         axes: what `step` would have paid had `desired_goal` been the goal."""

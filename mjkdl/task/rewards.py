@@ -306,6 +306,17 @@ class LiftReward:
         return float(self.evaluate(obs))
 
 
+def success_bonus(reward: float, steps: int, horizon: float) -> float:
+    """The reward of the step on which `TaskSpec.terminate_on_success` ends an episode after
+    `steps` control steps of at most `horizon`: `reward * (1 + horizon - steps)`, since each
+    step the end cuts off would have paid about as much (a policy is not paid less for
+    finishing early); `reward` without a finite horizon. The one definition of the bonus:
+    `TaskEnv.step` and `TaskEnv.observe` (a restored state) both pay it."""
+    if not np.isfinite(horizon):
+        return reward
+    return reward * (1 + max(0, horizon - steps))
+
+
 @dataclass(frozen=True)
 class SparseReward:
     """1 on the steps where `success(obs)` holds, else 0."""

@@ -1,0 +1,151 @@
+"""A recorded state is the whole state (#37 items 1 and 6): set a recorded row and step the
+recorded action, and the next recorded state comes back bit for bit with its observation
+(camera frames included), reward and end, on every registered task; the controllers'
+commands and the episode's counters are part of `mjSTATE_INTEGRATION`."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import menagerie
+from demo_envs import CAMERA
+
+import mjkdl as mjk
+from mjkdl.demos import make_env
+from mjkdl.demos.episodes import restore, run_episode, scene_of
+from mjkdl.demos.hdf5 import STATE
+from mjkdl.demos.policy import make_policy
+from mjkdl.task import TaskEnv
+from mjkdl.task.registry import TASKS
+from mjkdl.task.rewards import success_bonus
+
+
+@pytest.fixture(autouse=True)
+def _panda() -> None:
+    menagerie("franka_emika_panda")
+
+
+def _differ(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> list[str]:
+    """The keys whose arrays differ (in any bit)."""
+    assert a.keys() == b.keys()
+    return [k for k in a if not np.array_equal(a[k], b[k])]
+
+
+@pytest.mark.parametrize("env_id", list(TASKS))
+def test_a_restored_state_steps_on_exactly_as_recorded(env_id: str) -> None:
+    """Every row of a whole expert demo: set (after another episode), observed, stepped. The
+    goal-conditioned twins have the same physics: they go without the camera (software
+    rendering is most of the time here)."""
+    env = make_env(env_id, {} if env_id.endswith("Goal-v0") else CAMERA)
+    try:
+        rec = run_episode(env, make_policy("expert", env), seed=11, record=True).data
+        assert rec is not None
+        scene = scene_of(env)
+        state = np.empty(mujoco.mj_stateSize(scene.model, STATE))
+        env.reset(seed=500)  # another episode's state first: nothing of it may leak
+        n = rec.num_samples
+        matched = 0
+        for t in range(n):
+            obs, regenerated, *_ = restore(env, rec.states[t])
+            assert _differ(obs, {k: v[t] for k, v in rec.obs.items()}) == [], t
+            if t:  # the reward of the step that reached it, from the state alone
+                assert regenerated == rec.rewards[t - 1], t
+            after, reward, terminated, truncated, _ = env.step(rec.actions[t])
+            assert reward == rec.rewards[t], t
+            assert bool(terminated or truncated) == bool(rec.dones[t]), t
+            if t + 1 < n:
+                mujoco.mj_getState(scene.model, scene.data, state, STATE)
+                matched += np.array_equal(state, rec.states[t + 1])
+                assert _differ(after, {k: v[t + 1] for k, v in rec.obs.items()}) == [], t
+            else:
+                assert _differ(after, rec.final_obs) == []
+                matched += 1
+        assert matched == n
+    finally:
+        env.close()
+
+
+def test_the_success_bonus_is_paid_once_and_regenerated() -> None:
+    """PickCube ends on success with the bonus (the steps cut off); the restored last state
+    pays the same."""
+    env = make_env("mjkdl/PandaPickCube-v0")
+    try:
+        rec = run_episode(env, make_policy("expert", env), seed=3, record=True).data
+        assert rec is not None and rec.success and rec.dones[-1]
+        n, horizon = rec.num_samples, 100  # the registered TimeLimit
+        task = env.unwrapped
+        assert isinstance(task, TaskEnv)
+        assert rec.rewards[-1] == success_bonus(1.0, n, horizon) == 101 - n
+        env.reset(seed=0)
+        restore(env, rec.states[-1])
+        env.step(rec.actions[-1])
+        _, reward, terminated, _, info = task.observe()
+        assert (reward, terminated, info["is_success"]) == (101 - n, True, True)
+        assert task.elapsed_steps == n
+    finally:
+        env.close()
+
+
+def test_restore_needs_a_task_env_and_a_reset() -> None:
+    env = make_env("mjkdl/PandaReach-v0")
+    try:
+        with pytest.raises(RuntimeError, match=r"TaskEnv.observe\(\) before reset\(\)"):
+            env.unwrapped.observe()  # type: ignore[attr-defined]
+    finally:
+        env.close()
+
+
+def test_scene_userdata_is_checked() -> None:
+    spec = mjk.SceneSpec(timestep=0.002, add_floor=True, add_skybox=False, userdata=-1)
+    with pytest.raises(ValueError, match=r"SceneSpec.userdata must be from 0 to 1000000, got -1"):
+        mjk.Env.build(spec)
+    spec.userdata = 2.0  # type: ignore[assignment]
+    with pytest.raises(TypeError, match=r"SceneSpec.userdata must be a whole number .* got 2.0"):
+        mjk.Env.build(spec)
+    spec.userdata = 3
+    with mjk.Env.build(spec) as scene:
+        assert scene.model.nuserdata == 3
+
+
+def test_a_resumed_controller_solves_as_if_fresh() -> None:
+    """`resume(previous)`: the solution depends on the state and `previous` alone, not on
+    what the controller solved before (DAQP's warm start would change its last bits)."""
+    env = make_env("mjkdl/PandaPickCube-v0")
+    try:
+        env.reset(seed=0)
+        eff = env.unwrapped.effectors[0]  # type: ignore[attr-defined]
+        busy, robot = eff.controller, eff.robot
+        fresh = mjk.CartesianVelocityController(robot, posture=busy.posture)
+        twist, previous = np.array([0.05, -0.02, 0.03, 0.2, 0.0, -0.1]), np.full(7, 0.01)
+        for k in range(5):  # a history: other twists, warm-started solves
+            busy.solve(twist * (k - 2), 0.1)
+        robot.update()
+        busy.resume(previous)
+        fresh.resume(previous)
+        assert np.array_equal(busy.solve(twist, 0.1), fresh.solve(twist, 0.1))
+        with pytest.raises(ValueError, match=r"resume\(previous\) needs 7 finite joint"):
+            busy.resume(np.zeros(6))
+        with pytest.raises(ValueError, match=r"resume\(previous\) needs 7 finite joint"):
+            busy.resume([0.0] * 6 + [np.nan])
+    finally:
+        env.close()
+
+
+def test_the_users_userdata_comes_first_and_is_left_alone() -> None:
+    from mjkdl.task.registry import panda_pick_cube_spec
+
+    spec = panda_pick_cube_spec()
+    spec.scene.userdata = 3
+    env = TaskEnv(spec)
+    try:
+        env.reset(seed=0)
+        userdata = env.scene.data.userdata
+        assert len(userdata) == 3 + 2 + 2 * 7  # the user's, the counters, command + solution
+        userdata[:3] = [1.0, 2.0, 3.0]
+        env.step(np.zeros(7, np.float32))
+        env.step(np.zeros(7, np.float32))
+        assert userdata[:3].tolist() == [1.0, 2.0, 3.0] and userdata[3] == env.elapsed_steps == 2
+        assert env.task_spec.scene.userdata == 3  # the spec as given
+    finally:
+        env.close()
