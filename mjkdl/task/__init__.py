@@ -87,7 +87,8 @@ __all__ = [
 
 
 def __getattr__(name: str) -> object:
-    """`make_batch` and `BatchEnv` (MuJoCo Warp, torch: the `warp` extra) load on first use."""
+    """`make_batch` and `BatchEnv` (torch: the `batch` extra; MuJoCo Warp on a GPU: the `warp`
+    extra) load on first use."""
     if name in ("make_batch", "BatchEnv"):
         from . import batch
 
