@@ -37,7 +37,7 @@ import mjkdl.task  # noqa: F401  (registers the tasks)
 TASK = "mjkdl/PandaPickCube-v0"
 SUBSTEPS = 50
 
-Runner = Callable[[float], float]  # seconds to run -> control steps/s
+Runner = Callable[[float], int]  # seconds to run -> control steps taken (summed over worlds)
 
 
 def cpu_env() -> Runner:
@@ -46,14 +46,14 @@ def cpu_env() -> Runner:
     env.reset(seed=0)
     rng = np.random.default_rng(0)
 
-    def run(seconds: float) -> float:
+    def run(seconds: float) -> int:
         steps, start = 0, time.perf_counter()
         while time.perf_counter() - start < seconds:
             _, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 7).astype(np.float32))
             if terminated or truncated:
                 env.reset()
             steps += 1
-        return steps / (time.perf_counter() - start)
+        return steps
 
     return run
 
@@ -64,12 +64,12 @@ def async_vector(n: int) -> tuple[Runner, Callable[[], None]]:
     envs.reset(seed=0)
     rng = np.random.default_rng(0)
 
-    def run(seconds: float) -> float:
+    def run(seconds: float) -> int:
         steps, start = 0, time.perf_counter()
         while time.perf_counter() - start < seconds:
             envs.step(rng.uniform(-1, 1, (n, 7)).astype(np.float32))
             steps += n
-        return steps / (time.perf_counter() - start)
+        return steps
 
     return run, envs.close
 
@@ -95,24 +95,22 @@ def batch(n: int, device: str, **kwargs: object) -> tuple[Runner, Runner, object
     horizon = envs.max_episode_steps or 100
     envs.episode_steps[:] = torch.randint(0, horizon, (n,), generator=gen, device=device)
 
-    def run(seconds: float) -> float:
+    def run(seconds: float) -> int:
         steps, start = 0, time.perf_counter()
         while time.perf_counter() - start < seconds:
             envs.step(actions())
             steps += n
         if device.startswith("cuda"):
             torch.cuda.synchronize()
-        return steps / (time.perf_counter() - start)
+        return steps
 
-    def physics(seconds: float) -> float:
-        if envs.state.name != "mujoco":
-            return float("nan")
+    def physics(seconds: float) -> int:
         raw = envs.state.batch
         steps, start = 0, time.perf_counter()
         while time.perf_counter() - start < seconds:
             raw.step(nstep=SUBSTEPS, stage=mujoco.mjtStage.mjSTAGE_ACC)
             steps += n
-        return steps / (time.perf_counter() - start)
+        return steps
 
     return run, physics, envs
 
@@ -234,18 +232,29 @@ def main() -> None:
             runners[f"batch (warp, {device}), {n} worlds"] = run
             batches.append(envs)
     rates: dict[str, list[float]] = {name: [] for name in runners}
+    cpu_us: dict[str, list[float]] = {name: [] for name in runners}
     for _ in range(args.rounds):
         for name, run in runners.items():
-            rates[name].append(run(args.seconds))
+            wall, cpu = time.perf_counter(), time.process_time()
+            steps = run(args.seconds)
+            wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+            rates[name].append(steps / wall)
+            cpu_us[name].append(1e6 * cpu / steps)
     base = rates["CPU env (TaskEnv.step)"]
     vec = rates[f"AsyncVectorEnv of {k}"]
-    print(f"{'runner':44s} {'control steps/s':>15s} {'vs CPU env':>10s} {'vs async':>9s}")
+    # CPU time: this process's threads (the vector env's workers are other processes).
+    print(
+        f"{'runner':44s} {'control steps/s':>15s} {'vs CPU env':>10s} {'vs async':>9s}"
+        f" {'CPU us/step':>11s}  (range of control steps/s)"
+    )
     for name, values in rates.items():
         ratio = statistics.median(v / b for v, b in zip(values, base, strict=True))
         versus = statistics.median(v / a for v, a in zip(values, vec, strict=True))
+        used = "n/a" if name.startswith("Async") else f"{statistics.median(cpu_us[name]):.0f}"
         spread = f"({min(values):.0f}-{max(values):.0f})"
         print(
-            f"{name:44s} {statistics.median(values):15.1f} {ratio:9.2f}x {versus:8.2f}x  {spread}"
+            f"{name:44s} {statistics.median(values):15.1f} {ratio:9.2f}x {versus:8.2f}x"
+            f" {used:>11s}  {spread}"
         )
     close_async()
     for envs in batches:
