@@ -14,7 +14,7 @@ Warp's CPU device): its rows, its cameras against MuJoCo's OpenGL renderer, and 
 call with an empty and with a filled kernel cache.
 
     python benchmarks/batch.py                          # CPU engine, 64 and 256 worlds
-    python benchmarks/batch.py --warp --device cuda --worlds 1024 8192
+    python benchmarks/batch.py --warp --device cuda --warp-worlds 1024 8192
 """
 
 from __future__ import annotations
@@ -199,6 +199,9 @@ def main() -> None:
     parser.add_argument("--no-first-step", action="store_true", help="skip the fresh processes")
     parser.add_argument("--warp", action="store_true", help="add MuJoCo Warp's rows")
     parser.add_argument("--device", default="", help="--warp: cuda or cpu (default: cuda if any)")
+    parser.add_argument(
+        "--warp-worlds", type=int, nargs="+", default=None, help="--warp: worlds (--worlds')"
+    )
     parser.add_argument("--camera-size", type=int, default=64, help="--warp: image side, px")
     args = parser.parse_args()
     import torch
@@ -227,7 +230,7 @@ def main() -> None:
         batches.append(envs)
     device = args.device or ("cuda:0" if torch.cuda.is_available() else "cpu")
     if args.warp:
-        for n in args.worlds:
+        for n in args.warp_worlds or args.worlds:
             run, _, envs = batch(n, device, engine="warp")
             runners[f"batch (warp, {device}), {n} worlds"] = run
             batches.append(envs)
