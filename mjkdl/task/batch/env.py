@@ -233,7 +233,8 @@ class BatchEnv(VectorEnv):
     `info["diverged"]` are bool tensors; a world diverges when its state stops being finite,
     when MuJoCo raises an error in it (CPU engine) or when MuJoCo Warp drops its constraints
     or contacts for lack of room (its rows, or the contact pool all worlds share: then every
-    world): its episode ends (`terminated`, reward 0) and a warning says why.
+    world): its episode ends (`terminated`, reward 0); MuJoCo's errors and MuJoCo Warp's
+    overflows come with a warning that says what happened.
 
     The task's reward, success and termination rules (`mjkdl.task.rewards`, the same objects
     the CPU env calls) evaluate every world at once as torch operations on the device, in
