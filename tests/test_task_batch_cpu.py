@@ -152,6 +152,40 @@ def test_a_world_whose_physics_fails_ends_as_diverged() -> None:
         batch.close()
 
 
+def test_a_world_where_mujoco_raises_ends_as_diverged_with_its_message() -> None:
+    """MuJoCo's batch reports the simulations that raised (they keep their state, the others
+    step on): those worlds' episodes end, a warning quotes MuJoCo's message, and they start
+    clean."""
+    batch = make_batch(PICK, 2, device="cpu")
+    real = batch.state.batch
+
+    class Failing:  # world 1 raises in the next step, as an arena overflow would
+        def __getattr__(self, name: str) -> object:
+            return getattr(real, name)
+
+        def step(self, ids: object = None, **kwargs: int) -> None:
+            real.step(ids, **kwargs)
+            raise mujoco.batch.SimulationError(np.array([1]), "1 simulation failed")
+
+        def error(self, sim: int) -> str:
+            return "mj_stackAlloc: out of memory" if sim == 1 else ""
+
+    try:
+        batch.reset(seed=0)
+        batch.state.batch = Failing()
+        with pytest.warns(UserWarning, match=r"error in 1 of 2 worlds \(world 1: mj_stackAlloc"):
+            _, reward, terminated, _, info = batch.step(torch.zeros(2, 7))
+        assert info["diverged"].tolist() == [False, True]
+        assert terminated.tolist() == [False, True] and float(reward[1]) == 0.0
+        batch.state.batch = real
+        assert batch.state.failed().tolist() == [False, False]  # the new episode starts clean
+        _, _, _, _, info = batch.step(torch.zeros(2, 7))
+        assert info["diverged"].tolist() == [False, False]
+    finally:
+        batch.state.batch = real
+        batch.close()
+
+
 # ---------------------------------------------------------------------- bad input
 
 
