@@ -137,6 +137,24 @@ def test_the_device_chooses_the_engine_and_threads_default_to_the_cores() -> Non
         batch.close()
 
 
+def test_a_gpu_without_mujoco_warp_is_named_and_no_device_falls_back(monkeypatch) -> None:
+    """torch sees a GPU, but only the `batch` extra is installed: `device="cuda"` names the
+    missing extra; no device runs the CPU engine with a warning that says why."""
+    from mjkdl.task.batch import DeviceUnavailableError, warp_engine
+
+    def missing() -> None:
+        raise ImportError("No module named 'mujoco_warp'")
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(warp_engine, "warp_modules", missing)
+    with pytest.raises(DeviceUnavailableError, match=r"MuJoCo Warp is not installed.*\[warp\]"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cuda")
+    with pytest.warns(UserWarning, match=r"MuJoCo Warp is not installed.*running on the CPU"):
+        batch = make_batch("mjkdl/PandaReach-v0", 1)
+    assert batch.state.name == "mujoco"
+    batch.close()
+
+
 def test_a_world_whose_physics_fails_ends_as_diverged() -> None:
     """A non-finite state in one world ends its episode (reward 0, `diverged`), the others
     step on, and the world starts its next episode."""

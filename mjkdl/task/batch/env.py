@@ -77,7 +77,8 @@ def make_batch(
 ) -> BatchEnv:
     """`num_envs` worlds of `task` (a registered id with its parameters as `kwargs`, or a
     `TaskSpec`) on `device` ("cpu", "cuda" or "cuda:N"; None: a CUDA GPU when torch has
-    one, else the CPU).
+    one, else the CPU; a GPU that MuJoCo Warp cannot use, or MuJoCo Warp not installed, falls
+    back to the CPU with a warning).
 
     The engine follows the device: on the CPU MuJoCo's own batch (`engine="mujoco"`,
     `mujoco.batch`, float64, bit for bit the CPU env's physics) on `threads` threads (None:
@@ -189,8 +190,8 @@ def _check_engine(engine: object, device: object) -> None:
 
 
 def _device(device: object, allow_cpu: bool) -> str:
-    if device is None:
-        return "cuda:0" if torch.cuda.is_available() else "cpu"
+    if device is None:  # a GPU that torch and MuJoCo Warp can use, else (with a warning) the CPU
+        return _device("cuda:0", allow_cpu=True) if torch.cuda.is_available() else "cpu"
     if not isinstance(device, str):
         raise SpecTypeError(f"device must be 'cuda', 'cuda:N' or 'cpu', got {device!r}")
     if device == "cpu":
@@ -201,11 +202,18 @@ def _device(device: object, allow_cpu: bool) -> str:
     if not torch.cuda.is_available():
         why = "torch sees no CUDA GPU here (no GPU, or a CPU build of torch)"
     else:
-        wp, _ = warp_engine.warp_modules()
-        count = wp.get_cuda_device_count()
+        try:
+            wp, _ = warp_engine.warp_modules()
+        except ImportError:
+            wp = None
+        count = 0 if wp is None else wp.get_cuda_device_count()
         if index < count:
             return f"cuda:{index}"
-        why = f"Warp sees {count} CUDA device(s)"
+        why = (
+            "MuJoCo Warp is not installed (pip install 'mjkdl[warp]')"
+            if wp is None
+            else f"Warp sees {count} CUDA device(s)"
+        )
     if allow_cpu:
         warnings.warn(
             f"device={device!r}: {why}; running on the CPU (MuJoCo's own batch)", stacklevel=3
