@@ -1,5 +1,5 @@
-"""Many worlds of one task at once: `make_batch` -> `BatchEnv` (torch tensors, the `warp`
-extra's torch; MuJoCo Warp too for the GPU engine).
+"""Many worlds of one task at once: `make_batch` -> `BatchEnv`, torch tensors (the `batch`
+extra; the `warp` extra adds MuJoCo Warp for a GPU).
 
 `env` holds the task (the CPU env's definition, batched); `engine` the small interface an
 engine gives it; `cpu_engine` (MuJoCo's `mujoco.batch`) and `warp_engine` (MuJoCo Warp) are
