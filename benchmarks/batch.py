@@ -1,30 +1,32 @@
-"""Many worlds: `mjkdl.task.make_batch` on MuJoCo Warp against the CPU env, in one process.
+"""Many worlds: `mjkdl.task.make_batch` against one CPU env and a Gymnasium vector env.
 
-`mjkdl/PandaPickCube-v0` (0.1 s control steps of 50 physics steps of 2 ms), random actions.
-Baseline: one CPU env (`TaskEnv.step`), then a synchronous CPU vector env of 4, then the
-batch on MuJoCo Warp's device with 1 ... 256 worlds (the CPU device where no GPU is lent):
-control steps/s summed over worlds, world-steps/s (physics steps of one world per second),
-the reset cost per world (the CPU env's reset on the host, uploaded), MuJoCo Warp's data
-per world, and the cost per world of the task's reward and success: evaluated for all worlds
-on the device (as `step` does) against each world's rules called on the host (as `step` did
-before). Cameras: frames/s of MuJoCo Warp's renderer for all worlds against MuJoCo's OpenGL
-renderer (the CPU env's) one world at a time. First-call time (kernel compile) is measured in
-fresh subprocesses: with an empty kernel cache and with the one the first filled. The timed
-steps run after two warm ones (kernels loaded, physics captured as a graph) with the worlds'
-episodes spread over the time limit, so about 1 % of the worlds restart in each.
+`mjkdl/PandaPickCube-v0` (0.1 s control steps of 50 physics steps of 2 ms), random actions,
+episodes restarting as they end. Baseline: one CPU env (`TaskEnv.step`). Compared, in the
+same process and interleaved (each runner measured for `--seconds` in turn, `--rounds`
+times; the figures are each runner's median, the ratios medians over its rounds against the
+CPU env's in the same round): a Gymnasium `AsyncVectorEnv` of `--async-envs` CPU envs (one
+process each), and the batch's CPU engine (MuJoCo's own `mujoco.batch`) at each of
+`--worlds` on the cores available, with the physics alone (`Batch.step` of the same worlds,
+no task) beside it, and at `--scaling` worlds on 1 ... all cores. Control steps/s are summed
+over worlds. The first step's time is measured in a fresh process: from `make_batch` to the
+end of its first `step`. `--warp` adds MuJoCo Warp (on a GPU where one is lent, else on
+Warp's CPU device): its rows, its cameras against MuJoCo's OpenGL renderer, and its first
+call with an empty and with a filled kernel cache.
 
-    python benchmarks/batch.py                       # CPU device, 1..256 worlds
-    python benchmarks/batch.py --device cuda --worlds 1 64 1024 8192
+    python benchmarks/batch.py                          # CPU engine, 64 and 256 worlds
+    python benchmarks/batch.py --warp --device cuda --warp-worlds 1024 8192
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
@@ -35,96 +37,114 @@ import mjkdl.task  # noqa: F401  (registers the tasks)
 TASK = "mjkdl/PandaPickCube-v0"
 SUBSTEPS = 50
 
+Runner = Callable[[float], int]  # seconds to run -> control steps taken (summed over worlds)
 
-def cpu_env(steps: int) -> float:
-    """Control steps/s of one CPU env."""
+
+def cpu_env() -> Runner:
+    """One CPU env, reset as its episodes end."""
     env = gym.make(TASK).unwrapped
     env.reset(seed=0)
     rng = np.random.default_rng(0)
-    start = time.perf_counter()
-    for _ in range(steps):
-        env.step(rng.uniform(-1, 1, 7).astype(np.float32))
-    rate = steps / (time.perf_counter() - start)
-    env.close()
-    return rate
+
+    def run(seconds: float) -> int:
+        steps, start = 0, time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            _, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 7).astype(np.float32))
+            if terminated or truncated:
+                env.reset()
+            steps += 1
+        return steps
+
+    return run
 
 
-def cpu_vector(n: int, steps: int) -> float:
-    """Control steps/s (all sub-envs) of a synchronous vector env of `n` CPU envs."""
-    envs = gym.make_vec(TASK, num_envs=n, vectorization_mode="sync")
+def async_vector(n: int) -> tuple[Runner, Callable[[], None]]:
+    """A Gymnasium `AsyncVectorEnv` of `n` CPU envs (each in its own process); its close."""
+    envs = gym.make_vec(TASK, num_envs=n, vectorization_mode="async")
     envs.reset(seed=0)
     rng = np.random.default_rng(0)
-    start = time.perf_counter()
-    for _ in range(steps):
-        envs.step(rng.uniform(-1, 1, (n, 7)).astype(np.float32))
-    rate = n * steps / (time.perf_counter() - start)
-    envs.close()
-    return rate
+
+    def run(seconds: float) -> int:
+        steps, start = 0, time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            envs.step(rng.uniform(-1, 1, (n, 7)).astype(np.float32))
+            steps += n
+        return steps
+
+    return run, envs.close
 
 
-def rules(envs: object, reps: int) -> tuple[float, float]:
-    """Microseconds per world of evaluating the task's reward and success for every world:
-    (the rules on the device, as `step` does; the baseline, each world's rules called on
-    the host with its NumPy observation, as `step` did before)."""
-    from mjkdl.task.batch import Float64View
-    from mjkdl.task.batch_state import as_numpy
-
-    spec = envs.host.task_spec  # type: ignore[attr-defined]
-    fns = [f for f in (spec.reward, spec.success, spec.terminated) if f is not None]
-    obs = envs.observer.read()  # type: ignore[attr-defined]
-    n = envs.num_envs  # type: ignore[attr-defined]
-    start = time.perf_counter()
-    for _ in range(reps):
-        wide = Float64View(obs)
-        for f in fns:
-            f.evaluate(wide)
-    device = (time.perf_counter() - start) / reps / n
-    start = time.perf_counter()
-    for _ in range(reps):
-        host = {k: as_numpy(v) for k, v in obs.items()}
-        for i in range(n):
-            o = {k: v[i] for k, v in host.items()}
-            for f in fns:
-                f(o)
-    baseline = (time.perf_counter() - start) / reps / n
-    return device * 1e6, baseline * 1e6
-
-
-def batch(n: int, steps: int, device: str) -> tuple[float, float, float, int, tuple[float, float]]:
-    """(control steps/s over all worlds, reset s per world, data bytes per world, episodes
-    restarted in the timed steps, `rules`). The worlds' episodes are spread over the time
-    limit first, as a learner spreads them, so the timed steps restart about n/100 worlds
-    each (their starts computed ahead, as in training)."""
+def batch(n: int, device: str, **kwargs: object) -> tuple[Runner, Runner, object]:
+    """The batch on `n` worlds: (its runner, the physics alone on the same worlds, the
+    batch). The worlds' episodes are spread over the time limit first, as a learner spreads
+    them, so about n/100 worlds restart in each step (their starts computed ahead)."""
+    import mujoco
     import torch
 
-    from mjkdl.task.batch import make_batch, world_bytes
+    from mjkdl.task import make_batch
 
-    envs = make_batch(TASK, n, device=device)
-    start = time.perf_counter()
+    envs = make_batch(TASK, n, device=device, **kwargs)
     envs.reset(seed=0)
-    reset = (time.perf_counter() - start) / n
-    s = envs.state
-    per_world, _ = world_bytes(
-        envs.host.scene.model, envs.host.scene.data, device, s.nconmax, s.njmax
-    )
     gen = torch.Generator(device=device).manual_seed(0)
-    for _ in range(2):  # warm: the kernels load, then the physics is captured as a graph
-        envs.step(torch.rand(n, 7, generator=gen, device=device) * 2 - 1)
+
+    def actions() -> torch.Tensor:
+        return torch.rand(n, 7, generator=gen, device=device) * 2 - 1
+
+    for _ in range(2):  # warm (MuJoCo Warp: the kernels load, then the physics is captured)
+        envs.step(actions())
     horizon = envs.max_episode_steps or 100
     envs.episode_steps[:] = torch.randint(0, horizon, (n,), generator=gen, device=device)
-    restarts = 0
-    start = time.perf_counter()
-    for _ in range(steps):
-        _, _, terminated, truncated, _ = envs.step(
-            torch.rand(n, 7, generator=gen, device=device) * 2 - 1
-        )
-        restarts += int((terminated | truncated).sum())
-    if device.startswith("cuda"):
-        torch.cuda.synchronize()
-    rate = n * steps / (time.perf_counter() - start)
-    evaluation = rules(envs, 5)
-    envs.close()
-    return rate, reset, per_world, restarts, evaluation
+
+    def run(seconds: float) -> int:
+        steps, start = 0, time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            envs.step(actions())
+            steps += n
+        if device.startswith("cuda"):
+            torch.cuda.synchronize()
+        return steps
+
+    def physics(seconds: float) -> int:
+        raw = envs.state.batch
+        steps, start = 0, time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            raw.step(nstep=SUBSTEPS, stage=mujoco.mjtStage.mjSTAGE_ACC)
+            steps += n
+        return steps
+
+    return run, physics, envs
+
+
+_FIRST_STEP = """
+import time, scenes, mjkdl.task, torch
+from mjkdl.task import make_batch
+start = time.perf_counter()
+envs = make_batch({task!r}, {worlds}, device={device!r}, engine={engine!r})
+envs.reset(seed=0)
+envs.step(torch.zeros({worlds}, 7))
+first = time.perf_counter() - start
+envs.step(torch.zeros({worlds}, 7))  # MuJoCo Warp: the physics is captured here
+print(first, time.perf_counter() - start)
+"""
+
+
+def first_step(worlds: int, device: str, engine: str, cache: str | None) -> tuple[float, float]:
+    """Seconds from `make_batch` to the end of its first and of its second step, in a fresh
+    process (imports not counted); `cache`: Warp's kernel cache folder."""
+    env = dict(os.environ)
+    if cache is not None:
+        env["WARP_CACHE_PATH"] = cache
+    code = _FIRST_STEP.format(task=TASK, worlds=worlds, device=device, engine=engine)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=os.path.dirname(os.path.abspath(__file__)),
+    )
+    first, second = out.stdout.strip().splitlines()[-1].split()
+    return float(first), float(second)
 
 
 def cameras(n: int, size: int, reps: int, device: str) -> tuple[float, float]:
@@ -133,12 +153,11 @@ def cameras(n: int, size: int, reps: int, device: str) -> tuple[float, float]:
     CPU env's) drawing one world's state at a time, as the CPU env's camera reader does."""
     import mujoco
 
-    from mjkdl.task import CameraSensor, TaskEnv, registry
-    from mjkdl.task.batch import make_batch
+    from mjkdl.task import CameraSensor, TaskEnv, make_batch, registry
 
     spec = registry.panda_pick_cube_spec()
     spec.sensors = [*spec.sensors, CameraSensor("front", size, size, depth=True)]
-    envs = make_batch(spec, n, device=device)
+    envs = make_batch(spec, n, device=device, engine="warp")
     envs.reset(seed=0)
     batch_cameras = envs.observer.cameras
     batch_cameras.read()  # warm
@@ -170,88 +189,100 @@ def cameras(n: int, size: int, reps: int, device: str) -> tuple[float, float]:
     return warp_rate, gl_rate
 
 
-_FIRST_CALL = """
-import time, scenes, mjkdl.task
-from mjkdl.task.batch import make_batch
-import torch
-start = time.perf_counter()
-envs = make_batch({task!r}, 4, device={device!r})
-envs.reset(seed=0)
-for _ in range(2):  # the kernels load, then the physics is captured
-    envs.step(torch.zeros(4, 7))
-print(time.perf_counter() - start)
-"""
-
-
-def first_call(device: str, cache: str) -> float:
-    """Seconds from `make_batch` to the end of the second step, in a fresh process with the
-    Warp kernel cache at `cache`."""
-    env = {**os.environ, "WARP_CACHE_PATH": cache}
-    code = _FIRST_CALL.format(task=TASK, device=device)
-    out = subprocess.run(
-        [sys.executable, "-c", code],
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=os.path.dirname(os.path.abspath(__file__)),
-    )
-    return float(out.stdout.strip().splitlines()[-1])
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--device", default="", help="cuda or cpu (default: cuda if present)")
-    parser.add_argument("--worlds", type=int, nargs="+", default=[1, 4, 16, 64, 256])
-    parser.add_argument("--steps", type=int, default=10, help="timed control steps per size")
-    parser.add_argument("--cpu-steps", type=int, default=20, help="timed CPU env steps")
-    parser.add_argument("--vector-envs", type=int, default=4, help="CPU vector env size")
-    parser.add_argument("--no-compile", action="store_true", help="skip the first-call runs")
+    parser.add_argument("--worlds", type=int, nargs="+", default=[64, 256])
+    parser.add_argument("--scaling", type=int, default=256, help="worlds of the thread scaling")
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds")
+    parser.add_argument("--seconds", type=float, default=2.0, help="per runner and round")
+    parser.add_argument("--async-envs", type=int, default=2, help="AsyncVectorEnv size")
+    parser.add_argument("--no-first-step", action="store_true", help="skip the fresh processes")
+    parser.add_argument("--warp", action="store_true", help="add MuJoCo Warp's rows")
+    parser.add_argument("--device", default="", help="--warp: cuda or cpu (default: cuda if any)")
     parser.add_argument(
-        "--camera-worlds", type=int, nargs="*", default=[16, 64], help="worlds for the cameras"
+        "--warp-worlds", type=int, nargs="+", default=None, help="--warp: worlds (--worlds')"
     )
-    parser.add_argument("--camera-size", type=int, default=64, help="camera image side, px")
+    parser.add_argument("--camera-size", type=int, default=64, help="--warp: image side, px")
     args = parser.parse_args()
-    from mjkdl.task.batch_state import warp_modules
+    import torch
 
-    wp, _ = warp_modules()  # Warp logs warnings only
-    gpu = wp.get_cuda_device_count() > 0
-    device = args.device or ("cuda:0" if gpu else "cpu")
-    if not gpu:
-        print("No GPU is lent here: MuJoCo Warp runs on its CPU device; GPU figures not measured.")
-    print(f"device {device}, {os.cpu_count()} cores")
-    base = cpu_env(args.cpu_steps)
-    print(f"CPU env (TaskEnv.step):       {base:8.1f} control steps/s  (baseline, 1.00x)")
-    k = args.vector_envs
-    vec = cpu_vector(k, max(1, args.cpu_steps // 2))
-    print(f"CPU sync vector env of {k}:     {vec:8.1f} control steps/s  ({vec / base:.2f}x)")
-    print(
-        "worlds  control steps/s  world-steps/s   vs CPU env  restarts  reset s/world"
-        "  KiB/world  rules us/world (device | host loop)"
-    )
+    from mjkdl.task.batch.cpu_engine import available_threads
+
+    cores = available_threads()
+    print(f"{os.cpu_count()} cores, {cores} available; {args.rounds} interleaved rounds")
+    runners: dict[str, Runner] = {"CPU env (TaskEnv.step)": cpu_env()}
+    k = args.async_envs
+    run, close_async = async_vector(k)
+    runners[f"AsyncVectorEnv of {k}"] = run
+    batches = []
     for n in args.worlds:
-        rate, reset, per_world, restarts, (dev_us, host_us) = batch(n, args.steps, device)
+        run, physics, envs = batch(n, "cpu")
+        runners[f"batch (mujoco), {n} worlds, {cores} threads"] = run
+        runners[f"  physics alone, {n} worlds"] = physics
+        batches.append(envs)
+    for t in range(1, cores):  # the batch on all cores is among the rows above, or here
+        run, _, envs = batch(args.scaling, "cpu", threads=t)
+        runners[f"batch (mujoco), {args.scaling} worlds, {t} threads"] = run
+        batches.append(envs)
+    if args.scaling not in args.worlds:
+        run, _, envs = batch(args.scaling, "cpu")
+        runners[f"batch (mujoco), {args.scaling} worlds, {cores} threads"] = run
+        batches.append(envs)
+    device = args.device or ("cuda:0" if torch.cuda.is_available() else "cpu")
+    if args.warp:
+        for n in args.warp_worlds or args.worlds:
+            run, _, envs = batch(n, device, engine="warp")
+            runners[f"batch (warp, {device}), {n} worlds"] = run
+            batches.append(envs)
+    rates: dict[str, list[float]] = {name: [] for name in runners}
+    cpu_us: dict[str, list[float]] = {name: [] for name in runners}
+    for _ in range(args.rounds):
+        for name, run in runners.items():
+            wall, cpu = time.perf_counter(), time.process_time()
+            steps = run(args.seconds)
+            wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+            rates[name].append(steps / wall)
+            cpu_us[name].append(1e6 * cpu / steps)
+    base = rates["CPU env (TaskEnv.step)"]
+    vec = rates[f"AsyncVectorEnv of {k}"]
+    # CPU time: this process's threads (the vector env's workers are other processes).
+    print(
+        f"{'runner':44s} {'control steps/s':>15s} {'vs CPU env':>10s} {'vs async':>9s}"
+        f" {'CPU us/step':>11s}  (range of control steps/s)"
+    )
+    for name, values in rates.items():
+        ratio = statistics.median(v / b for v, b in zip(values, base, strict=True))
+        versus = statistics.median(v / a for v, a in zip(values, vec, strict=True))
+        used = "n/a" if name.startswith("Async") else f"{statistics.median(cpu_us[name]):.0f}"
+        spread = f"({min(values):.0f}-{max(values):.0f})"
         print(
-            f"{n:6d}  {rate:15.1f}  {rate * SUBSTEPS:13.0f}  {rate / base:9.2f}x"
-            f"  {restarts:8d}  {reset:13.3f}  {per_world / 1024:9.0f}"
-            f"  {dev_us:7.2f} | {host_us:6.1f} ({host_us / dev_us:.0f}x)"
+            f"{name:44s} {statistics.median(values):15.1f} {ratio:9.2f}x {versus:8.2f}x"
+            f" {used:>11s}  {spread}"
         )
-    size = args.camera_size
-    for n in args.camera_worlds:
-        warp_rate, gl_rate = cameras(n, size, 3, device)
-        print(
-            f"camera {size}x{size} RGB+depth, {n} worlds: {warp_rate:.1f} frames/s (MuJoCo Warp) "
-            f"against {gl_rate:.1f} frames/s (MuJoCo's OpenGL, one world at a time, baseline):"
-            f" {warp_rate / gl_rate:.2f}x"
-        )
-    if not args.no_compile:
-        with tempfile.TemporaryDirectory() as cache:
-            cold = first_call(device, cache)
-            warm = first_call(device, cache)
-        print(
-            f"first call (4 worlds, build+reset+2 steps): {cold:.1f} s empty kernel cache, "
-            f"{warm:.1f} s cached ({cold / warm:.1f}x)"
-        )
+    close_async()
+    for envs in batches:
+        envs.close()  # type: ignore[attr-defined]
+    if not args.no_first_step:
+        n = args.worlds[0]
+        first, _ = first_step(n, "cpu", "mujoco", None)
+        print(f"first step (mujoco, {n} worlds, from make_batch, fresh process): {first:.2f} s")
+    if args.warp:
+        size = args.camera_size
+        for n in (16, 64):
+            warp_rate, gl_rate = cameras(n, size, 3, device)
+            print(
+                f"camera {size}x{size} RGB+depth, {n} worlds: {warp_rate:.1f} frames/s (MuJoCo "
+                f"Warp) against {gl_rate:.1f} frames/s (MuJoCo's OpenGL, one world at a time,"
+                f" baseline): {warp_rate / gl_rate:.2f}x"
+            )
+        if not args.no_first_step:
+            with tempfile.TemporaryDirectory() as cache:
+                cold = first_step(4, device, "warp", cache)[1]
+                warm = first_step(4, device, "warp", cache)[1]
+            print(
+                f"first call (warp, 4 worlds, build+reset+2 steps): {cold:.1f} s empty kernel "
+                f"cache, {warm:.1f} s cached ({cold / warm:.1f}x)"
+            )
 
 
 if __name__ == "__main__":

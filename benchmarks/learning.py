@@ -13,7 +13,7 @@ On demand, not in CI (minutes to an hour on 2 cores). Needs the `rl` extra:
     python benchmarks/learning.py plot                 # docs/learning.png from the saved curves
 
 The `rslrl-*` runs need the `warp-rl` extra: PPO (rsl-rl) on `mjkdl.task.make_batch`'s
-worlds with the task's recipe (`mjkdl.task.batch_ppo`), evaluated on the CPU env. Their goal on
+worlds with the task's recipe (`mjkdl.task.batch.ppo`), evaluated on the CPU env. Their goal on
 one H100: PickCube >= 90 % success within 10 minutes of wall time, PickAndPlace >= 80 % within
 30 (`--minutes`: training wall time, the evaluations on the CPU env not counted; not measured
 here: no GPU was lent).
@@ -293,16 +293,20 @@ def rslrl_run(
     from tensordict import TensorDict
 
     from mjkdl.task.batch import make_batch
-    from mjkdl.task.batch_ppo import RslRlEnv, auto_reset_workers, recipe
+    from mjkdl.task.batch.ppo import RslRlEnv, auto_reset_workers, recipe
 
     r = recipe(env_id)
-    envs = envs or r.num_envs
+    if not device:
+        device = "cuda:0" if torch.cuda.is_available() else "cpu"
+    elif device.startswith("cuda") and not torch.cuda.is_available():
+        print(f"--device {device}: no CUDA GPU here; the CPU engine runs the recipe's CPU worlds")
+        device = "cpu"
+    envs = envs or r.worlds(device)
     iterations = iterations or r.iterations
     batch = make_batch(
         env_id,
         envs,
         device=device,
-        allow_cpu=True,
         reset_workers=auto_reset_workers(device),
         **r.task_kwargs,
     )
@@ -399,7 +403,9 @@ def main() -> None:
             "plot",
         ],
     )
-    parser.add_argument("--device", default="cuda", help="rslrl-*: MuJoCo Warp's device")
+    parser.add_argument(
+        "--device", default="", help="rslrl-*: cuda (MuJoCo Warp) or cpu (default: cuda if any)"
+    )
     parser.add_argument("--envs", type=int, default=0, help="rslrl-*: worlds (0: recipe's)")
     parser.add_argument(
         "--iterations", type=int, default=0, help="rslrl-*: PPO iterations (0: recipe's)"

@@ -121,6 +121,7 @@ EXTRAS = {
     extra.name: extra
     for extra in (
         Extra("rl", ("torch", "stable_baselines3", "sb3_contrib"), 'pip install -e ".[rl]"'),
+        Extra("batch", ("torch",), 'pip install -e ".[batch]"'),
         Extra("warp", ("torch", "warp", "mujoco_warp"), 'pip install -e ".[warp]"'),
         Extra("warp-rl", ("torch", "mujoco_warp", "rsl_rl"), 'pip install -e ".[warp-rl]"'),
         Extra("franka", ("pylibfranka", "franky", "panda_py"), 'pip install -e ".[franka]"'),

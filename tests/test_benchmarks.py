@@ -71,15 +71,17 @@ def run_benchmark(name: str, *args: str) -> str:
             (
                 "--worlds",
                 "1",
-                "--steps",
+                "--scaling",
                 "1",
-                "--cpu-steps",
-                "2",
-                "--vector-envs",
+                "--rounds",
                 "1",
-                "--no-compile",
+                "--seconds",
+                "0.1",
+                "--async-envs",
+                "1",
+                "--no-first-step",
             ),
-            r"\n\s+1\s+",
+            r"batch \(mujoco\), 1 worlds, \d+ threads",
         ),
         (
             "grasp",
@@ -91,7 +93,7 @@ def run_benchmark(name: str, *args: str) -> str:
 )
 def test_benchmark_runs_and_prints_its_figures(name, args, figure) -> None:
     if name == "batch":
-        needs_extra("warp")
+        needs_extra("batch")
     out = run_benchmark(name, *args)
     found = re.search(figure + r"\s*" + NUMBER, out)
     assert found, f"no {figure!r} followed by a number in the output of {name}:\n{out}"

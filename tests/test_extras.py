@@ -66,7 +66,7 @@ def test_the_public_packages_import_without_any_extra() -> None:
     assert "extras loaded: []" in proc.stdout
 
 
-def test_the_batch_without_the_warp_extra_names_it() -> None:
+def test_the_batch_without_the_batch_extra_names_it() -> None:
     proc = run_without_extras(
         """
         import mjkdl.task
@@ -78,8 +78,8 @@ def test_the_batch_without_the_warp_extra_names_it() -> None:
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == (
-        "ImportError mjkdl.task.make_batch needs the warp extra (torch is not installed): "
-        "pip install 'mjkdl[warp]'"
+        "ImportError mjkdl.task.make_batch needs the batch extra (torch is not installed): "
+        "pip install 'mjkdl[batch]'"
     )
 
 

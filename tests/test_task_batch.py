@@ -1,4 +1,4 @@
-"""The batched MuJoCo Warp backend on Warp's CPU device, against the CPU env (`TaskEnv`)."""
+"""The batch's MuJoCo Warp engine on Warp's CPU device, against the CPU env (`TaskEnv`)."""
 
 from __future__ import annotations
 
@@ -15,13 +15,14 @@ torch = import_extra("warp", "torch")
 from mjkdl.errors import MjkdlError, SpecError, SpecTypeError  # noqa: E402
 from mjkdl.task import make_batch, registry  # noqa: E402
 from mjkdl.task.batch import DeviceUnavailableError  # noqa: E402
-from mjkdl.task.batch_state import UnsupportedFeatureError, mat_to_quat  # noqa: E402
+from mjkdl.task.batch.engine import UnsupportedFeatureError, mat_to_quat  # noqa: E402
 from mjkdl.task.env import TaskEnv  # noqa: E402
 from mjkdl.task.experts import expert_for  # noqa: E402
 from mjkdl.task.initializers import PhysicsRandomizer  # noqa: E402
 from mjkdl.task.rewards import batchable  # noqa: E402
 from mjkdl.task.spec import Actuation, CameraSensor  # noqa: E402
 
+WARP = {"device": "cpu", "engine": "warp"}  # MuJoCo Warp's CPU device (the GPU's kernels)
 WORLDS = 2
 STEPS = 4  # control steps per episode (time_limit 0.4 s at 0.1 s): a whole short episode
 SEED = 7
@@ -84,7 +85,7 @@ def _compare(batch, cpu_env: TaskEnv, actions: np.ndarray) -> tuple[dict[str, fl
 
 @pytest.mark.parametrize("task_id", sorted(registry.TASKS))
 def test_registered_tasks_match_the_cpu_env(task_id: str) -> None:
-    batch = make_batch(task_id, WORLDS, device="cpu", time_limit=0.4)
+    batch = make_batch(task_id, WORLDS, **WARP, time_limit=0.4)
     cpu_env = gym.make(task_id, time_limit=0.4).unwrapped
     try:
         # The task's rules are evaluated for all worlds as torch operations on the device.
@@ -109,7 +110,7 @@ def test_joint_position_mode_matches_and_auto_resets() -> None:
     spec = registry.panda_pick_cube_spec()
     spec.arms[0].actuation = Actuation.JOINT_POSITION
     spec.time_limit = 0.4
-    batch = make_batch(spec, WORLDS, device="cpu")
+    batch = make_batch(spec, WORLDS, **WARP)
     cpu_env = TaskEnv(spec)
     try:
         rng = np.random.default_rng(1)
@@ -152,7 +153,7 @@ def test_joint_velocity_torque_and_top_down_actions_match(variant: str) -> None:
         # Normalised: 0 is zero velocity, or gravity compensation alone.
         actions = rng.uniform(-0.05, 0.05, (STEPS, WORLDS, 8))
     spec.time_limit = 0.4
-    batch = make_batch(spec, WORLDS, device="cpu")
+    batch = make_batch(spec, WORLDS, **WARP)
     cpu_env = TaskEnv(spec)
     try:
         assert batch.single_action_space.shape == actions.shape[2:]
@@ -173,7 +174,7 @@ def test_a_plain_callable_runs_on_the_host() -> None:
     spec = registry.panda_reach_spec()
     spec.reward = _tcp_height
     spec.time_limit = 0.4
-    batch = make_batch(spec, WORLDS, device="cpu")
+    batch = make_batch(spec, WORLDS, **WARP)
     cpu_env = TaskEnv(spec)
     try:
         actions = np.random.default_rng(4).uniform(-1, 1, (STEPS, WORLDS, 7)).astype(np.float32)
@@ -200,7 +201,7 @@ def test_the_physics_replays_as_a_graph_and_a_failed_capture_only_warns(monkeypa
     import warp as wp
 
     actions = np.random.default_rng(5).uniform(-1, 1, (6, WORLDS, 7)).astype(np.float32)
-    captured = make_batch("mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.4)
+    captured = make_batch("mjkdl/PandaPickCube-v0", WORLDS, **WARP, time_limit=0.4)
     try:
         ref = _joint_trajectory(captured, actions)
         assert captured.state.captured
@@ -211,7 +212,7 @@ def test_the_physics_replays_as_a_graph_and_a_failed_capture_only_warns(monkeypa
         raise RuntimeError("graphs refused here")
 
     monkeypatch.setattr(wp, "ScopedCapture", refuse)
-    eager = make_batch("mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.4)
+    eager = make_batch("mjkdl/PandaPickCube-v0", WORLDS, **WARP, time_limit=0.4)
     try:
         with pytest.warns(UserWarning, match=r"could not be captured as a graph \(graphs refused"):
             got = _joint_trajectory(eager, actions)
@@ -227,7 +228,7 @@ def test_every_restart_is_the_cpu_envs_next_reset(workers: int) -> None:
     by reset workers; over three episodes a world starts exactly where the CPU env's resets
     after `reset(seed)` do, and a second `reset(seed)` starts the first episodes again."""
     batch = make_batch(
-        "mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.2, reset_workers=workers
+        "mjkdl/PandaPickCube-v0", WORLDS, **WARP, time_limit=0.2, reset_workers=workers
     )
     procs = [w._proc for w in batch.starts._workers]
     assert len(procs) == workers
@@ -255,7 +256,7 @@ def test_every_restart_is_the_cpu_envs_next_reset(workers: int) -> None:
 
 
 def test_a_dead_reset_worker_is_named() -> None:
-    batch = make_batch("mjkdl/PandaReach-v0", 2, device="cpu", time_limit=0.1, reset_workers=1)
+    batch = make_batch("mjkdl/PandaReach-v0", 2, **WARP, time_limit=0.1, reset_workers=1)
     try:
         batch.reset(seed=0)
         batch.starts._workers[0]._proc.kill()
@@ -282,7 +283,7 @@ def test_a_reset_workers_error_is_raised_with_its_own_message() -> None:
     spec = registry.panda_reach_spec()
     spec.initializers = [*spec.initializers, _FailsInOtherProcesses()]
     with pytest.raises(MjkdlError, match=r"reset worker 0 failed: ValueError: this initializer"):
-        make_batch(spec, 1, device="cpu", reset_workers=1)
+        make_batch(spec, 1, **WARP, reset_workers=1)
 
 
 class ScriptReward:
@@ -297,19 +298,19 @@ def test_reset_workers_refuse_what_the_running_script_defines(monkeypatch) -> No
     spec = registry.panda_reach_spec()
     spec.reward = ScriptReward()
     with pytest.raises(SpecError, match=r"defined in the running script \(__main__\)"):
-        make_batch(spec, 1, device="cpu", reset_workers=1)
+        make_batch(spec, 1, **WARP, reset_workers=1)
 
 
 def test_reset_workers_need_a_picklable_task() -> None:
     spec = registry.panda_reach_spec()
     spec.reward = lambda obs: 0.0
     with pytest.raises(SpecError, match=r"cannot be pickled.*reset_workers=0"):
-        make_batch(spec, 1, device="cpu", reset_workers=1)
+        make_batch(spec, 1, **WARP, reset_workers=1)
     from mjkdl.task.batch import BatchEnv
 
     host = TaskEnv(registry.panda_reach_spec())
     with pytest.raises(SpecError, match="reset workers need `maker`"):
-        BatchEnv(host, 1, "cpu", reset_workers=1)
+        BatchEnv(host, 1, "cpu", engine="warp", reset_workers=1)
     host.close()
 
 
@@ -335,7 +336,7 @@ def test_a_whole_grasp_and_lift_matches_the_cpu_env() -> None:
     follows the CPU env's within 1e-4 m at every step, and the batch ends the episode with
     success in the same step."""
     actions, cubes = _expert_episode("mjkdl/PandaPickCube-v0", 3)
-    batch = make_batch("mjkdl/PandaPickCube-v0", 1, device="cpu")
+    batch = make_batch("mjkdl/PandaPickCube-v0", 1, **WARP)
     try:
         batch.reset(seed=3)
         for k, a in enumerate(actions):
@@ -356,7 +357,7 @@ def test_a_world_out_of_constraint_rows_diverges_and_the_warning_names_the_fix()
     (MuJoCo Warp's own default for this scene) the world's episode ends as diverged, with a
     warning that names the fix, and its next episode starts clean."""
     actions, _ = _expert_episode("mjkdl/PandaPickCube-v0", 3)
-    batch = make_batch("mjkdl/PandaPickCube-v0", 1, device="cpu", njmax=64)
+    batch = make_batch("mjkdl/PandaPickCube-v0", 1, **WARP, njmax=64)
     try:
         batch.reset(seed=3)
         with pytest.warns(UserWarning, match=r"world 0: NEFC.*larger njmax.*now 64"):
@@ -369,7 +370,7 @@ def test_a_world_out_of_constraint_rows_diverges_and_the_warning_names_the_fix()
         assert 1 < steps < len(actions), steps  # in the grasp, before the lift succeeded
         assert bool(terminated[0]) and float(reward[0]) == 0.0
         assert not bool(info["is_success"][0]) and int(batch.episode_steps[0]) == 0
-        assert not bool(batch.state.overflowed()[0])  # the next episode starts clean
+        assert not bool(batch.state.failed()[0])  # the next episode starts clean
     finally:
         batch.close()
 
@@ -377,7 +378,7 @@ def test_a_world_out_of_constraint_rows_diverges_and_the_warning_names_the_fix()
 def test_steps_inside_inference_mode_then_a_reset_outside() -> None:
     """rsl-rl collects rollouts under `torch.inference_mode()`; the batch's own state must
     stay writable by a reset outside it."""
-    batch = make_batch("mjkdl/PandaPickCube-v0", WORLDS, device="cpu", time_limit=0.2)
+    batch = make_batch("mjkdl/PandaPickCube-v0", WORLDS, **WARP, time_limit=0.2)
     try:
         batch.reset(seed=0)
         with torch.inference_mode():
@@ -391,7 +392,7 @@ def test_steps_inside_inference_mode_then_a_reset_outside() -> None:
 
 
 def test_observations_are_device_tensors_and_the_vector_face() -> None:
-    batch = make_batch("mjkdl/PandaReach-v0", 3, device="cpu")
+    batch = make_batch("mjkdl/PandaReach-v0", 3, **WARP)
     try:
         obs, info = batch.reset(seed=0)
         assert isinstance(batch, gym.vector.VectorEnv)
@@ -435,7 +436,7 @@ def test_cuda_without_a_gpu_names_the_fix() -> None:
         make_batch("mjkdl/PandaReach-v0", 2, device="cuda")
     with pytest.warns(UserWarning, match="running on the CPU"):
         batch = make_batch("mjkdl/PandaReach-v0", 1, device="cuda:0", allow_cpu=True)
-    assert batch.device.type == "cpu"
+    assert batch.device.type == "cpu" and batch.state.name == "mujoco"  # the CPU engine
     batch.close()
 
 
@@ -445,7 +446,7 @@ def test_cuda_without_a_gpu_names_the_fix() -> None:
 )
 def test_bad_num_envs(num_envs: int, match: str) -> None:
     with pytest.raises(SpecError, match=match):
-        make_batch("mjkdl/PandaReach-v0", num_envs, device="cpu")
+        make_batch("mjkdl/PandaReach-v0", num_envs, **WARP)
 
 
 @pytest.mark.parametrize(
@@ -453,27 +454,27 @@ def test_bad_num_envs(num_envs: int, match: str) -> None:
 )
 def test_bad_reset_workers(value: object, error: type) -> None:
     with pytest.raises(error, match="reset_workers must be"):
-        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", reset_workers=value)
+        make_batch("mjkdl/PandaReach-v0", 1, **WARP, reset_workers=value)
 
 
 @pytest.mark.parametrize("field", ["njmax", "nconmax"])
 @pytest.mark.parametrize("value", [0, -8, 2.5, True])
 def test_bad_buffer_sizes(field: str, value: object) -> None:
     with pytest.raises(SpecError, match=f"{field} must be a positive integer"):
-        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", **{field: value})
+        make_batch("mjkdl/PandaReach-v0", 1, **WARP, **{field: value})
 
 
 def test_bad_device_and_task() -> None:
     with pytest.raises(SpecError, match="'cuda', 'cuda:N' or 'cpu'"):
         make_batch("mjkdl/PandaReach-v0", 1, device="tpu")
     with pytest.raises(SpecError, match="no registered task 'nope'"):
-        make_batch("nope", 1, device="cpu")
+        make_batch("nope", 1, **WARP)
 
 
 def test_unsupported_scene_feature_is_named() -> None:
     import mujoco
 
-    from mjkdl.task.batch_state import warp_model
+    from mjkdl.task.batch.warp_engine import warp_model
 
     model = mujoco.MjModel.from_xml_string(
         "<mujoco><option integrator='RK4' noslip_iterations='2'/><worldbody><body>"
@@ -490,24 +491,24 @@ def test_physics_randomizer_reflections_and_a_camera_twice_are_refused() -> None
     spec = registry.panda_pick_cube_spec()
     spec.initializers = [*spec.initializers, PhysicsRandomizer(["cube"], mass_scale=(0.5, 2))]
     with pytest.raises(UnsupportedFeatureError, match=r"initializers\[1\] \(PhysicsRandomizer\)"):
-        make_batch(spec, 1, device="cpu")
+        make_batch(spec, 1, **WARP)
     spec = registry.panda_reach_spec()
     spec.sensors = [*spec.sensors, CameraSensor("front", 32, 32, reflections=True)]
     with pytest.raises(
         UnsupportedFeatureError, match=r"sensors\[2\] \(CameraSensor\).*reflections"
     ):
-        make_batch(spec, 1, device="cpu")
+        make_batch(spec, 1, **WARP)
     spec.sensors = [
         *spec.sensors[:2],
         CameraSensor("front", 32, 32),
         CameraSensor("front", 16, 16, name="small"),
     ]
     with pytest.raises(UnsupportedFeatureError, match=r"sensors\[3\].*'front' is observed twice"):
-        make_batch(spec, 1, device="cpu")
+        make_batch(spec, 1, **WARP)
 
 
 def test_bad_actions() -> None:
-    batch = make_batch("mjkdl/PandaReach-v0", 2, device="cpu")
+    batch = make_batch("mjkdl/PandaReach-v0", 2, **WARP)
     try:
         with pytest.raises(RuntimeError, match="before reset"):
             batch.step(torch.zeros(2, 7))
@@ -538,7 +539,7 @@ RGB_PSNR_MIN = 19.0
 def test_cameras_render_every_world_as_the_cpu_env_sees_it() -> None:
     spec = registry.panda_pick_cube_spec()
     spec.sensors = [*spec.sensors, CameraSensor("front", 64, 48, depth=True)]
-    batch = make_batch(spec, WORLDS, device="cpu")
+    batch = make_batch(spec, WORLDS, **WARP)
     cpu_env = TaskEnv(spec)
     try:
         obs, _ = batch.reset(seed=SEED)
@@ -566,9 +567,9 @@ def test_camera_buffers_count_in_the_memory_estimate() -> None:
     spec = registry.panda_reach_spec()
     spec.sensors = [*spec.sensors, CameraSensor("front", 128, 96, depth=True)]
     with pytest.raises(SpecError, match="GiB") as cams:
-        make_batch(spec, 10**8, device="cpu")
+        make_batch(spec, 10**8, **WARP)
     with pytest.raises(SpecError, match="GiB") as plain:
-        make_batch(registry.panda_reach_spec(), 10**8, device="cpu")
+        make_batch(registry.panda_reach_spec(), 10**8, **WARP)
 
     def kib(err: pytest.ExceptionInfo) -> int:
         return int(re.search(r"\((\d+) KiB per world\)", str(err.value)).group(1))

@@ -1,4 +1,4 @@
-"""The PPO recipe (rsl-rl on `make_batch`) end to end at a small scale on Warp's CPU device."""
+"""The PPO recipe (rsl-rl on `make_batch`) end to end at a small scale on the CPU engine."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ torch = import_extra("warp-rl", "torch")
 from tensordict import TensorDict  # noqa: E402
 
 from mjkdl.errors import SpecError  # noqa: E402
-from mjkdl.task.batch_ppo import DEFAULT_RECIPE, RslRlEnv, recipe, train  # noqa: E402
+from mjkdl.task.batch.ppo import DEFAULT_RECIPE, RslRlEnv, recipe, train  # noqa: E402
 
 
 def test_recipe_trains_end_to_end_and_the_policy_acts() -> None:
@@ -56,7 +56,9 @@ def test_the_pick_recipe_acts_top_down_on_both_backends() -> None:
 
 
 def test_recipes_and_unbounded_episodes() -> None:
-    assert recipe("mjkdl/PandaPickCube-v0").num_envs == 4096
+    pick = recipe("mjkdl/PandaPickCube-v0")
+    assert pick.num_envs == 4096 == pick.worlds("cuda:0")
+    assert pick.worlds("cpu") == 64  # no recipe runs a GPU's thousands of worlds on a CPU
     assert recipe("mjkdl/SomeNewTask-v0").iterations == DEFAULT_RECIPE.iterations
     from mjkdl.task import make_batch, registry
 

@@ -64,8 +64,10 @@ def test_reached_and_lifted() -> None:
 
 def test_lift_reward_stages() -> None:
     r = LiftReward("tcp_pos", "cube_pose", "cube_contacts", rest_z=0.02, lift=0.05)
-    # Far away, at rest: 0.25 * (1 - tanh(5)).
-    assert r(obs([0, 0, 0.52], [0, 0, 0.02])) == pytest.approx(0.25 * (1 - math.tanh(5.0)))
+    # Far away (0.5 m, where PickCube's episodes start), at rest: 0.25 * (1 - tanh(0.5 / 0.3)),
+    # a reward with a gradient (0.1 m paid 0.25 * (1 - tanh(5)) = 2.3e-5).
+    far = r(obs([0, 0, 0.52], [0, 0, 0.02]))
+    assert far == pytest.approx(0.25 * (1 - math.tanh(0.5 / 0.3))) and far > 0.015
     # TCP on the cube, one finger touching: reach only.
     assert r(obs([0, 0, 0.02], [0, 0, 0.02], (1, 0))) == pytest.approx(0.25)
     # Grasped at rest, then raised 2 cm of 5: 0.25 + 0.25 + 0.25 * 0.4.
@@ -314,3 +316,22 @@ def test_every_rule_evaluates_batches_as_it_evaluates_one_world() -> None:
         np.testing.assert_allclose(got.numpy().astype(float), one, rtol=0, atol=1e-12)
     # A success of the user's own (no `evaluate`) keeps a reward on the host.
     assert not batchable(SparseReward(lambda o: True))
+
+
+def test_pick_cube_pays_a_gradient_from_the_first_step() -> None:
+    """PickCube's hand starts about 0.5 m from the cube: its first step pays a median 0.016
+    over 20 seeds (a reach scale of 0.3 m), where a 0.1 m scale paid 1.8e-5."""
+    import gymnasium as gym
+    from conftest import menagerie
+
+    import mjkdl.task  # noqa: F401  (registers the tasks)
+
+    menagerie("franka_emika_panda")
+    env = gym.make("mjkdl/PandaPickCube-v0")
+    rewards = []
+    for seed in range(20):
+        env.reset(seed=seed)
+        rewards.append(env.step(np.zeros(7, np.float32))[1])
+    env.close()
+    assert 0.014 < float(np.median(rewards)) < 0.018, np.median(rewards)
+    assert min(rewards) > 0.01

@@ -100,16 +100,17 @@ def __dir__() -> list[str]:
 
 
 def __getattr__(name: str) -> object:
-    """`make_batch` and `BatchEnv` (MuJoCo Warp, torch: the `warp` extra) load on first use."""
+    """`make_batch` and `BatchEnv` (torch: the `batch` extra; MuJoCo Warp on a GPU: the `warp`
+    extra) load on first use."""
     if name in _LAZY:
         try:
             from . import batch
         except ModuleNotFoundError as missing:
-            if missing.name not in ("torch", "warp", "mujoco_warp"):
+            if missing.name != "torch":
                 raise
             raise ImportError(
-                f"mjkdl.task.{name} needs the warp extra ({missing.name} is not installed): "
-                "pip install 'mjkdl[warp]'"
+                f"mjkdl.task.{name} needs the batch extra (torch is not installed): "
+                "pip install 'mjkdl[batch]'"
             ) from None
         return getattr(batch, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -272,6 +272,10 @@ class LiftReward:
     0.25 while it is grasped (touching every body of `contacts`), plus, while grasped, up to
     0.25 for the height gained towards `lift`: at most 0.75. A success step (`Held` with the
     same fields) pays 1.
+
+    `reach_scale` 0.3 m gives a learner a gradient from where PickCube's episodes start, the
+    hand about 0.5 m from the cube: the first step pays 0.016 there (median over 20 seeds),
+    where 0.1 m paid 1.8e-5 (tanh saturates beyond three scales).
     """
 
     tcp: str
@@ -279,7 +283,7 @@ class LiftReward:
     contacts: str
     rest_z: float
     lift: float
-    reach_scale: float = 0.1
+    reach_scale: float = 0.3
 
     def __post_init__(self) -> None:
         text(self.tcp, "LiftReward.tcp")

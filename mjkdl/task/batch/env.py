@@ -1,12 +1,14 @@
-"""`make_batch`: a task run as many worlds at once on MuJoCo Warp, with batched torch tensors.
+"""`make_batch`: a task run as many worlds at once, with batched torch tensors.
 
 The CPU env (`TaskEnv`) stays the one definition of a task: the batch builds one from the
 same `TaskSpec` (or registered id and parameters) and takes from it the compiled model, the
 action layout, the observation readers, the arms' controllers and the task's own reward,
-success and termination callables. Resets run the CPU env's reset on the host, world by
-world with the world's own generator, and upload the state, so world `i` after
-`reset(seed=s)` starts the episode `TaskEnv.reset(seed=s + i)` starts; each world's next
-start is computed ahead, while the device steps (`batch_reset.EpisodeStarts`).
+success and termination callables. The physics runs on an engine (`engine.Engine`): MuJoCo's
+own batch on the CPU's threads (`cpu_engine`), or MuJoCo Warp on a GPU (`warp_engine`).
+Resets run the CPU env's reset on the host, world by world with the world's own generator,
+and write the state, so world `i` after `reset(seed=s)` starts the episode
+`TaskEnv.reset(seed=s + i)` starts; each world's next start is computed ahead, while the
+engine steps (`reset.EpisodeStarts`).
 """
 
 from __future__ import annotations
@@ -21,27 +23,32 @@ import numpy as np
 import torch
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from ..errors import MjkdlError, SpecError, SpecTypeError
-from .batch_cameras import image_bytes
-from .batch_control import BatchArm
-from .batch_reset import EpisodeStarts, check_picklable
-from .batch_sensors import BatchObserver
-from .batch_state import (
-    DeviceState,
-    UnsupportedFeatureError,
-    as_numpy,
-    warp_model,
-    warp_modules,
-)
-from .env import TaskEnv
-from .goal import GoalTaskEnv
-from .initializers import PhysicsRandomizer
-from .rewards import batchable
-from .spec import TaskSpec
+from ...errors import MjkdlError, SpecError, SpecTypeError
+from ..env import TaskEnv
+from ..goal import GoalTaskEnv
+from ..initializers import PhysicsRandomizer
+from ..rewards import batchable
+from ..spec import TaskSpec
+from . import cpu_engine, warp_engine
+from .cameras import image_bytes
+from .control import BatchArm
+from .engine import Engine, UnsupportedFeatureError, as_numpy
+from .reset import EpisodeStarts, check_picklable
+from .sensors import BatchObserver
 
-__all__ = ["BatchEnv", "DeviceUnavailableError", "UnsupportedFeatureError", "make_batch"]
+__all__ = [
+    "ENGINES",
+    "BatchEnv",
+    "DeviceUnavailableError",
+    "UnsupportedFeatureError",
+    "make_batch",
+]
 
-MEMORY_SHARE = 0.8  # of the device's free memory a batch may plan to take
+ENGINES = ("mujoco", "warp")
+"""`make_batch`'s engines: MuJoCo's own batch on the CPU, MuJoCo Warp (GPU, or its CPU
+device for testing kernels)."""
+
+MEMORY_SHARE = 0.8  # of the device's available memory a batch may plan to take
 # MuJoCo Warp's buffers: constraint rows per world, and contacts per world pooled over all
 # worlds (nconmax x num_envs). Its own defaults (64 rows for a Panda scene) overflow in a
 # grasp: measured peaks over the experts' episodes, PickCube 129 rows and 32 contacts, Stack
@@ -57,8 +64,10 @@ class DeviceUnavailableError(MjkdlError, RuntimeError):
 def make_batch(
     task: str | TaskSpec,
     num_envs: int,
-    device: str = "cuda:0",
+    device: str | None = None,
     *,
+    engine: str | None = None,
+    threads: int | None = None,
     allow_cpu: bool = False,
     nconmax: int | None = None,
     njmax: int | None = None,
@@ -67,24 +76,50 @@ def make_batch(
     **kwargs: Any,
 ) -> BatchEnv:
     """`num_envs` worlds of `task` (a registered id with its parameters as `kwargs`, or a
-    `TaskSpec`) on MuJoCo Warp's `device` ("cuda", "cuda:N" or "cpu").
+    `TaskSpec`) on `device` ("cpu", "cuda" or "cuda:N"; None: a CUDA GPU when torch has
+    one, else the CPU; a GPU that MuJoCo Warp cannot use, or MuJoCo Warp not installed, falls
+    back to the CPU with a warning).
 
-    Without a GPU, `device="cuda..."` raises unless `allow_cpu`, which runs on the CPU with a
-    warning. `njmax` is MuJoCo Warp's constraint rows per world, `nconmax` its contacts per
-    world, pooled over all worlds (None: `DEFAULT_NJMAX`, `DEFAULT_NCONMAX`, room for the
-    registered tasks' grasps). A world that overflows its rows ends its episode as diverged;
-    an overflow of the contact pool ends every world's. `max_episode_steps` overrides the
-    registered time limit. `reset_workers` processes compute the worlds' episode starts in
-    parallel (each builds a copy of the task; 0: this process): on a GPU, where one core
-    resets the finished worlds slower than the device steps them all.
+    The engine follows the device: on the CPU MuJoCo's own batch (`engine="mujoco"`,
+    `mujoco.batch`, float64, bit for bit the CPU env's physics) on `threads` threads (None:
+    the cores this process may use), on a GPU MuJoCo Warp (`engine="warp"`, float32);
+    `engine="warp"` with `device="cpu"` runs MuJoCo Warp's CPU device, slow, for testing its
+    kernels. Without a GPU, `device="cuda..."` raises unless `allow_cpu`, which runs the CPU
+    engine with a warning. MuJoCo Warp only: `njmax` is its constraint rows per world,
+    `nconmax` its contacts per world, pooled over all worlds (None: `DEFAULT_NJMAX`,
+    `DEFAULT_NCONMAX`, room for the registered tasks' grasps); a world that overflows its
+    rows ends its episode as diverged, an overflow of the contact pool ends every world's.
+    `max_episode_steps` overrides the registered time limit. `reset_workers` processes
+    compute the worlds' episode starts in parallel (each builds a copy of the task; 0: this
+    process): on a GPU, where one core resets the finished worlds slower than the device
+    steps them all.
     """
+    _check_engine(engine, device)
     device = _device(device, allow_cpu)
+    if engine is None:
+        engine = "warp" if device.startswith("cuda") else "mujoco"
     if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
         raise SpecTypeError(f"num_envs must be a positive integer, got {num_envs!r}")
     if num_envs <= 0:
         raise SpecError(f"num_envs must be a positive integer, got {num_envs}")
-    nconmax = DEFAULT_NCONMAX if nconmax is None else _room(nconmax, "nconmax")
-    njmax = DEFAULT_NJMAX if njmax is None else _room(njmax, "njmax")
+    if engine == "warp":
+        if threads is not None:
+            raise SpecError(f"threads={threads!r} is the CPU engine's (engine='mujoco')")
+        nconmax = DEFAULT_NCONMAX if nconmax is None else _room(nconmax, "nconmax")
+        njmax = DEFAULT_NJMAX if njmax is None else _room(njmax, "njmax")
+    else:
+        for field, value in (("nconmax", nconmax), ("njmax", njmax)):
+            if value is not None:
+                raise SpecError(
+                    f"{field}={value!r} sizes MuJoCo Warp's buffers (engine='warp'); MuJoCo's "
+                    "own batch sizes its arena from the model"
+                )
+        if threads is None:
+            threads = cpu_engine.available_threads()
+        elif isinstance(threads, bool) or not isinstance(threads, (int, np.integer)):
+            raise SpecTypeError(f"threads must be a positive integer, got {threads!r}")
+        elif threads <= 0:
+            raise SpecError(f"threads must be a positive integer, got {threads}")
     if isinstance(reset_workers, bool) or not isinstance(reset_workers, (int, np.integer)):
         raise SpecTypeError(f"reset_workers must be a whole number, got {reset_workers!r}")
     if reset_workers < 0:
@@ -121,6 +156,8 @@ def make_batch(
             host,
             num_envs,
             device,
+            engine=engine,
+            threads=int(threads or 1),
             nconmax=nconmax,
             njmax=njmax,
             horizon=horizon,
@@ -145,50 +182,67 @@ def _room(value: object, field: str) -> int:
     return int(value)
 
 
+def _check_engine(engine: object, device: object) -> None:
+    if engine is not None and engine not in ENGINES:
+        raise SpecError(f"engine must be one of {list(ENGINES)} or None, got {engine!r}")
+    if engine == "mujoco" and isinstance(device, str) and device.startswith("cuda"):
+        raise SpecError(f"engine='mujoco' (MuJoCo's own batch) runs on the CPU, not {device!r}")
+
+
 def _device(device: object, allow_cpu: bool) -> str:
+    if device is None:  # a GPU that torch and MuJoCo Warp can use, else (with a warning) the CPU
+        return _device("cuda:0", allow_cpu=True) if torch.cuda.is_available() else "cpu"
     if not isinstance(device, str):
         raise SpecTypeError(f"device must be 'cuda', 'cuda:N' or 'cpu', got {device!r}")
     if device == "cpu":
         return device
     if device != "cuda" and not (device.startswith("cuda:") and device[5:].isdigit()):
         raise SpecError(f"device must be 'cuda', 'cuda:N' or 'cpu', got {device!r}")
-    wp, _ = warp_modules()
-    count = wp.get_cuda_device_count()
     index = 0 if device == "cuda" else int(device[5:])
-    if index < count and torch.cuda.is_available():
-        return f"cuda:{index}"
-    why = (
-        "this machine has no CUDA GPU that Warp can use"
-        if count == 0
-        else f"Warp sees {count} CUDA device(s)"
-        if index >= count
-        else "this torch build has no CUDA"
-    )
+    if not torch.cuda.is_available():
+        why = "torch sees no CUDA GPU here (no GPU, or a CPU build of torch)"
+    else:
+        try:
+            wp, _ = warp_engine.warp_modules()
+        except ImportError:
+            wp = None
+        count = 0 if wp is None else wp.get_cuda_device_count()
+        if index < count:
+            return f"cuda:{index}"
+        why = (
+            "MuJoCo Warp is not installed (pip install 'mjkdl[warp]')"
+            if wp is None
+            else f"Warp sees {count} CUDA device(s)"
+        )
     if allow_cpu:
-        warnings.warn(f"device={device!r}: {why}; running on the CPU", stacklevel=3)
+        warnings.warn(
+            f"device={device!r}: {why}; running on the CPU (MuJoCo's own batch)", stacklevel=3
+        )
         return "cpu"
     raise DeviceUnavailableError(
-        f"device={device!r}: {why}. Pass device='cpu' (MuJoCo Warp's CPU device, slow), or "
-        "allow_cpu=True to fall back with a warning, or run on a machine with an NVIDIA GPU "
-        "(and a CUDA build of torch)"
+        f"device={device!r}: {why}. Pass device='cpu' (MuJoCo's own batch on the CPU's "
+        "threads), or allow_cpu=True to fall back with a warning, or run on a machine with an "
+        "NVIDIA GPU (and a CUDA build of torch)"
     )
 
 
 class BatchEnv(VectorEnv):
-    """`num_envs` worlds of one task on MuJoCo Warp; Gymnasium's `VectorEnv` interface.
+    """`num_envs` worlds of one task on an engine; Gymnasium's `VectorEnv` interface.
 
-    `reset(seed=s)` and `step(actions)` return torch tensors on `device` (float32 for
-    observations and rewards, bool for terminated/truncated): observations a dict of
+    `reset(seed=s)` and `step(actions)` return torch tensors on `device` (observations and
+    rewards in the engine's `dtype`: float64 on the CPU engine, float32 on MuJoCo Warp; bool
+    for terminated/truncated): observations a dict of
     `(num_envs, ...)` tensors, as the CPU env's observation space (goal-conditioned tasks:
     `observation`, `achieved_goal`, `desired_goal`). `actions` is a `(num_envs, n)` tensor
     (or array) in the CPU env's action space. Finished worlds start their next episode in
     the same step (Gymnasium's SAME_STEP autoreset): their returned observation is the new
     episode's, `info["final_obs"]` holds the last one for every world (rows of finished
     worlds are meaningful) and `info["_final"]` marks them. `info["is_success"]` and
-    `info["diverged"]` are bool tensors; a world diverges when its state stops being finite
-    or when MuJoCo Warp drops its constraints or contacts for lack of room (its rows, or the
-    contact pool all worlds share: then every world; a warning names the fix): its episode
-    ends (`terminated`, reward 0).
+    `info["diverged"]` are bool tensors; a world diverges when its state stops being finite,
+    when MuJoCo raises an error in it (CPU engine) or when MuJoCo Warp drops its constraints
+    or contacts for lack of room (its rows, or the contact pool all worlds share: then every
+    world): its episode ends (`terminated`, reward 0); MuJoCo's errors and MuJoCo Warp's
+    overflows come with a warning that says what happened.
 
     The task's reward, success and termination rules (`mjkdl.task.rewards`, the same objects
     the CPU env calls) evaluate every world at once as torch operations on the device, in
@@ -204,8 +258,10 @@ class BatchEnv(VectorEnv):
         num_envs: int,
         device: str,
         *,
-        nconmax: int = DEFAULT_NCONMAX,
-        njmax: int = DEFAULT_NJMAX,
+        engine: str = "warp",
+        threads: int = 1,
+        nconmax: int | None = DEFAULT_NCONMAX,
+        njmax: int | None = DEFAULT_NJMAX,
         horizon: int | None = None,
         reset_workers: int = 0,
         maker: Callable[[], TaskEnv] | None = None,
@@ -221,10 +277,18 @@ class BatchEnv(VectorEnv):
                     "episode; the batched worlds share one model, so it runs only in the CPU env"
                 )
         host.reset(seed=0)  # configures the arms' actuators (Robot control modes) in the model
-        model = host.scene.model
-        images = image_bytes(host.readers, model)
-        _check_memory(model, host.scene.data, num_envs, device, nconmax, njmax, images)
-        self.state = DeviceState(model, host.scene.data, num_envs, device, nconmax, njmax)
+        model, data = host.scene.model, host.scene.data
+        self.state: Engine
+        if engine == "warp":
+            per_world, shared = warp_engine.world_bytes(model, data, device, nconmax, njmax)
+            per_world += image_bytes(host.readers, model)
+            _check_memory(per_world, shared, num_envs, device, "(or smaller nconmax/njmax)")
+            self.state = warp_engine.WarpEngine(model, data, num_envs, device, nconmax, njmax)
+        else:
+            per_world, shared = cpu_engine.world_bytes(model, threads)
+            _check_memory(per_world, shared, num_envs, device, "(or fewer threads)")
+            self.state = cpu_engine.CpuEngine(model, data, num_envs, threads)
+        self.dtype = self.state.dtype
         self.observer = BatchObserver(host, self.state)
         self.state.tcps.update(self.observer.tcps)  # the arms' TCPs, shared with control
         self.arms = [BatchArm(eff, model, self.state) for eff in host.effectors]
@@ -236,14 +300,14 @@ class BatchEnv(VectorEnv):
             limit = min(limit, horizon)
         self.max_episode_steps = limit
         self._hold_steps = host.success_hold_steps
-        dev = self.device
+        dev, dtype = self.device, self.dtype
         low, high = host.action_bounds
-        self._low = torch.as_tensor(low, device=dev, dtype=torch.float32)
-        self._high = torch.as_tensor(high, device=dev, dtype=torch.float32)
+        self._low = torch.as_tensor(low, device=dev, dtype=dtype)
+        self._high = torch.as_tensor(high, device=dev, dtype=dtype)
         self._normalized = spec.normalize_actions
         if self._normalized:  # as the CPU env scales [-1, 1] onto the bounds
-            self._mid = torch.as_tensor(0.5 * (high + low), device=dev, dtype=torch.float32)
-            self._half = torch.as_tensor(0.5 * (high - low), device=dev, dtype=torch.float32)
+            self._mid = torch.as_tensor(0.5 * (high + low), device=dev, dtype=dtype)
+            self._half = torch.as_tensor(0.5 * (high - low), device=dev, dtype=dtype)
         self._steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._held = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self.starts = EpisodeStarts(host, self.state, self.arms, num_envs, reset_workers, maker)
@@ -285,10 +349,11 @@ class BatchEnv(VectorEnv):
                 raise SpecError(f"reset(seed=[...]) needs {self.num_envs} seeds, got {len(seeds)}")
             self.starts.seed(seeds)
         rows = torch.ones(self.num_envs, dtype=torch.bool, device=self.device)
-        self._reset_rows(rows)
-        self._needs_reset = False
-        obs = self.observer.read()
-        success = self._evaluate(obs, rows)[1]
+        with self.state.host_work():
+            self._reset_rows(rows)
+            self._needs_reset = False
+            obs = self.observer.read()
+            success = self._evaluate(obs, rows)[1]
         return self._shown(obs), {"is_success": success, "diverged": ~rows}
 
     def step(
@@ -298,16 +363,22 @@ class BatchEnv(VectorEnv):
         self._check_open()
         if self._needs_reset:
             raise RuntimeError("BatchEnv.step() before reset(): call reset() first")
+        with self.state.host_work():
+            return self._step(actions)
+
+    def _step(
+        self, actions: Any
+    ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor, torch.Tensor, dict[str, Any]]:
         a = self._checked(actions)
         for arm in self.arms:
             arm.apply(a, self._period)
         self.state.step(self._substeps)
         self.starts.prefetch()  # on a GPU, while the physics runs
         s = self.state
-        overflowed = s.overflowed()
-        diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1)) | overflowed
-        if bool(overflowed.any()):
-            warnings.warn(s.overflow_message(overflowed), stacklevel=2)
+        failed = s.failed()
+        diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1)) | failed
+        if bool(failed.any()):
+            warnings.warn(s.failure_message(failed), stacklevel=4)
         obs = self.observer.read()
         self._steps += 1
         reward, success, terminated = self._evaluate(obs, ~diverged)
@@ -347,8 +418,8 @@ class BatchEnv(VectorEnv):
         """Worlds `rows` start their next episode (the CPU env's reset with the world's
         generator, `EpisodeStarts`); then one `mj_forward` of every world."""
         self.starts.start(rows)
-        self.state.overflow[rows] = 0
-        self.state.forward(keep=~rows)
+        self.state.clear(rows)
+        self.state.forward(rows)
         self._steps[rows] = 0
         self._held[rows] = 0
 
@@ -364,7 +435,7 @@ class BatchEnv(VectorEnv):
         host_obs: dict[str, np.ndarray] | None = None
         out = []
         for fn, dtype in (
-            (spec.reward, torch.float32),
+            (spec.reward, self.dtype),
             (spec.success, torch.bool),
             (spec.terminated, torch.bool),
         ):
@@ -376,7 +447,7 @@ class BatchEnv(VectorEnv):
             else:
                 if host_obs is None:
                     host_obs = {k: as_numpy(v) for k, v in obs.items()}
-                kind = float if dtype is torch.float32 else bool
+                kind = bool if dtype is torch.bool else float
                 rows = np.zeros(self.num_envs, dtype=kind)
                 for i in torch.nonzero(live).flatten().tolist():
                     rows[i] = kind(fn({k: v[i] for k, v in host_obs.items()}))
@@ -400,7 +471,7 @@ class BatchEnv(VectorEnv):
         return {k: obs[k] for k in shown}
 
     def _checked(self, actions: Any) -> torch.Tensor:
-        a = torch.as_tensor(actions, device=self.device, dtype=torch.float32)
+        a = torch.as_tensor(actions, device=self.device, dtype=self.dtype)
         shape = (self.num_envs, len(self.action_labels))
         if tuple(a.shape) != shape:
             raise SpecError(
@@ -428,6 +499,7 @@ class BatchEnv(VectorEnv):
         """Release the host env; later calls raise RuntimeError."""
         if not self.closed:
             self.starts.close()
+            self.state.close()
             self.host.close()
         self.closed = True
 
@@ -457,59 +529,28 @@ def _rows(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
     return mask.reshape((-1,) + (1,) * (like.dim() - 1))
 
 
-def world_bytes(
-    model: Any, data: Any, device: str, nconmax: int | None, njmax: int | None
-) -> tuple[int, int]:
-    """(bytes per world, bytes shared) of MuJoCo Warp's data, measured from a one- and a
-    two-world allocation (small: made and freed before the real one)."""
-    wp, mjw = warp_modules()
-    sizes = []
-    with wp.ScopedDevice(wp.get_device(device)):
-        warp_model(model)  # fails first, with the feature named, on an unsupported scene
-        for n in (1, 2):
-            d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
-            sizes.append(_nbytes(d))
-            del d
-    return sizes[1] - sizes[0], 2 * sizes[0] - sizes[1]
-
-
-def _nbytes(obj: Any, seen: set[int] | None = None) -> int:
-    wp, _ = warp_modules()
-    seen = set() if seen is None else seen
-    total = 0
-    for value in vars(obj).values():
-        if id(value) in seen:
-            continue
-        seen.add(id(value))
-        if isinstance(value, wp.array):
-            total += int(value.capacity)
-        elif hasattr(value, "__dataclass_fields__"):
-            total += _nbytes(value, seen)
-    return total
-
-
 def _free_bytes(device: str) -> int:
+    """Memory a batch may take on `device`: a GPU's free memory; on the CPU the kernel's
+    estimate of what is available without swapping (`MemAvailable`: free memory and the
+    page cache it can reclaim), else the free pages."""
     if device.startswith("cuda"):
         free, _ = torch.cuda.mem_get_info(torch.device(device))
         return int(free)
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
     import os
 
     return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
 
 
-def _check_memory(
-    model: Any,
-    data: Any,
-    num_envs: int,
-    device: str,
-    nconmax: int | None,
-    njmax: int | None,
-    images: int = 0,
-) -> None:
-    """Refuse, before allocating, a batch whose MuJoCo Warp data (and `images` bytes per
-    world of camera buffers) would not fit the device."""
-    per_world, shared = world_bytes(model, data, device, nconmax, njmax)
-    per_world += images
+def _check_memory(per_world: int, shared: int, num_envs: int, device: str, fix: str) -> None:
+    """Refuse, before allocating, a batch of `num_envs` worlds of `per_world` bytes each
+    (and `shared` bytes) that would not fit the memory available on `device`."""
     need = shared + per_world * num_envs
     free = _free_bytes(device)
     if need > MEMORY_SHARE * free:
@@ -517,6 +558,5 @@ def _check_memory(
         raise SpecError(
             f"num_envs={num_envs} needs about {need / 2**30:.2f} GiB on {device} "
             f"({per_world / 2**10:.0f} KiB per world), more than {MEMORY_SHARE:.0%} of the "
-            f"{free / 2**30:.2f} GiB free; use at most about {fits} worlds (or smaller "
-            "nconmax/njmax)"
+            f"{free / 2**30:.2f} GiB available; use at most about {fits} worlds {fix}"
         )

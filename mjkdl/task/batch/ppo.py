@@ -21,10 +21,10 @@ from rsl_rl.env import VecEnv
 from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
-from ..errors import SpecError
-from .batch import BatchEnv, make_batch
-from .registry import actuation
-from .spec import Actuation
+from ...errors import SpecError
+from ..registry import actuation
+from ..spec import Actuation
+from .env import BatchEnv, make_batch
 
 
 class RslRlEnv(VecEnv):
@@ -79,20 +79,27 @@ class RslRlEnv(VecEnv):
             "time_outs": truncated & ~terminated,
             "log": {"/success": success.float().mean()},
         }
-        return self._obs, reward, done.long(), extras
+        return self._obs, reward.float(), done.long(), extras
 
 
 @dataclass
 class Recipe:
-    """PPO settings for one task: worlds, rollout length, iterations, rsl-rl's config and the
-    task's parameters (`make_batch`'s and `gymnasium.make`'s keywords, e.g. the action's
-    `cartesian_axes`)."""
+    """PPO settings for one task: worlds on a GPU, rollout length, iterations, rsl-rl's
+    config, the task's parameters (`make_batch`'s and `gymnasium.make`'s keywords, e.g. the
+    action's `cartesian_axes`) and the worlds on the CPU engine."""
 
     num_envs: int
     num_steps_per_env: int
     iterations: int
     config: dict[str, Any] = field(default_factory=dict)
     task_kwargs: dict[str, Any] = field(default_factory=dict)
+    cpu_num_envs: int = 64
+    """Worlds on the CPU engine: thousands of worlds step at a few thousand world-steps a
+    second there, so a GPU's count would make each rollout take minutes."""
+
+    def worlds(self, device: str) -> int:
+        """The recipe's worlds on `device`: `num_envs` on a GPU, `cpu_num_envs` otherwise."""
+        return self.num_envs if device.startswith("cuda") else self.cpu_num_envs
 
     def parameters(self, overrides: dict[str, Any]) -> dict[str, Any]:
         """The task's parameters: the recipe's, then `overrides`. A joint-space `actuation`
@@ -159,7 +166,7 @@ def recipe(task_id: str) -> Recipe:
 
 def auto_reset_workers(device: str) -> int:
     """Reset workers for a batch on `device`: on a GPU all cores but two (at most 15), which
-    keep up with thousands of worlds; none on the CPU device, whose physics shares the cores."""
+    keep up with thousands of worlds; none on the CPU, whose physics takes every core."""
     if not device.startswith("cuda"):
         return 0
     return max(0, min(15, (os.cpu_count() or 1) - 2))
@@ -177,7 +184,7 @@ class TrainResult:
 def train(
     task_id: str,
     *,
-    device: str = "cuda:0",
+    device: str | None = None,
     num_envs: int | None = None,
     num_steps_per_env: int | None = None,
     iterations: int | None = None,
@@ -186,13 +193,16 @@ def train(
     reset_workers: int | None = None,
     **task_kwargs: Any,
 ) -> TrainResult:
-    """PPO (rsl-rl) on `task_id`'s recipe, any of its numbers overridden; `task_kwargs` go to
-    the task (`time_limit`, `reward_type`, ...) over the recipe's own; `reset_workers`
-    as `make_batch`'s (None: `auto_reset_workers(device)`). The worlds start spread over
-    the episode (rsl-rl's `init_at_random_ep_len`). Returns the runner with the trained
-    policy."""
+    """PPO (rsl-rl) on `task_id`'s recipe, any of its numbers overridden, on `device` (None:
+    a GPU if torch has one, else the CPU engine; the recipe's worlds for it,
+    `Recipe.worlds`); `task_kwargs` go to the task (`time_limit`, `reward_type`, ...) over
+    the recipe's own; `reset_workers` as `make_batch`'s (None: `auto_reset_workers(device)`).
+    The worlds start spread over the episode (rsl-rl's `init_at_random_ep_len`). Returns the
+    runner with the trained policy."""
     r = recipe(task_id)
-    envs = num_envs or r.num_envs
+    if device is None:
+        device = "cuda:0" if torch.cuda.is_available() else "cpu"
+    envs = num_envs or r.worlds(device)
     steps = num_steps_per_env or r.num_steps_per_env
     iters = iterations or r.iterations
     torch.manual_seed(seed)

@@ -1,4 +1,4 @@
-"""A task's observations for every world at once, read from MuJoCo Warp's arrays.
+"""A task's observations for every world at once, read from the engine's arrays.
 
 Each source mirrors one of the CPU env's bound readers (`ArmReader`, `PoseReader`,
 `RelativeReader`, `ContactReader`; `CameraReader`s through `BatchCameras`), built from the
@@ -14,37 +14,38 @@ from typing import TYPE_CHECKING
 import mujoco
 import torch
 
-from ..names import model_id
-from .batch_cameras import BatchCameras
-from .batch_state import DeviceState, Tcp, UnsupportedFeatureError, mat_to_quat
-from .sensors import ArmReader, CameraReader, ContactReader, PoseReader, RelativeReader
-from .spec import CameraSensor, ContactSensor, RelativePositionSensor
+from ...names import model_id
+from ..sensors import ArmReader, CameraReader, ContactReader, PoseReader, RelativeReader
+from ..spec import CameraSensor, ContactSensor, RelativePositionSensor
+from .engine import Engine, Tcp, UnsupportedFeatureError, mat_to_quat
+from .warp_engine import WarpEngine
 
 if TYPE_CHECKING:
-    from .env import TaskEnv
+    from ..env import TaskEnv
+    from .cameras import BatchCameras
 
 Source = Callable[[], dict[str, torch.Tensor]]
 
 
-def arm_tcp(reader: ArmReader, device: str, model: mujoco.MjModel) -> Tcp:
-    """The TCP an `ArmReader` reads, as device tensors."""
+def arm_tcp(reader: ArmReader, state: Engine, model: mujoco.MjModel) -> Tcp:
+    """The TCP an `ArmReader` reads, as tensors of the engine's device and dtype."""
     kind, ref = reader.tcp_reference
     site = ref if kind == mujoco.mjtObj.mjOBJ_SITE else -1
     body = int(model.site_bodyid[site]) if site >= 0 else ref
-    f32 = torch.float32
+    device, dtype = state.device, state.dtype
     pos, rot = reader.tcp_offset
     return Tcp(
         site=site,
         body=body,
-        offset=torch.as_tensor(pos, device=device, dtype=f32),
-        rotation=torch.as_tensor(rot, device=device, dtype=f32),
+        offset=torch.as_tensor(pos, device=device, dtype=dtype),
+        rotation=torch.as_tensor(rot, device=device, dtype=dtype),
     )
 
 
 class BatchObserver:
     """Reads every observation of the CPU env `host` (hidden ones too) for all worlds."""
 
-    def __init__(self, host: TaskEnv, state: DeviceState) -> None:
+    def __init__(self, host: TaskEnv, state: Engine) -> None:
         model = host.scene.model
         self._state = state
         self.tcps: dict[str, Tcp] = {}
@@ -55,10 +56,10 @@ class BatchObserver:
             host.task_spec.arms, readers[:n_arms], host.effectors, strict=True
         ):
             assert isinstance(reader, ArmReader)
-            tcp = arm_tcp(reader, state.device, model)
+            tcp = arm_tcp(reader, state, model)
             self.tcps[arm.name] = tcp
             self._sources.append(self._arm(reader, tcp, eff, model))
-        cameras = []
+        cameras: list[tuple[CameraSensor, CameraReader, str]] = []
         for i, (sensor, reader) in enumerate(
             zip(host.task_spec.sensors, readers[n_arms:], strict=True)
         ):
@@ -68,8 +69,17 @@ class BatchObserver:
                 cameras.append((sensor, reader, where))
             else:
                 self._sources.append(self._sensor(sensor, reader, model, where))
-        self.cameras = BatchCameras(cameras, model, state) if cameras else None
-        if self.cameras is not None:
+        self.cameras: BatchCameras | None = None
+        if cameras:
+            if not isinstance(state, WarpEngine):
+                raise UnsupportedFeatureError(
+                    f"{cameras[0][2]} (CameraSensor): the {state.name!r} engine renders no "
+                    "cameras; make_batch(..., engine='warp') renders them (MuJoCo Warp), or "
+                    "use the CPU env"
+                )
+            from .cameras import BatchCameras
+
+            self.cameras = BatchCameras(cameras, model, state)
             self._sources.append(self.cameras.read)
 
     def read(self) -> dict[str, torch.Tensor]:
@@ -77,7 +87,7 @@ class BatchObserver:
         out: dict[str, torch.Tensor] = {}
         for source in self._sources:
             out.update(source())
-        out["time"] = self._state.time.reshape(-1, 1)
+        out["time"] = self._state.time.reshape(-1, 1).clone()  # not the engine's live array
         return out
 
     def _arm(self, reader: ArmReader, tcp: Tcp, eff: object, model: mujoco.MjModel) -> Source:
@@ -165,8 +175,8 @@ class BatchObserver:
         k = len(others)
 
         def read() -> dict[str, torch.Tensor]:
-            out = torch.zeros(s.nworld * k, device=dev)
-            world, g1, g2 = s.contacts()
+            out = torch.zeros(s.nworld * k, device=dev, dtype=s.dtype)
+            world, g1, g2 = s.contacts(body, others)
             b1, b2 = geom_body[g1.long()], geom_body[g2.long()]
             world = world.long()
             for mine, other in ((b1, b2), (b2, b1)):

@@ -15,10 +15,11 @@ import mujoco
 import numpy as np
 import torch
 
-from ..names import model_id
-from .batch_state import DeviceState, UnsupportedFeatureError, warp_modules
-from .sensors import CameraReader
-from .spec import CameraSensor
+from ...names import model_id
+from ..sensors import CameraReader
+from ..spec import CameraSensor
+from .engine import UnsupportedFeatureError
+from .warp_engine import WarpEngine, warp_modules
 
 
 class BatchCameras:
@@ -32,7 +33,7 @@ class BatchCameras:
         self,
         cameras: Sequence[tuple[CameraSensor, CameraReader, str]],
         model: mujoco.MjModel,
-        state: DeviceState,
+        state: WarpEngine,
     ) -> None:
         wp, mjw = warp_modules()
         self._state = state

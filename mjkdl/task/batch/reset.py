@@ -26,18 +26,18 @@ import numpy as np
 import torch
 from gymnasium.utils.seeding import np_random
 
-from ..errors import MjkdlError, SpecError
+from ...errors import MjkdlError, SpecError
 
 if TYPE_CHECKING:
-    from .batch_control import BatchArm
-    from .batch_state import DeviceState
-    from .env import TaskEnv
+    from ..env import TaskEnv
+    from .control import BatchArm
+    from .engine import Engine
 
-# The state a reset sets, by DeviceState attribute and MjData field.
+# The state a reset sets, by Engine attribute and MjData field.
 FIELDS = ("qpos", "qvel", "ctrl", "act", "qacc_warmstart", "mocap_pos", "mocap_quat", "time")
 
 # The worker is a fresh interpreter (multiprocessing's spawn would re-run an unguarded script).
-_CHILD = "import sys; from mjkdl.task.batch_reset import _worker; _worker(sys.argv[1:])"
+_CHILD = "import sys; from mjkdl.task.batch.reset import _worker; _worker(sys.argv[1:])"
 
 Start = tuple[dict[str, np.ndarray], list[np.ndarray], list[np.ndarray]]
 
@@ -61,7 +61,7 @@ class EpisodeStarts:
     def __init__(
         self,
         host: TaskEnv,
-        state: DeviceState,
+        state: Engine,
         arms: Sequence[BatchArm],
         num_envs: int,
         workers: int = 0,

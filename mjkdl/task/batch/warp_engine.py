@@ -1,6 +1,6 @@
-"""MuJoCo Warp's model and data for many worlds, with torch views of the arrays tasks read.
+"""The MuJoCo Warp engine: many worlds on a GPU (or Warp's CPU device, to test kernels).
 
-The views share memory with Warp's arrays (`wp.to_torch`, zero-copy on either device), so
+The tensors share memory with Warp's arrays (`wp.to_torch`, zero-copy on either device), so
 writing a row of `qpos` or `ctrl` writes the world's state. float32, as MuJoCo Warp is.
 """
 
@@ -8,35 +8,14 @@ from __future__ import annotations
 
 import copy
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Any
 
 import mujoco
-import numpy as np
 import torch
 
-from ..errors import MjkdlError
-
-
-class UnsupportedFeatureError(MjkdlError, NotImplementedError):
-    """The scene uses a MuJoCo feature that MuJoCo Warp does not implement."""
-
-
-@dataclass(frozen=True)
-class Tcp:
-    """Where an arm's TCP is: its reference frame (site or body), the body that carries it,
-    and the tool's offset from that frame (as `ArmReader` computes it)."""
-
-    site: int
-    """The reference site, or -1 for the tip body."""
-    body: int
-    """The body carrying the frame (the tip body, or the site's body)."""
-    offset: torch.Tensor
-    """(3,) TCP position in the reference frame."""
-    rotation: torch.Tensor
-    """(3, 3) TCP orientation in the reference frame."""
+from .engine import Engine, Tcp, UnsupportedFeatureError
 
 
 def warp_modules() -> tuple[Any, Any]:
@@ -73,8 +52,10 @@ def warp_model(model: mujoco.MjModel) -> Any:
         ) from None
 
 
-class DeviceState:
+class WarpEngine(Engine):
     """`nworld` copies of the host `data` on a Warp device, and torch views of its arrays."""
+
+    name = "warp"
 
     def __init__(
         self,
@@ -86,7 +67,7 @@ class DeviceState:
         njmax: int | None = None,
     ) -> None:
         wp, mjw = warp_modules()
-        self.device, self.nworld = device, nworld
+        self.device, self.nworld, self.dtype = device, nworld, torch.float32
         self._wp_device = wp.get_device(device)
         self._mjw = mjw
         with wp.ScopedDevice(self._wp_device):
@@ -147,18 +128,15 @@ class DeviceState:
             finally:
                 torch_stream.wait_stream(self._warp_stream)
 
-    def tcp_of(self, arm: str) -> Tcp:
-        """The TCP of arm `arm` (registered by the observer)."""
-        return self.tcps[arm]
-
-    def forward(self, keep: torch.Tensor | None = None) -> None:
-        """`mj_forward` on every world; worlds where `keep` is true get their solver warm start
-        back, so a world mid-episode steps on as if this had not run."""
-        saved = None if keep is None else self.qacc_warmstart.clone()
+    def forward(self, rows: torch.Tensor) -> None:
+        """`mj_forward` on every world (MuJoCo Warp runs all or none); the worlds not in `rows`
+        get their solver warm start back, so a world mid-episode steps on as if this had not
+        run."""
+        keep = ~rows
+        saved = self.qacc_warmstart.clone()
         with self.warp():
             self._mjw.forward(self.model, self.data)
-        if saved is not None and keep is not None:
-            self.qacc_warmstart[keep] = saved[keep]
+        self.qacc_warmstart[keep] = saved[keep]
 
     def step(self, substeps: int) -> None:
         """`substeps` physics steps of every world, then poses and velocities of the new state
@@ -194,13 +172,16 @@ class DeviceState:
                 self._physics(substeps)
                 self._stepped.add(substeps)
 
-    def overflowed(self) -> torch.Tensor:
+    def failed(self) -> torch.Tensor:
         """(N,) bool: the worlds that overflowed one of MuJoCo Warp's buffers since their last
         reset (their constraint rows; the contact pool, which flags every world; ...): MuJoCo
         Warp dropped what did not fit, so their physics is wrong."""
         return (self.overflow & self._room) != 0
 
-    def overflow_message(self, rows: torch.Tensor) -> str:
+    def clear(self, rows: torch.Tensor) -> None:
+        self.overflow[rows] = 0
+
+    def failure_message(self, rows: torch.Tensor) -> str:
         """What overflowed in the worlds `rows` (a bool mask), and the fix."""
         _, mjw = warp_modules()
         worlds = torch.nonzero(rows).flatten()
@@ -223,72 +204,42 @@ class DeviceState:
         for stage in (mjw.kinematics, mjw.com_pos, mjw.tendon, mjw.transmission, mjw.com_vel):
             stage(self.model, self.data)
 
-    # ------------------------------------------------------------------ TCP quantities
-
-    def frame_pos(self, tcp: Tcp) -> tuple[torch.Tensor, torch.Tensor]:
-        """(N, 3) position and (N, 3, 3) rotation of the TCP's reference frame."""
-        if tcp.site >= 0:
-            return self.site_xpos[:, tcp.site], self.site_xmat[:, tcp.site]
-        return self.xpos[:, tcp.body], self.xmat[:, tcp.body]
-
-    def tcp_pos(self, tcp: Tcp) -> torch.Tensor:
-        """(N, 3) TCP position: reference frame * offset."""
-        pos, rot = self.frame_pos(tcp)
-        return pos + (rot @ tcp.offset)
-
-    def tcp_rot(self, tcp: Tcp) -> torch.Tensor:
-        _, rot = self.frame_pos(tcp)
-        return rot @ tcp.rotation
-
-    def tcp_vel(self, tcp: Tcp) -> torch.Tensor:
-        """(N, 6) [v, w] of the TCP point, world axes: MuJoCo's `cvel` (at the root's
-        subtree centre of mass) moved to the TCP."""
-        cvel = self.cvel[:, tcp.body]
-        w, v = cvel[:, :3], cvel[:, 3:]
-        com = self.subtree_com[:, self.root[tcp.body]]
-        lin = v + torch.linalg.cross(w, self.tcp_pos(tcp) - com, dim=-1)
-        return torch.cat([lin, w], dim=1)
-
-    def contacts(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(world, geom1, geom2) of the current contacts at zero or negative distance."""
+    def contacts(
+        self, body: int | None = None, others: Sequence[int] = ()
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(world, geom1, geom2) of every world's contacts at zero or negative distance."""
         n = min(int(self.nacon[0]), self.naconmax)
         touching = self.contact_dist[:n] <= 0.0
         geom = self.contact_geom[:n][touching]
         return self.contact_world[:n][touching], geom[:, 0], geom[:, 1]
 
 
-def mat_to_quat(mat: torch.Tensor) -> torch.Tensor:
-    """(N, 3, 3) rotations to (N, 4) quaternions [w, x, y, z] with MuJoCo's `mju_mat2Quat`
-    branches, so the sign matches the CPU env's."""
-    m = mat.reshape(-1, 9)
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m.unbind(1)
-    tr = m00 + m11 + m22
-    one = torch.ones_like(tr)
-
-    def q(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
-        return torch.stack([a, b, c, d], 1)
-
-    s0 = 0.5 * torch.sqrt(torch.clamp(tr + 1, min=1e-12))
-    q0 = q(s0, (m21 - m12) / (4 * s0), (m02 - m20) / (4 * s0), (m10 - m01) / (4 * s0))
-    s1 = 0.5 * torch.sqrt(torch.clamp(one + m00 - m11 - m22, min=1e-12))
-    q1 = q((m21 - m12) / (4 * s1), s1, (m01 + m10) / (4 * s1), (m02 + m20) / (4 * s1))
-    s2 = 0.5 * torch.sqrt(torch.clamp(one - m00 + m11 - m22, min=1e-12))
-    q2 = q((m02 - m20) / (4 * s2), (m01 + m10) / (4 * s2), s2, (m12 + m21) / (4 * s2))
-    s3 = 0.5 * torch.sqrt(torch.clamp(one - m00 - m11 + m22, min=1e-12))
-    q3 = q((m10 - m01) / (4 * s3), (m02 + m20) / (4 * s3), (m12 + m21) / (4 * s3), s3)
-    out = torch.where(
-        (tr > 0).unsqueeze(1),
-        q0,
-        torch.where(
-            ((m00 > m11) & (m00 > m22)).unsqueeze(1),
-            q1,
-            torch.where((m11 > m22).unsqueeze(1), q2, q3),
-        ),
-    )
-    return out / torch.linalg.norm(out, dim=1, keepdim=True)
+def world_bytes(
+    model: Any, data: Any, device: str, nconmax: int | None, njmax: int | None
+) -> tuple[int, int]:
+    """(bytes per world, bytes shared) of MuJoCo Warp's data, measured from a one- and a
+    two-world allocation (small: made and freed before the real one)."""
+    wp, mjw = warp_modules()
+    sizes = []
+    with wp.ScopedDevice(wp.get_device(device)):
+        warp_model(model)  # fails first, with the feature named, on an unsupported scene
+        for n in (1, 2):
+            d = mjw.put_data(model, data, nworld=n, nconmax=nconmax, njmax=njmax)
+            sizes.append(_nbytes(d))
+            del d
+    return sizes[1] - sizes[0], 2 * sizes[0] - sizes[1]
 
 
-def as_numpy(value: Any) -> np.ndarray:
-    """A host NumPy copy of a tensor (float64 for floats), for the task's host callables."""
-    arr = value.detach().cpu().numpy()
-    return arr.astype(np.float64) if arr.dtype.kind == "f" else arr
+def _nbytes(obj: Any, seen: set[int] | None = None) -> int:
+    wp, _ = warp_modules()
+    seen = set() if seen is None else seen
+    total = 0
+    for value in vars(obj).values():
+        if id(value) in seen:
+            continue
+        seen.add(id(value))
+        if isinstance(value, wp.array):
+            total += int(value.capacity)
+        elif hasattr(value, "__dataclass_fields__"):
+            total += _nbytes(value, seen)
+    return total

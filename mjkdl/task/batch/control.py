@@ -21,15 +21,14 @@ import mujoco
 import numpy as np
 import torch
 
-from ..errors import SpecError
-from ..spec import CtrlMode
-from .batch_state import Tcp
-from .env import _descends
-from .spec import Actuation, ArmSpec
+from ...errors import SpecError
+from ...spec import CtrlMode
+from ..env import _descends
+from ..spec import Actuation, ArmSpec
+from .engine import Engine, Tcp
 
 if TYPE_CHECKING:
-    from .batch_state import DeviceState
-    from .env import ArmEffector
+    from ..env import ArmEffector
 
 
 def _frame(model: mujoco.MjModel, name: str) -> tuple[str, int]:
@@ -47,7 +46,7 @@ class BatchArm:
     the CPU env uses; `reset_rows` takes the commands the CPU env synced at reset.
     """
 
-    def __init__(self, eff: ArmEffector, model: mujoco.MjModel, state: DeviceState) -> None:
+    def __init__(self, eff: ArmEffector, model: mujoco.MjModel, state: Engine) -> None:
         robot, arm = eff.robot, eff.arm
         self.arm, self.slice, self.grip_index = arm, eff.slice, eff.grip_index
         self._state = state
@@ -73,17 +72,9 @@ class BatchArm:
         # Feed-forward of the gravity torques into the servo setpoint, as the Robot adds it.
         self._ff = bool(robot.gravity_feedforward) and self._mode is not CtrlMode.TORQUE
         scale = robot.gravity_feedforward_scale
-        self._ff_scale = torch.tensor(scale, device=dev, dtype=torch.float32)
-        # Gravity: each chain joint carries the bodies of its subtree (weights: mass less
-        # MuJoCo's gravcomp share), the torque is axis · Σ m (com - anchor) × (-g).
-        weights = np.zeros((n, model.nbody))
-        for i, j in enumerate(jids):
-            top = int(model.jnt_bodyid[j])
-            for b in range(model.nbody):
-                if _descends(model, b, top):
-                    weights[i, b] = model.body_mass[b] * (1.0 - model.body_gravcomp[b])
-        self._mass = torch.tensor(weights, device=dev, dtype=torch.float32)
-        self._gravity = torch.tensor(model.opt.gravity, device=dev, dtype=torch.float32)
+        self._ff_scale = torch.tensor(scale, device=dev, dtype=state.dtype)
+        # () -> (nworld, n) torques holding the arm against gravity now, as the engine has them
+        self.gravity_torques = state.gravity(eff, model, jids)
         # The TCP: reference frame (tool site or tip body) and offset, as ArmReader has it.
         self._tcp = state.tcp_of(arm.name)
         self._chain = ChainKinematics(model, arm, jids, self._tcp, state)
@@ -125,20 +116,6 @@ class BatchArm:
         if self.cartesian:
             self._last[rows] = torch.as_tensor(qd, device=dev, dtype=self._last.dtype)
 
-    def gravity_torques(self) -> torch.Tensor:
-        """(nworld, n) joint torques holding the arm against gravity at the current state."""
-        s = self._state
-        com = s.xipos  # (N, nbody, 3)
-        anchor = s.xanchor[:, self._jid]  # (N, n, 3)
-        axis = s.xaxis[:, self._jid]
-        moment = torch.einsum("jb,wbk->wjk", self._mass, com)  # Σ m com, per joint
-        total = self._mass.sum(dim=1).reshape(1, -1, 1)
-        lever = moment - total * anchor  # Σ m (com - anchor)
-        force = -self._gravity.reshape(1, 1, 3).expand_as(lever)
-        hinge = (axis * torch.linalg.cross(lever, force, dim=-1)).sum(-1)
-        slide = (axis * force).sum(-1) * total.squeeze(-1)
-        return torch.where(self._hinge.squeeze(-1), hinge, slide)
-
     def jacobian(self, q: torch.Tensor | None = None) -> torch.Tensor:
         """(nworld, 6, n) world-aligned Jacobian of the TCP point (linear rows first): at
         the current state, or at joint positions `q` (float64) by the chain's kinematics."""
@@ -166,7 +143,7 @@ class BatchArm:
             # In place: a learner may step inside torch.inference_mode, and a tensor made
             # there could not be written by a reset outside it.
             self.q_cmd.copy_(torch.clamp(self.q_cmd + qd * period, self._lower, self._upper))
-            cmd = self.q_cmd.float()
+            cmd = self.q_cmd.to(s.dtype)
         elif self.arm.actuation is Actuation.JOINT_TORQUE:
             cmd = a + self.gravity_torques()
         else:
@@ -226,6 +203,41 @@ class BatchArm:
         return qd
 
 
+class ChainGravity:
+    """(nworld, n) gravity torques of one arm from the engine's poses: each chain joint
+    carries the bodies of its subtree (weights: mass less MuJoCo's gravcomp share), the
+    torque is axis · Σ m (com - anchor) × (-g), in the engine's dtype."""
+
+    def __init__(self, model: mujoco.MjModel, jids: list[int], state: Engine) -> None:
+        dev, dtype = state.device, state.dtype
+        self._state = state
+        n = len(jids)
+        weights = np.zeros((n, model.nbody))
+        for i, j in enumerate(jids):
+            top = int(model.jnt_bodyid[j])
+            for b in range(model.nbody):
+                if _descends(model, b, top):
+                    weights[i, b] = model.body_mass[b] * (1.0 - model.body_gravcomp[b])
+        self._jid = torch.tensor(jids, device=dev)
+        hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
+        self._hinge = torch.tensor([int(model.jnt_type[j]) == hinge for j in jids], device=dev)
+        self._mass = torch.tensor(weights, device=dev, dtype=dtype)
+        self._gravity = torch.tensor(model.opt.gravity, device=dev, dtype=dtype)
+
+    def __call__(self) -> torch.Tensor:
+        s = self._state
+        com = s.xipos  # (N, nbody, 3)
+        anchor = s.xanchor[:, self._jid]  # (N, n, 3)
+        axis = s.xaxis[:, self._jid]
+        moment = torch.einsum("jb,wbk->wjk", self._mass, com)  # Σ m com, per joint
+        total = self._mass.sum(dim=1).reshape(1, -1, 1)
+        lever = moment - total * anchor  # Σ m (com - anchor)
+        force = -self._gravity.reshape(1, 1, 3).expand_as(lever)
+        hinge = (axis * torch.linalg.cross(lever, force, dim=-1)).sum(-1)
+        slide = (axis * force).sum(-1) * total.squeeze(-1)
+        return torch.where(self._hinge, hinge, slide)
+
+
 ACTIVE_SET_PASSES = 10
 
 
@@ -270,7 +282,7 @@ class ChainKinematics:
     parent as it is now: the Jacobian at the command, where the CPU QP takes it."""
 
     def __init__(
-        self, model: mujoco.MjModel, arm: ArmSpec, jids: list[int], tcp: Tcp, state: DeviceState
+        self, model: mujoco.MjModel, arm: ArmSpec, jids: list[int], tcp: Tcp, state: Engine
     ) -> None:
         dev, f64 = state.device, torch.float64
         self._state = state

@@ -1,0 +1,261 @@
+"""The batch's CPU engine (MuJoCo's own `mujoco.batch`) against the CPU env (`TaskEnv`)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from conftest import import_extra
+
+torch = import_extra("batch", "torch")
+
+import mujoco  # noqa: E402
+
+from mjkdl.errors import SpecError, SpecTypeError  # noqa: E402
+from mjkdl.task import make_batch, registry  # noqa: E402
+from mjkdl.task.batch import UnsupportedFeatureError  # noqa: E402
+from mjkdl.task.batch.cpu_engine import available_threads  # noqa: E402
+from mjkdl.task.env import TaskEnv  # noqa: E402
+from mjkdl.task.spec import Actuation, CameraSensor  # noqa: E402
+
+PICK = "mjkdl/PandaPickCube-v0"
+WORLDS = 3
+SEED = 7
+STEPS = 12  # control steps: with time_limit 0.5 s, two episodes and a restart per world
+# Cartesian actions: the batch's QP (torch, active set) against DAQP, within rounding once
+# the active set settles (measured here over these episodes: qpos 1e-14, rewards 3e-17).
+CARTESIAN_TOL = 1e-9
+REWARD_TOL = 1e-12  # the task's rules in torch against NumPy (measured 3e-17)
+
+
+def _cpu_states(env: TaskEnv, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos, reward) of each world after its reset and after each step, a finished episode
+    restarting at once (the batch's autoreset) from the CPU env's next reset."""
+    qpos, rewards = [], []
+    for i in range(actions.shape[1]):
+        env.reset(seed=SEED + i)
+        q, r = [env.scene.data.qpos.copy()], [0.0]
+        for a in actions[:, i]:
+            _, reward, terminated, truncated, _ = env.step(a)
+            if terminated or truncated:
+                env.reset()
+            q.append(env.scene.data.qpos.copy())
+            r.append(reward)
+        qpos.append(q)
+        rewards.append(r)
+    return np.array(qpos).transpose(1, 0, 2), np.array(rewards).T
+
+
+def _batch_states(batch, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The same from the batch; and how many episodes ended."""
+    batch.reset(seed=SEED)
+    q, r, ends = [batch.state.qpos.numpy().copy()], [np.zeros(actions.shape[1])], 0
+    for a in actions:
+        _, reward, terminated, truncated, _ = batch.step(torch.as_tensor(a))
+        q.append(batch.state.qpos.numpy().copy())
+        r.append(reward.numpy())
+        ends += int((terminated | truncated).sum())
+    return np.array(q), np.array(r), ends
+
+
+def _actions(n: int, seed: int) -> np.ndarray:
+    return np.random.default_rng(seed).uniform(-1, 1, (STEPS, WORLDS, n)).astype(np.float32)
+
+
+@pytest.mark.parametrize("actuation", ["joint_position", "joint_velocity", "joint_torque"])
+def test_joint_space_episodes_are_the_cpu_envs_bit_for_bit(actuation: str) -> None:
+    """Same physics, same commands (Pinocchio's gravity feed-forward, float64): every state of
+    whole episodes and their restarts equals the CPU env's exactly."""
+    batch = make_batch(PICK, WORLDS, device="cpu", actuation=actuation, time_limit=0.5)
+    env = gym.make(PICK, actuation=actuation, time_limit=0.5).unwrapped
+    try:
+        assert batch.state.name == "mujoco" and batch.dtype == torch.float64
+        actions = _actions(8, 0)
+        if actuation != "joint_position":
+            actions[..., :7] *= 0.1  # normalised velocities or torques about gravity alone
+        ref_q, ref_r = _cpu_states(env, actions)
+        q, r, ends = _batch_states(batch, actions)
+        assert ends == 2 * WORLDS  # two whole episodes per world, restarts included
+        assert np.array_equal(q, ref_q), np.abs(q - ref_q).max()
+        assert np.abs(r - ref_r).max() < REWARD_TOL
+    finally:
+        batch.close()
+        env.close()
+
+
+@pytest.mark.parametrize("task_id", sorted(registry.TASKS))
+def test_cartesian_episodes_match_within_rounding(task_id: str) -> None:
+    batch = make_batch(task_id, WORLDS, device="cpu", time_limit=0.5)
+    env = gym.make(task_id, time_limit=0.5).unwrapped
+    try:
+        actions = _actions(len(batch.action_labels), 1)
+        ref_q, ref_r = _cpu_states(env, actions)
+        q, r, _ = _batch_states(batch, actions)
+        assert np.abs(q - ref_q).max() < CARTESIAN_TOL
+        assert np.abs(r - ref_r).max() < REWARD_TOL
+    finally:
+        batch.close()
+        env.close()
+
+
+def test_any_thread_count_gives_the_same_states() -> None:
+    actions = _actions(8, 2)
+    runs = []
+    for threads in (1, 2):
+        batch = make_batch(PICK, WORLDS, device="cpu", threads=threads, actuation="joint_position")
+        try:
+            assert batch.state.threads == threads
+            runs.append(_batch_states(batch, actions)[0])
+        finally:
+            batch.close()
+    assert np.array_equal(runs[0], runs[1])
+
+
+def test_tensors_share_memory_with_the_batch() -> None:
+    """No copy per step: the tensors are the batch's own arrays."""
+    batch = make_batch("mjkdl/PandaReach-v0", 2, device="cpu")
+    try:
+        batch.reset(seed=0)
+        s = batch.state
+        for name in ("qpos", "ctrl", "xpos", "cvel", "qfrc_actuator"):
+            assert getattr(s, name).data_ptr() == s.batch.bind(name).ctypes.data, name
+        s.qpos[1, 0] = 0.25
+        assert s.batch.bind("qpos")[1, 0] == 0.25
+        obs, *_ = batch.step(torch.zeros(2, 7))
+        assert obs["panda_tcp_pos"].dtype == torch.float64
+    finally:
+        batch.close()
+
+
+def test_the_device_chooses_the_engine_and_threads_default_to_the_cores() -> None:
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a GPU: make_batch() without a device takes it")
+    batch = make_batch("mjkdl/PandaReach-v0", 1)
+    try:
+        assert batch.device.type == "cpu" and batch.state.name == "mujoco"
+        assert batch.state.threads == available_threads() >= 1
+    finally:
+        batch.close()
+
+
+def test_a_gpu_without_mujoco_warp_is_named_and_no_device_falls_back(monkeypatch) -> None:
+    """torch sees a GPU, but only the `batch` extra is installed: `device="cuda"` names the
+    missing extra; no device runs the CPU engine with a warning that says why."""
+    from mjkdl.task.batch import DeviceUnavailableError, warp_engine
+
+    def missing() -> None:
+        raise ImportError("No module named 'mujoco_warp'")
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(warp_engine, "warp_modules", missing)
+    with pytest.raises(DeviceUnavailableError, match=r"MuJoCo Warp is not installed.*\[warp\]"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cuda")
+    with pytest.warns(UserWarning, match=r"MuJoCo Warp is not installed.*running on the CPU"):
+        batch = make_batch("mjkdl/PandaReach-v0", 1)
+    assert batch.state.name == "mujoco"
+    batch.close()
+
+
+def test_a_world_whose_physics_fails_ends_as_diverged() -> None:
+    """A non-finite state in one world ends its episode (reward 0, `diverged`), the others
+    step on, and the world starts its next episode."""
+    batch = make_batch(PICK, 2, device="cpu", actuation="joint_torque")
+    try:
+        batch.reset(seed=0)
+        batch.state.qvel[1, 0] = float("inf")
+        _, reward, terminated, _, info = batch.step(torch.zeros(2, 8))
+        assert info["diverged"].tolist() == [False, True]
+        assert terminated.tolist() == [False, True] and float(reward[1]) == 0.0
+        assert bool(torch.isfinite(batch.state.qvel).all())  # restarted
+    finally:
+        batch.close()
+
+
+def test_a_world_where_mujoco_raises_ends_as_diverged_with_its_message() -> None:
+    """MuJoCo's batch reports the simulations that raised (they keep their state, the others
+    step on): those worlds' episodes end, a warning quotes MuJoCo's message, and they start
+    clean."""
+    batch = make_batch(PICK, 2, device="cpu")
+    real = batch.state.batch
+
+    class Failing:  # world 1 raises in the next step, as an arena overflow would
+        def __getattr__(self, name: str) -> object:
+            return getattr(real, name)
+
+        def step(self, ids: object = None, **kwargs: int) -> None:
+            real.step(ids, **kwargs)
+            raise mujoco.batch.SimulationError(np.array([1]), "1 simulation failed")
+
+        def error(self, sim: int) -> str:
+            return "mj_stackAlloc: out of memory" if sim == 1 else ""
+
+    try:
+        batch.reset(seed=0)
+        batch.state.batch = Failing()
+        with pytest.warns(UserWarning, match=r"error in 1 of 2 worlds \(world 1: mj_stackAlloc"):
+            _, reward, terminated, _, info = batch.step(torch.zeros(2, 7))
+        assert info["diverged"].tolist() == [False, True]
+        assert terminated.tolist() == [False, True] and float(reward[1]) == 0.0
+        batch.state.batch = real
+        assert batch.state.failed().tolist() == [False, False]  # the new episode starts clean
+        _, _, _, _, info = batch.step(torch.zeros(2, 7))
+        assert info["diverged"].tolist() == [False, False]
+    finally:
+        batch.state.batch = real
+        batch.close()
+
+
+# ---------------------------------------------------------------------- bad input
+
+
+def test_bad_engine_threads_and_warp_only_fields() -> None:
+    with pytest.raises(SpecError, match=r"engine must be one of \['mujoco', 'warp'\]"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", engine="physx")
+    with pytest.raises(SpecError, match=r"engine='mujoco'.*runs on the CPU, not 'cuda:0'"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cuda:0", engine="mujoco", allow_cpu=True)
+    with pytest.raises(SpecError, match="threads must be a positive integer, got 0"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", threads=0)
+    with pytest.raises(SpecTypeError, match=r"threads must be a positive integer, got 1\.5"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", threads=1.5)
+    with pytest.raises(SpecError, match="njmax=64 sizes MuJoCo Warp's buffers"):
+        make_batch("mjkdl/PandaReach-v0", 1, device="cpu", njmax=64)
+
+
+def test_cameras_are_refused_with_the_engine_that_renders_them() -> None:
+    spec = registry.panda_reach_spec()
+    spec.sensors = [*spec.sensors, CameraSensor("front", 32, 32)]
+    with pytest.raises(UnsupportedFeatureError, match=r"sensors\[2\].*engine='warp'"):
+        make_batch(spec, 1, device="cpu")
+
+
+def test_the_memory_estimate_counts_available_memory(monkeypatch) -> None:
+    """Huge batches are refused before allocating, against `MemAvailable` (free memory and
+    the page cache the kernel can reclaim), not only the free pages."""
+    from mjkdl.task.batch import env as batch_env
+
+    available = batch_env._free_bytes("cpu")
+    with open("/proc/meminfo") as f:
+        fields = {line.split(":")[0]: int(line.split()[1]) * 1024 for line in f}
+    assert abs(available - fields["MemAvailable"]) < 2**28  # it moves a little meanwhile
+    monkeypatch.setattr(batch_env, "_free_bytes", lambda device: 2**30)
+    with pytest.raises(
+        SpecError,
+        match=r"num_envs=10000000 needs about .* of the 1\.00 GiB available; use at most about "
+        r"\d+ worlds",
+    ):
+        make_batch("mjkdl/PandaReach-v0", 10**7, device="cpu")
+
+
+def test_joint_actuation_spec_runs_in_the_batch() -> None:
+    """A `TaskSpec` (not an id) with a joint actuation, the model's timestep kept."""
+    spec = registry.panda_pick_cube_spec()
+    spec.arms[0].actuation = Actuation.JOINT_POSITION
+    batch = make_batch(spec, 1, device="cpu")
+    try:
+        model = batch.host.scene.model
+        assert batch.state.batch.get_model(0).opt.timestep == model.opt.timestep
+        assert mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_INTEGRATION) == (
+            batch.state.batch.nstate
+        )
+    finally:
+        batch.close()
