@@ -9,11 +9,13 @@ robomimic is being imported.
 
 from __future__ import annotations
 
+import importlib
 import sys
 from types import FrameType
 from typing import Any
 
 _PATCHED = ("robomimic.utils.env_utils", "robomimic.utils.file_utils")
+_ENV_MODULE = "mjkdl.demos.robomimic"  # registers mjkdl's env type with robomimic
 MARK = "# mjkdl: robomimic's scripts build mjkdl's env type"
 LINES = f"{MARK}\nfrom mjkdl.demos.robomimic_hook import install\n\ninstall()\n"
 """What `python -m mjkdl.demos.robomimic install` adds to `robomimic/macros_private.py`."""
@@ -25,15 +27,15 @@ def _loaded(name: str) -> bool:
 
 
 def _register() -> None:
-    from .robomimic import register  # imports robomimic's modules: all loaded by now
-
-    register()
+    # By name, once robomimic's modules have loaded: mjkdl.demos.robomimic imports them (and
+    # this module, for the lines `install` writes), so nothing here may import it earlier.
+    importlib.import_module(_ENV_MODULE).register()
 
 
 def install() -> None:
     """Register mjkdl's env type with robomimic now, or once the modules it patches have
     loaded (a profile hook watches for the end of their module code)."""
-    if "mjkdl.demos.robomimic" in sys.modules:
+    if _ENV_MODULE in sys.modules:
         return  # being imported: whoever imports it registers (its `main` does)
     if all(_loaded(n) for n in _PATCHED):
         _register()

@@ -74,7 +74,7 @@ class BatchArm:
         scale = robot.gravity_feedforward_scale
         self._ff_scale = torch.tensor(scale, device=dev, dtype=state.dtype)
         # () -> (nworld, n) torques holding the arm against gravity now, as the engine has them
-        self.gravity_torques = state.gravity(eff, model, jids)
+        self.gravity_torques = state.gravity(eff, model, jids) or ChainGravity(model, jids, state)
         # The TCP: reference frame (tool site or tip body) and offset, as ArmReader has it.
         self._tcp = state.tcp_of(arm.name)
         self._chain = ChainKinematics(model, arm, jids, self._tcp, state)

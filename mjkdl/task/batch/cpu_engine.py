@@ -183,15 +183,15 @@ class CpuEngine(Engine):
 
     def gravity(
         self, eff: ArmEffector, model: mujoco.MjModel, jids: list[int]
-    ) -> Callable[[], torch.Tensor]:
-        """The arm's gravity torques by Pinocchio, as its `Robot` computes them (the chain's
-        bodies summed on the device where MuJoCo's `gravcomp` takes a share, the Robot then
-        subtracting a second model's gravity, or where Pinocchio's model has a joint of
+    ) -> Callable[[], torch.Tensor] | None:
+        """The arm's gravity torques by Pinocchio, as its `Robot` computes them (None, the
+        chain's bodies summed on the device, where MuJoCo's `gravcomp` takes a share, the Robot
+        then subtracting a second model's gravity, or where Pinocchio's model has a joint of
         more than one coordinate)."""
         chain = [int(model.jnt_bodyid[j]) for j in jids]
         pm = eff.robot.model
         if (model.body_gravcomp[chain] > 0).any() or pm.nq != pm.njoints - 1:
-            return super().gravity(eff, model, jids)
+            return None
         return PinocchioGravity(eff, model, self)
 
     def close(self) -> None:

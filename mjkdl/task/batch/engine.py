@@ -118,13 +118,11 @@ class Engine(ABC):
 
     def gravity(
         self, eff: ArmEffector, model: mujoco.MjModel, jids: list[int]
-    ) -> Callable[[], torch.Tensor]:
+    ) -> Callable[[], torch.Tensor] | None:
         """A function giving the (nworld, n) joint torques that hold arm `eff` (joints
-        `jids`) against gravity at the current state: by default the chain's bodies, summed
-        on the device (`control.ChainGravity`)."""
-        from .control import ChainGravity
-
-        return ChainGravity(model, jids, self)
+        `jids`) against gravity at the current state, or None (the default) for the chain's
+        bodies summed on the device (`control.ChainGravity`)."""
+        return None
 
     def close(self) -> None:  # noqa: B027  (engines without resources keep it)
         """Release what the engine holds beyond its arrays."""
