@@ -5,6 +5,8 @@ commands and the episode's counters are part of `mjSTATE_INTEGRATION`."""
 
 from __future__ import annotations
 
+import json
+
 import mujoco
 import numpy as np
 import pytest
@@ -149,3 +151,83 @@ def test_the_users_userdata_comes_first_and_is_left_alone() -> None:
         assert env.task_spec.scene.userdata == 3  # the spec as given
     finally:
         env.close()
+
+
+RANDOM = {
+    "body_mass": [0.5, 1.5],
+    "geom_friction": [0.6, 1.4],
+    "joint_damping": [0.8, 1.2],
+    "gravity": [-0.2, 0.2],
+    "action_latency": [1, 3],
+    "action_noise": 0.05,
+    "observation_noise": {"panda_tcp_pos": 0.002, "cube_pose": 0.003},
+}
+
+
+def test_a_randomised_state_with_its_draw_steps_on_exactly_as_recorded() -> None:
+    """A whole PickCube demo under masses, friction, latency and noise: in another env, after
+    another episode (another draw), each row with the demo's draw steps to the next row bit for
+    bit, observations (noise included) too; the actions on their way are part of the state."""
+    kwargs = {"randomization": RANDOM}
+    rec_env, env = (
+        make_env("mjkdl/PandaPickCube-v0", kwargs),
+        make_env("mjkdl/PandaPickCube-v0", kwargs),
+    )
+    try:
+        rec = run_episode(rec_env, make_policy("expert", rec_env), seed=4, record=True).data
+        assert rec is not None and rec.randomization
+        recorded = rec_env.unwrapped.randomization_draw  # type: ignore[attr-defined]
+        assert recorded.action_latency >= 1 and recorded.body_mass is not None
+        scene = scene_of(env)
+        state = np.empty(mujoco.mj_stateSize(scene.model, STATE))
+        env.reset(seed=500)
+        assert env.unwrapped.randomization_draw.to_dict() != recorded.to_dict()  # type: ignore[attr-defined]
+        n, matched = rec.num_samples, 0
+        for t in range(n):
+            obs, *_ = restore(env, rec.states[t], draw=rec.randomization)
+            assert _differ(obs, {k: v[t] for k, v in rec.obs.items()}) == [], t
+            after, reward, *_ = env.step(rec.actions[t])
+            assert reward == rec.rewards[t], t
+            if t + 1 < n:
+                mujoco.mj_getState(scene.model, scene.data, state, STATE)
+                matched += np.array_equal(state, rec.states[t + 1])
+                assert _differ(after, {k: v[t + 1] for k, v in rec.obs.items()}) == [], t
+            else:
+                assert _differ(after, rec.final_obs) == []
+                matched += 1
+        assert matched == n > 20
+        # the model is the recorded episode's, to the bit
+        m, r = scene.model, scene_of(rec_env).model
+        for name in ("body_mass", "body_inertia", "geom_friction", "dof_damping"):
+            assert np.array_equal(getattr(m, name), getattr(r, name)), name
+        assert np.array_equal(m.opt.gravity, r.opt.gravity)
+    finally:
+        env.close()
+        rec_env.close()
+
+
+def test_a_randomised_state_without_its_draw_is_refused() -> None:
+    random, plain = (
+        make_env("mjkdl/PandaPickCube-v0", {"randomization": RANDOM}),
+        make_env("mjkdl/PandaPickCube-v0"),
+    )
+    try:
+        rec = run_episode(random, make_policy("expert", random), seed=1, record=True).data
+        assert rec is not None
+        random.reset(seed=2)
+        plain.reset(seed=2)
+        with pytest.raises(ValueError, match=r"this env is randomised .* draw=demo.randomization"):
+            restore(random, rec.states[3])
+        with pytest.raises(ValueError, match=r"this env has no randomization: make it with"):
+            restore(plain, rec.states[3], draw=rec.randomization)
+        with pytest.raises(ValueError, match=r"restore: draw is not a Draw or its dict"):
+            restore(random, rec.states[3], draw={"body_mas": []})
+        longer = json.loads(rec.randomization) | {"action_latency": 4}
+        with pytest.raises(ValueError, match=r"action_latency \(4 steps\) is beyond .* \(1, 3\)"):
+            restore(random, rec.states[3], draw=longer)
+        noisy = json.loads(rec.randomization) | {"observation_noise": {"cube_rgb": 0.1}}
+        with pytest.raises(KeyError, match=r"'cube_rgb' in the draw's observation_noise"):
+            restore(random, rec.states[3], draw=noisy)
+    finally:
+        random.close()
+        plain.close()
