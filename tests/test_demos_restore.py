@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 
+import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
@@ -16,9 +17,10 @@ from demo_envs import CAMERA
 import mjkdl as mjk
 from mjkdl.demos import make_env
 from mjkdl.demos.episodes import restore, run_episode, scene_of
-from mjkdl.demos.hdf5 import STATE
+from mjkdl.demos.hdf5 import STATE, EpisodeData
 from mjkdl.demos.policy import make_policy
 from mjkdl.task import TaskEnv
+from mjkdl.task.randomization import Draw
 from mjkdl.task.registry import TASKS
 from mjkdl.task.rewards import success_bonus
 
@@ -43,29 +45,35 @@ def test_a_restored_state_steps_on_exactly_as_recorded(env_id: str) -> None:
     try:
         rec = run_episode(env, make_policy("expert", env), seed=11, record=True).data
         assert rec is not None
-        scene = scene_of(env)
-        state = np.empty(mujoco.mj_stateSize(scene.model, STATE))
         env.reset(seed=500)  # another episode's state first: nothing of it may leak
-        n = rec.num_samples
-        matched = 0
-        for t in range(n):
-            obs, regenerated, *_ = restore(env, rec.states[t])
-            assert _differ(obs, {k: v[t] for k, v in rec.obs.items()}) == [], t
-            if t:  # the reward of the step that reached it, from the state alone
-                assert regenerated == rec.rewards[t - 1], t
-            after, reward, terminated, truncated, _ = env.step(rec.actions[t])
-            assert reward == rec.rewards[t], t
-            assert bool(terminated or truncated) == bool(rec.dones[t]), t
-            if t + 1 < n:
-                mujoco.mj_getState(scene.model, scene.data, state, STATE)
-                matched += np.array_equal(state, rec.states[t + 1])
-                assert _differ(after, {k: v[t + 1] for k, v in rec.obs.items()}) == [], t
-            else:
-                assert _differ(after, rec.final_obs) == []
-                matched += 1
-        assert matched == n
+        assert _rows_step_on_as_recorded(env, rec) == rec.num_samples
     finally:
         env.close()
+
+
+def _rows_step_on_as_recorded(env: gym.Env, rec: EpisodeData) -> int:
+    """Set, observe and step every row of `rec` (with its draw): the observation, reward and
+    end recorded with each, and the next row reached bit for bit; how many rows were."""
+    scene = scene_of(env)
+    state = np.empty(mujoco.mj_stateSize(scene.model, STATE))
+    n, matched = rec.num_samples, 0
+    draw = rec.randomization or None
+    for t in range(n):
+        obs, regenerated, *_ = restore(env, rec.states[t], draw=draw)
+        assert _differ(obs, {k: v[t] for k, v in rec.obs.items()}) == [], t
+        if t:  # the reward of the step that reached it, from the state alone
+            assert regenerated == rec.rewards[t - 1], t
+        after, reward, terminated, truncated, _ = env.step(rec.actions[t])
+        assert reward == rec.rewards[t], t
+        assert bool(terminated or truncated) == bool(rec.dones[t]), t
+        if t + 1 < n:
+            mujoco.mj_getState(scene.model, scene.data, state, STATE)
+            matched += np.array_equal(state, rec.states[t + 1])
+            assert _differ(after, {k: v[t + 1] for k, v in rec.obs.items()}) == [], t
+        else:
+            assert _differ(after, rec.final_obs) == []
+            matched += 1
+    return matched
 
 
 def test_the_success_bonus_is_paid_once_and_regenerated() -> None:
@@ -178,26 +186,11 @@ def test_a_randomised_state_with_its_draw_steps_on_exactly_as_recorded() -> None
         assert rec is not None and rec.randomization
         recorded = rec_env.unwrapped.randomization_draw  # type: ignore[attr-defined]
         assert recorded.action_latency >= 1 and recorded.body_mass is not None
-        scene = scene_of(env)
-        state = np.empty(mujoco.mj_stateSize(scene.model, STATE))
         env.reset(seed=500)
         assert env.unwrapped.randomization_draw.to_dict() != recorded.to_dict()  # type: ignore[attr-defined]
-        n, matched = rec.num_samples, 0
-        for t in range(n):
-            obs, *_ = restore(env, rec.states[t], draw=rec.randomization)
-            assert _differ(obs, {k: v[t] for k, v in rec.obs.items()}) == [], t
-            after, reward, *_ = env.step(rec.actions[t])
-            assert reward == rec.rewards[t], t
-            if t + 1 < n:
-                mujoco.mj_getState(scene.model, scene.data, state, STATE)
-                matched += np.array_equal(state, rec.states[t + 1])
-                assert _differ(after, {k: v[t + 1] for k, v in rec.obs.items()}) == [], t
-            else:
-                assert _differ(after, rec.final_obs) == []
-                matched += 1
-        assert matched == n > 20
+        assert _rows_step_on_as_recorded(env, rec) == rec.num_samples > 20
         # the model is the recorded episode's, to the bit
-        m, r = scene.model, scene_of(rec_env).model
+        m, r = scene_of(env).model, scene_of(rec_env).model
         for name in ("body_mass", "body_inertia", "geom_friction", "dof_damping"):
             assert np.array_equal(getattr(m, name), getattr(r, name)), name
         assert np.array_equal(m.opt.gravity, r.opt.gravity)
@@ -220,6 +213,8 @@ def test_a_randomised_state_without_its_draw_is_refused() -> None:
             restore(random, rec.states[3])
         with pytest.raises(ValueError, match=r"this env has no randomization: make it with"):
             restore(plain, rec.states[3], draw=rec.randomization)
+        with pytest.raises(ValueError, match=r"no TaskSpec.randomization: it takes no draw"):
+            plain.unwrapped.randomization_draw = Draw()  # type: ignore[attr-defined]
         with pytest.raises(ValueError, match=r"restore: draw is not a Draw or its dict"):
             restore(random, rec.states[3], draw={"body_mas": []})
         longer = json.loads(rec.randomization) | {"action_latency": 4}

@@ -659,10 +659,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if self._diverged is not None:
             raise RuntimeError(f"the simulation diverged ({self._diverged}); call reset()")
         a = self._checked_action(action)
-        if self._randomizer is not None:
-            a = self._randomizer.action(a, int(self._counters[0]))
         if self.scene.model is not self._model:
             self._follow_rebuild()
+        if self._randomizer is not None:  # its queue is in the (rebound) userdata
+            a = self._randomizer.action(a, int(self._counters[0]))
         for eff in self._effectors:
             eff.apply(a, self._period)
         why = self._advance()
