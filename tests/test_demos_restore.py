@@ -6,6 +6,7 @@ commands and the episode's counters are part of `mjSTATE_INTEGRATION`."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import gymnasium as gym
 import mujoco
@@ -15,7 +16,9 @@ from conftest import menagerie
 from demo_envs import CAMERA
 
 import mjkdl as mjk
-from mjkdl.demos import make_env
+from mjkdl.demos import DemoFile, make_env
+from mjkdl.demos.collect import collect
+from mjkdl.demos.convert import convert
 from mjkdl.demos.episodes import restore, run_episode, scene_of
 from mjkdl.demos.hdf5 import STATE, EpisodeData
 from mjkdl.demos.policy import make_policy
@@ -161,6 +164,7 @@ def test_the_users_userdata_comes_first_and_is_left_alone() -> None:
         env.close()
 
 
+PICK = "mjkdl/PandaPickCube-v0"
 RANDOM = {
     "body_mass": [0.5, 1.5],
     "geom_friction": [0.6, 1.4],
@@ -226,3 +230,26 @@ def test_a_randomised_state_without_its_draw_is_refused() -> None:
     finally:
         random.close()
         plain.close()
+
+
+def test_convert_by_states_regenerates_a_randomised_demo(tmp_path: Path) -> None:
+    """`convert --mode states` restores each row with the demo's draw: every observation,
+    noise included, and the last `next_obs` come back as recorded."""
+    src, out = tmp_path / "a.hdf5", tmp_path / "b.hdf5"
+    kwargs = {"randomization": RANDOM}
+    collect(
+        PICK,
+        "expert",
+        src,
+        episodes=1,
+        seed=0,
+        env_kwargs=kwargs,
+        keep_failures=True,
+        progress=False,
+    )
+    convert(src, out, mode="states")
+    with DemoFile(src) as a, DemoFile(out) as b:
+        recorded, regenerated = a.demo(a.names[0]), b.demo(b.names[0])
+        assert recorded.randomization and recorded.num_samples > 20
+        assert _differ(recorded.obs, regenerated.obs) == []
+        assert _differ(recorded.final_obs, regenerated.final_obs) == []
