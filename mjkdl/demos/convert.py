@@ -100,7 +100,7 @@ def _by_states(env: gym.Env, demo: Demo, path: Path) -> Demo:
         )
     rows: dict[str, list[np.ndarray]] = {k: [] for k in obs}
     for state in demo.states:
-        for k, v in restore(env, state)[0].items():
+        for k, v in restore(env, state, demo.randomization)[0].items():
             rows[k].append(v)
     final, *_ = env.step(demo.actions[-1])
     return _with_obs(env, demo, rows, final)

@@ -27,7 +27,7 @@ from ..compile import stand_in
 from ..errors import SpecError, SpecTypeError, unknown_name
 from ..record import VideoRecorder
 from ..scene import Scene
-from ..task import TaskEnv  # importing mjkdl.task registers the tasks with Gymnasium
+from ..task import Draw, TaskEnv  # importing mjkdl.task registers the tasks with Gymnasium
 from .hdf5 import (
     STATE,
     DemoFile,
@@ -181,15 +181,40 @@ def scene_of(env: gym.Env) -> Scene:
 
 
 def restore(
-    env: gym.Env, state: np.ndarray
+    env: gym.Env, state: np.ndarray, draw: Draw | Mapping[str, Any] | str | None = None
 ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
     """Set a recorded `mjSTATE_INTEGRATION` row in `env` (after a reset) and return what
-    `step` returned on reaching it (`TaskEnv.observe`): the controllers' commands and the
-    episode's counters come back with the physics, so `step` goes on as recorded."""
+    `step` returned on reaching it (`TaskEnv.observe`): the controllers' commands, the
+    episode's counters and the actions on their way come back with the physics, so `step`
+    goes on as recorded. On a randomised env the state is of one episode's draw, which MuJoCo's
+    state does not hold: `draw` is it (`demo.randomization`, its dict or the `Draw`), applied
+    to the model; a randomised env without it, or a draw without a randomised env, is refused."""
     scene = scene_of(env)
     unwrapped = env.unwrapped
     if not isinstance(unwrapped, TaskEnv):
         raise SpecError(f"{type(unwrapped).__name__} is not a TaskEnv: it cannot restore a state")
+    if isinstance(draw, str):
+        draw = json.loads(draw) if draw else None
+    if draw is not None and not isinstance(draw, Draw):
+        try:
+            draw = Draw.from_dict(draw)
+        except (TypeError, KeyError, ValueError) as err:
+            raise SpecError(f"restore: draw is not a Draw or its dict: {err}") from None
+    if unwrapped.randomization_draw is None:
+        if draw is not None:
+            raise SpecError(
+                "restore: the state comes with a domain-randomisation draw and this env has no "
+                "randomization: make it with the randomization= the demos were recorded with "
+                "(data.attrs['env_args'])"
+            )
+    elif draw is None:
+        raise SpecError(
+            "restore: this env is randomised (TaskSpec.randomization) and a state is of one "
+            "episode's draw (masses, friction, latency, noise), which MuJoCo's state does not "
+            "hold: pass it, restore(env, state, draw=demo.randomization)"
+        )
+    else:
+        unwrapped.randomization_draw = draw
     mujoco.mj_setState(scene.model, scene.data, state, STATE)
     return unwrapped.observe()
 

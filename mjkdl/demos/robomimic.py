@@ -107,7 +107,8 @@ class EnvMjkdl(env_base.EnvBase):
         """Set `state["states"]` (a row of a demo's `states`, which holds the controllers'
         commands and the episode's counters too) and observe it: the observation, reward and
         end recorded with it (`TaskEnv.observe`); a `model` entry (robosuite's) is not
-        needed: the env builds its own."""
+        needed: the env builds its own. A randomised env needs the episode's draw with it,
+        `state["randomization"]` (the demo's attribute of that name)."""
         flat = np.asarray(state["states"], dtype=np.float64)
         size = mujoco.mj_stateSize(self._scene.model, STATE)
         if flat.shape != (size,):
@@ -115,7 +116,8 @@ class EnvMjkdl(env_base.EnvBase):
                 f"reset_to: states must have shape ({size},) (mjSTATE_INTEGRATION of "
                 f"{self._env_name}), got {flat.shape}"
             )
-        obs, reward, terminated, truncated, info = restore(self.env, flat)
+        draw = state.get("randomization")
+        obs, reward, terminated, truncated, info = restore(self.env, flat, draw)
         self._obs, self._reward = obs, float(reward)
         self._done, self._success = bool(terminated or truncated), success_of(info)
         return self.get_observation(obs)

@@ -425,6 +425,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         # MuJoCo's userdata, which mjSTATE_INTEGRATION saves and restores: a restored state
         # steps on exactly as the recorded one did. Sized once the arms' joints are known.
         size = spec.scene.userdata + _COUNTERS + sum(e.state_size for e in self._effectors)
+        if spec.randomization is not None:  # its actions on their way
+            size += spec.randomization.state_size(len(labels))
         if scene.model.nuserdata != size:
             scene._rebuild(dataclasses.replace(scene.spec, userdata=size))
         if scene.model.nuserdata != size:  # a stored model (a file's) made by an older mjkdl
@@ -435,6 +437,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
         self._render_camera_name = render_camera
         self._render_size = (render_width, render_height)
+        self._randomizer: Randomizer | None = None
         every = self._bind()
         self._shown = _shown_keys(spec.hide, every.spaces)
         self._task_space = spaces.Dict({k: every.spaces[k] for k in self._shown}, sort_keys=False)
@@ -445,16 +448,24 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             check_offscreen_size(scene.model, render_width, render_height)  # now, not at render()
         self._needs_reset = True
         self._diverged: str | None = None
-        self._randomizer = None
         if spec.randomization is not None:  # checked against this model and observations
             bounds = (self._action_low, self._action_high)
             keys = list(self._shown)
             self._randomizer = Randomizer(spec.randomization, scene.model, *bounds, keys)
+            self._randomizer.bind_state(self._randomizer_state)
 
     @property
     def randomization_draw(self) -> Draw | None:
         """This episode's draw of `TaskSpec.randomization` (None without one)."""
         return None if self._randomizer is None else self._randomizer.draw
+
+    @randomization_draw.setter
+    def randomization_draw(self, draw: Draw) -> None:
+        """Make `draw` (a recorded episode's) this episode's: the nominal model with it applied,
+        its latency and noise from now on (`mjkdl.demos.restore` sets it with a state)."""
+        if self._randomizer is None:
+            raise SpecError("this env has no TaskSpec.randomization: it takes no draw")
+        self._randomizer.use(draw, self.scene.model)
 
     def _bind(self) -> spaces.Dict:
         """Observation sources and the render camera on the scene's current model; the
@@ -489,6 +500,9 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         at = _COUNTERS
         for eff in self._effectors:
             at = eff.bind_state(userdata, at)
+        self._randomizer_state = userdata[at:]  # the Randomizer's: its actions on their way
+        if self._randomizer is not None:
+            self._randomizer.bind_state(self._randomizer_state)
         self._buffers = [(k, b) for r in self._readers for k, b in r.buffers.items()]
         self._buffers.append(("time", self._time))
         self._render_camera: int | mujoco.MjvCamera
@@ -645,10 +659,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         if self._diverged is not None:
             raise RuntimeError(f"the simulation diverged ({self._diverged}); call reset()")
         a = self._checked_action(action)
-        if self._randomizer is not None:
-            a = self._randomizer.action(a)
         if self.scene.model is not self._model:
             self._follow_rebuild()
+        if self._randomizer is not None:  # its queue is in the (rebound) userdata
+            a = self._randomizer.action(a, int(self._counters[0]))
         for eff in self._effectors:
             eff.apply(a, self._period)
         why = self._advance()
@@ -710,7 +724,9 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     def _shown_part(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """What the agent gets of an observation: all but `TaskSpec.hide`, in order."""
         shown = obs if len(self._shown) == len(obs) else {k: obs[k] for k in self._shown}
-        return shown if self._randomizer is None else self._randomizer.observe(shown)
+        if self._randomizer is None:
+            return shown
+        return self._randomizer.observe(shown, int(self._counters[0]))
 
     def _success(self, obs: dict[str, np.ndarray]) -> bool:
         fn = self.task_spec.success

@@ -120,18 +120,7 @@ class Randomization:
                 )
             _ids(model, kind, rng.names, name)
         _uniform(self.gravity, "gravity")
-        if self.action_latency is not None:
-            lat = self.action_latency
-            if (
-                not isinstance(lat, Sequence)
-                or len(lat) != 2
-                or not all(isinstance(v, int) and not isinstance(v, bool) for v in lat)
-                or not 0 <= lat[0] <= lat[1]
-            ):
-                raise SpecError(
-                    "randomization.action_latency must be (low, high) whole control steps, "
-                    f"0 <= low <= high, got {lat!r}"
-                )
+        self._latency()
         _std(self.action_noise, "randomization.action_noise")
         if not isinstance(self.observation_noise, Mapping):
             raise SpecTypeError(
@@ -144,6 +133,26 @@ class Randomization:
                     "observation", key, list(observation_keys), "randomization.observation_noise"
                 )
             _std(std, f"randomization.observation_noise[{key!r}]")
+
+    def state_size(self, action_size: int) -> int:
+        """Entries of MuJoCo's userdata the episode's actions on their way take (the latency's
+        queue, `action_latency[1] + 1` actions of `action_size`): saved with the state."""
+        lat = self._latency()
+        return 0 if lat is None else (lat[1] + 1) * action_size
+
+    def _latency(self) -> tuple[int, int] | None:
+        lat = self.action_latency
+        if lat is not None and (
+            not isinstance(lat, Sequence)
+            or len(lat) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) for v in lat)
+            or not 0 <= lat[0] <= lat[1]
+        ):
+            raise SpecError(
+                "randomization.action_latency must be (low, high) whole control steps, "
+                f"0 <= low <= high, got {lat!r}"
+            )
+        return lat
 
     def draw(self, model: mujoco.MjModel, rng: np.random.Generator) -> Draw:
         """One episode's values from `rng` (the env's generator), in field order."""
@@ -163,6 +172,7 @@ class Randomization:
             )
         out.action_noise = float(self.action_noise)
         out.observation_noise = {k: float(v) for k, v in self.observation_noise.items()}
+        out.noise_seed = int(rng.integers(2**63))
         return out
 
     @classmethod
@@ -203,7 +213,9 @@ class Sample:
 class Draw:
     """One episode's randomisation: plain numbers, documented per field as in `Randomization`
     (scales, offsets, colours per element id; `gravity` the offset added to the nominal one;
-    `action_latency` in control steps; the noise levels). None: the field stays nominal."""
+    `action_latency` in control steps; the noise levels; `noise_seed` the key of the
+    episode's noise, which each step draws afresh from (key, step)). None: the field stays
+    nominal."""
 
     body_mass: Sample | None = None
     body_com: Sample | None = None
@@ -222,6 +234,7 @@ class Draw:
     action_latency: int = 0
     action_noise: float = 0.0
     observation_noise: dict[str, float] = field(default_factory=dict)
+    noise_seed: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """The draw as JSON-ready values (what a recorded demonstration stores)."""
@@ -403,10 +416,17 @@ def _ids(
     return out
 
 
+_ACTION, _OBSERVATION = 0, 1  # the noise streams of a step
+
+
 class Randomizer:
     """A `Randomization` at work in one env: the draw at each reset, then the episode's
-    action latency and noise and observation noise (noise from a generator the env's own
-    seeds at reset, so an episode is the same for the same seed)."""
+    action latency and noise and observation noise.
+
+    Nothing of it is carried from step to step outside MuJoCo's state, so a state set with
+    `mj_setState` (and the episode's draw, `use`) goes on as recorded: the actions on their
+    way live in userdata (`bind_state`), and a step's noise is drawn from Philox, a
+    counter-based generator, at the counter (step, stream) under the draw's `noise_seed`."""
 
     def __init__(
         self,
@@ -426,11 +446,17 @@ class Randomizer:
         half = 0.5 * (action_high - action_low)
         self._half = np.where(np.isfinite(half), half, 1.0)
         self.draw = Draw()
-        self._noise = np.random.default_rng(0)
-        # the actions on their way (latency + 1 slots, the oldest next) and the noisy one
-        self._ring: np.ndarray | None = None
-        self._slot = 0
+        self._bits = np.random.Philox(key=0)
+        self._noise = np.random.Generator(self._bits)
+        self._position = self._bits.state  # its counter and key are set before each draw
+        self._queue = np.zeros((0, len(action_low)))  # a view of userdata once bound
         self._noisy = np.empty(len(action_low))
+
+    def bind_state(self, userdata: np.ndarray) -> None:
+        """Keep the actions on their way in `userdata[:description.state_size(n)]` (n: the
+        action's entries), which `mjSTATE_INTEGRATION` saves."""
+        n = len(self._low)
+        self._queue = userdata[: self.description.state_size(n)].reshape(-1, n)
 
     def restore(self, model: mujoco.MjModel) -> None:
         """The nominal model again (before a reset's initializers settle anything); a scene
@@ -444,27 +470,53 @@ class Randomizer:
 
     def reset(self, model: mujoco.MjModel, rng: np.random.Generator) -> Draw:
         """Draw this episode's values from `rng` and apply them to the nominal `model`."""
-        self.draw = self.description.draw(model, rng)
-        self._noise = np.random.default_rng(rng.integers(2**63))
-        self._saved = apply(self.draw, model, self._scratch)
-        self._ring = None
+        self._apply(self.description.draw(model, rng), model)
         return self.draw
 
-    def action(self, a: np.ndarray) -> np.ndarray:
-        """The action applied this step: the one `action_latency` steps ago (the first action
-        until then), with the episode's action noise, within the action's bounds."""
+    def use(self, draw: Draw, model: mujoco.MjModel) -> None:
+        """Make `draw` (a recorded episode's) the episode's: `model` nominal again with it
+        applied, its latency and noise from now on. A draw this env cannot hold (a longer
+        latency than its queue, noise on an observation it has not) is refused."""
+        slots = len(self._queue)
+        if draw.action_latency and draw.action_latency >= slots:
+            raise SpecError(
+                f"the draw's action_latency ({draw.action_latency} steps) is beyond this env's "
+                f"randomization.action_latency {self.description.action_latency}"
+            )
+        for key in draw.observation_noise:
+            if key not in self._keys:
+                raise unknown_name("observation", key, self._keys, "the draw's observation_noise")
+        self.restore(model)
+        self._apply(draw, model)
+
+    def _apply(self, draw: Draw, model: mujoco.MjModel) -> None:
+        self.draw = draw
+        self._saved = apply(draw, model, self._scratch)
+        self._position["state"]["key"][:] = (draw.noise_seed, 0)
+
+    def _place(self, stream: int, step: int) -> np.random.Generator:
+        """The noise generator at (step, stream) of the episode: the same numbers whatever
+        was drawn before (no per-step allocation: the state dict is reused)."""
+        counter = self._position["state"]["counter"]
+        counter[1], counter[2] = step, stream
+        self._bits.state = self._position
+        return self._noise
+
+    def action(self, a: np.ndarray, step: int) -> np.ndarray:
+        """The action applied at control step `step` of the episode: the one `action_latency`
+        steps ago (the first action until then), with the episode's action noise, within the
+        action's bounds."""
         lat = self.draw.action_latency
         if lat:
-            if self._ring is None:  # the episode's first action fills the way
-                self._ring, self._slot = np.tile(a, (lat + 1, 1)), 0
-            ring = self._ring
-            ring[self._slot] = a
-            self._slot = (self._slot + 1) % (lat + 1)
-            a = ring[self._slot]  # written `lat` steps ago
+            queue = self._queue
+            if step == 0:  # the episode's first action fills the way
+                queue[: lat + 1] = a
+            queue[step % (lat + 1)] = a
+            a = queue[(step + 1) % (lat + 1)]  # written `lat` steps ago
         std = self.draw.action_noise
         if std > 0.0:
             noisy = self._noisy
-            self._noise.standard_normal(out=noisy)
+            self._place(_ACTION, step).standard_normal(out=noisy)
             noisy *= std
             noisy *= self._half
             noisy += a
@@ -472,14 +524,16 @@ class Randomizer:
             return noisy
         return a
 
-    def observe(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """What the agent sees: `obs` with the episode's noise on the keys that have some."""
+    def observe(self, obs: dict[str, np.ndarray], step: int) -> dict[str, np.ndarray]:
+        """What the agent sees of the observation after `step` control steps: `obs` with the
+        episode's noise on the keys that have some."""
         noise = self.draw.observation_noise
         if not noise:
             return obs
         out = dict(obs)
+        rng = self._place(_OBSERVATION, step)
         for key, std in noise.items():
             if key in out and std > 0.0:
                 v = out[key]
-                out[key] = (v + self._noise.normal(0.0, std, v.shape)).astype(v.dtype)
+                out[key] = (v + rng.normal(0.0, std, v.shape)).astype(v.dtype)
         return out
