@@ -228,6 +228,16 @@ def test_cameras_are_refused_with_the_engine_that_renders_them() -> None:
         make_batch(spec, 1, device="cpu")
 
 
+@pytest.mark.parametrize("engine", ["mujoco", "warp"])
+def test_a_randomization_the_engine_cannot_draw_is_refused_by_field(engine: str) -> None:
+    with pytest.raises(
+        UnsupportedFeatureError,
+        match=rf"TaskSpec\.randomization\.camera_fovy: engine='{engine}' does not draw it per "
+        r"world; only the CPU env \(TaskEnv\) draws it",
+    ):
+        make_batch(PICK, 1, device="cpu", engine=engine, randomization={"camera_fovy": [-5, 5]})
+
+
 def test_the_memory_estimate_counts_available_memory(monkeypatch) -> None:
     """Huge batches are refused before allocating, against `MemAvailable` (free memory and
     the page cache the kernel can reclaim), not only the free pages."""

@@ -191,6 +191,21 @@ class Randomization:
         return cls(**kwargs)
 
 
+def fields_in_use(description: Randomization) -> list[str]:
+    """The fields of `description` that vary something, in field order (an engine refuses
+    those it cannot apply by name)."""
+    out = []
+    for f in fields(description):
+        value = getattr(description, f.name)
+        if f.name == "action_latency":
+            value = value is not None and value[1] > 0
+        elif f.name == "observation_noise":
+            value = any(std > 0.0 for std in value.values())
+        if value is not None and value is not False and value != 0.0:
+            out.append(f.name)
+    return out
+
+
 @dataclass
 class Sample:
     """One field's draw: the compiled model's element ids and their values (n x components)."""

@@ -27,6 +27,7 @@ from ...errors import MjkdlError, SpecError, SpecTypeError
 from ..env import TaskEnv
 from ..goal import GoalTaskEnv
 from ..initializers import PhysicsRandomizer
+from ..randomization import Randomization, fields_in_use
 from ..rewards import batchable
 from ..spec import TaskSpec
 from . import cpu_engine, warp_engine
@@ -38,6 +39,7 @@ from .sensors import BatchObserver
 
 __all__ = [
     "ENGINES",
+    "RANDOMIZED",
     "BatchEnv",
     "DeviceUnavailableError",
     "UnsupportedFeatureError",
@@ -47,6 +49,9 @@ __all__ = [
 ENGINES = ("mujoco", "warp")
 """`make_batch`'s engines: MuJoCo's own batch on the CPU, MuJoCo Warp (GPU, or its CPU
 device for testing kernels)."""
+
+# The fields of `TaskSpec.randomization` each engine draws per world; the others are refused.
+RANDOMIZED: dict[str, tuple[str, ...]] = {"mujoco": (), "warp": ()}
 
 MEMORY_SHARE = 0.8  # of the device's available memory a batch may plan to take
 # MuJoCo Warp's buffers: constraint rows per world, and contacts per world pooled over all
@@ -189,6 +194,22 @@ def _check_engine(engine: object, device: object) -> None:
         raise SpecError(f"engine='mujoco' (MuJoCo's own batch) runs on the CPU, not {device!r}")
 
 
+def _check_randomization(description: Randomization, engine: str) -> None:
+    """Refuse, by field, a randomization that `engine` cannot draw per world."""
+    for name in fields_in_use(description):
+        if name not in RANDOMIZED[engine]:
+            able = [e for e, names in RANDOMIZED.items() if name in names]
+            where = (
+                f"engine={able[0]!r} draws it per world"
+                if able
+                else "only the CPU env (TaskEnv) draws it"
+            )
+            raise UnsupportedFeatureError(
+                f"TaskSpec.randomization.{name}: engine={engine!r} does not draw it per world; "
+                f"{where}"
+            )
+
+
 def _device(device: object, allow_cpu: bool) -> str:
     if device is None:  # a GPU that torch and MuJoCo Warp can use, else (with a warning) the CPU
         return _device("cuda:0", allow_cpu=True) if torch.cuda.is_available() else "cpu"
@@ -276,6 +297,8 @@ class BatchEnv(VectorEnv):
                     f"TaskSpec.initializers[{i}] (PhysicsRandomizer) edits the model per "
                     "episode; the batched worlds share one model, so it runs only in the CPU env"
                 )
+        if spec.randomization is not None:
+            _check_randomization(spec.randomization, engine)
         host.reset(seed=0)  # configures the arms' actuators (Robot control modes) in the model
         model, data = host.scene.model, host.scene.data
         self.state: Engine
