@@ -206,6 +206,29 @@ def fields_in_use(description: Randomization) -> list[str]:
     return out
 
 
+# Physical field -> the MjModel fields `apply` writes for it ('opt.<name>': MjOption's), for
+# engines that hold one model per world and take its values field by field.
+MODEL_FIELDS: dict[str, tuple[str, ...]] = {
+    "body_mass": ("body_mass", "body_inertia"),
+    "body_com": ("body_ipos", "body_sameframe", "body_simple"),
+    "geom_friction": ("geom_friction",),
+    "joint_damping": ("dof_damping",),
+    "joint_armature": ("dof_armature",),
+    "joint_frictionloss": ("dof_frictionloss",),
+    "actuator_gain": ("actuator_gainprm", "actuator_biasprm"),
+    "gravity": ("opt.gravity",),
+}
+# The MjModel fields after whose change MuJoCo's derived constants must follow (mj_setConst).
+CONST_INPUTS = ("body_mass", "body_ipos", "dof_armature")
+
+
+def model_fields(description: Randomization) -> list[str]:
+    """The MjModel fields that `apply` writes for the physical fields of `description` in
+    use (`MODEL_FIELDS`), in that order."""
+    used = fields_in_use(description)
+    return [f for name, written in MODEL_FIELDS.items() if name in used for f in written]
+
+
 @dataclass
 class Sample:
     """One field's draw: the compiled model's element ids and their values (n x components)."""
@@ -348,7 +371,7 @@ def undo(saved: Saved, model: mujoco.MjModel, scratch: mujoco.MjData) -> None:
 
 def _set_const(saved: Saved, model: mujoco.MjModel, scratch: mujoco.MjData) -> None:
     # body_subtreemass, dof_invweight0 and the like follow masses, centres and armature
-    if any(name in ("body_mass", "body_ipos", "dof_armature") for name, _, _ in saved):
+    if any(name in CONST_INPUTS for name, _, _ in saved):
         mujoco.mj_setConst(model, scratch)
 
 

@@ -11,7 +11,7 @@ and `warp_engine` (MuJoCo Warp, float32, on a GPU).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -125,6 +125,15 @@ class Engine(ABC):
         from .control import ChainGravity
 
         return ChainGravity(model, jids, self)
+
+    def set_model(self, ids: np.ndarray, values: Mapping[str, np.ndarray]) -> None:
+        """Worlds `ids` take their own values of MjModel fields (`values`: field -> one row
+        per world, 'opt.<name>' for MjOption's), MuJoCo's derived constants following; the
+        other worlds keep theirs. By default refused: the engine shares one model."""
+        raise UnsupportedFeatureError(
+            f"engine {self.name!r} holds one model for all worlds; it cannot give worlds their "
+            f"own {', '.join(values)}"
+        )
 
     def close(self) -> None:  # noqa: B027  (engines without resources keep it)
         """Release what the engine holds beyond its arrays."""

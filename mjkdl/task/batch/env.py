@@ -27,12 +27,12 @@ from ...errors import MjkdlError, SpecError, SpecTypeError
 from ..env import TaskEnv
 from ..goal import GoalTaskEnv
 from ..initializers import PhysicsRandomizer
-from ..randomization import Randomization, fields_in_use
+from ..randomization import MODEL_FIELDS, Randomization, fields_in_use
 from ..rewards import batchable
 from ..spec import TaskSpec
 from . import cpu_engine, warp_engine
 from .cameras import image_bytes
-from .control import BatchArm
+from .control import ActionLatency, BatchArm
 from .engine import Engine, UnsupportedFeatureError, as_numpy
 from .reset import EpisodeStarts, check_picklable
 from .sensors import BatchObserver
@@ -51,7 +51,10 @@ ENGINES = ("mujoco", "warp")
 device for testing kernels)."""
 
 # The fields of `TaskSpec.randomization` each engine draws per world; the others are refused.
-RANDOMIZED: dict[str, tuple[str, ...]] = {"mujoco": (), "warp": ()}
+RANDOMIZED: dict[str, tuple[str, ...]] = {
+    "mujoco": (*MODEL_FIELDS, "action_latency"),
+    "warp": ("action_latency",),
+}
 
 MEMORY_SHARE = 0.8  # of the device's available memory a batch may plan to take
 # MuJoCo Warp's buffers: constraint rows per world, and contacts per world pooled over all
@@ -301,6 +304,8 @@ class BatchEnv(VectorEnv):
             _check_randomization(spec.randomization, engine)
         host.reset(seed=0)  # configures the arms' actuators (Robot control modes) in the model
         model, data = host.scene.model, host.scene.data
+        if host._randomizer is not None:  # the engine starts from the nominal model
+            host._randomizer.restore(model)
         self.state: Engine
         if engine == "warp":
             per_world, shared = warp_engine.world_bytes(model, data, device, nconmax, njmax)
@@ -334,6 +339,11 @@ class BatchEnv(VectorEnv):
         self._steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._held = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self.starts = EpisodeStarts(host, self.state, self.arms, num_envs, reset_workers, maker)
+        self._delay: ActionLatency | None = None
+        if self.starts.latency is not None:
+            assert spec.randomization is not None and spec.randomization.action_latency
+            most = spec.randomization.action_latency[1]
+            self._delay = ActionLatency(self.starts.latency, len(low), most, dtype)
         self.single_observation_space = host.observation_space
         self.single_action_space = host.action_space
         self.observation_space = gym.vector.utils.batch_space(
@@ -393,6 +403,8 @@ class BatchEnv(VectorEnv):
         self, actions: Any
     ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor, torch.Tensor, dict[str, Any]]:
         a = self._checked(actions)
+        if self._delay is not None:
+            a = self._delay(a)
         for arm in self.arms:
             arm.apply(a, self._period)
         self.state.step(self._substeps)
@@ -441,6 +453,8 @@ class BatchEnv(VectorEnv):
         """Worlds `rows` start their next episode (the CPU env's reset with the world's
         generator, `EpisodeStarts`); then one `mj_forward` of every world."""
         self.starts.start(rows)
+        if self._delay is not None:
+            self._delay.restart(rows)
         self.state.clear(rows)
         self.state.forward(rows)
         self._steps[rows] = 0
