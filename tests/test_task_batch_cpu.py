@@ -290,7 +290,7 @@ def test_cameras_are_refused_with_the_engine_that_renders_them() -> None:
         ("mujoco", "camera_fovy", [-5, 5], r"only the CPU env \(TaskEnv\) draws it"),
         ("mujoco", "action_noise", 0.1, r"only the CPU env \(TaskEnv\) draws it"),
         ("warp", "camera_fovy", [-5, 5], r"only the CPU env \(TaskEnv\) draws it"),
-        ("warp", "body_mass", [0.5, 2.0], "engine='mujoco' draws it per world"),
+        ("warp", "body_com", [-0.01, 0.01], "engine='mujoco' draws it per world"),
     ],
 )
 def test_a_randomization_the_engine_cannot_draw_is_refused_by_field(

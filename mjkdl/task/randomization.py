@@ -218,8 +218,16 @@ MODEL_FIELDS: dict[str, tuple[str, ...]] = {
     "actuator_gain": ("actuator_gainprm", "actuator_biasprm"),
     "gravity": ("opt.gravity",),
 }
-# The MjModel fields after whose change MuJoCo's derived constants must follow (mj_setConst).
+# The MjModel fields after whose change MuJoCo's derived constants must follow (mj_setConst),
+# and those constants that the dynamics read (for engines that take them as computed).
 CONST_INPUTS = ("body_mass", "body_ipos", "dof_armature")
+CONST_OUTPUTS = (
+    "body_subtreemass",
+    "body_invweight0",
+    "dof_invweight0",
+    "tendon_invweight0",
+    "actuator_acc0",
+)
 
 
 def model_fields(description: Randomization) -> list[str]:

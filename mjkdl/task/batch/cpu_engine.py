@@ -23,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 import torch
 
-from ..randomization import CONST_INPUTS
+from ..randomization import CONST_INPUTS, CONST_OUTPUTS
 from .engine import Engine, Tcp
 
 if TYPE_CHECKING:
@@ -199,8 +199,10 @@ class CpuEngine(Engine):
     def set_model(self, ids: np.ndarray, values: Mapping[str, np.ndarray]) -> None:
         """Through the batch's per-simulation model fields (`expand`), then `set_const` of
         those worlds where masses, centres of mass or armature changed, as `mj_setConst`
-        follows them in the CPU env."""
+        follows them in the CPU env (it computes the constants given, the same)."""
         for name, rows in values.items():
+            if name in CONST_OUTPUTS:
+                continue
             if name not in self._per_world:
                 self._per_world[name] = self.batch.expand(name)
             array = self._per_world[name]

@@ -128,8 +128,9 @@ class Engine(ABC):
 
     def set_model(self, ids: np.ndarray, values: Mapping[str, np.ndarray]) -> None:
         """Worlds `ids` take their own values of MjModel fields (`values`: field -> one row
-        per world, 'opt.<name>' for MjOption's), MuJoCo's derived constants following; the
-        other worlds keep theirs. By default refused: the engine shares one model."""
+        per world, 'opt.<name>' for MjOption's; with masses, centres of mass or armature,
+        also the constants `mj_setConst` computed from them, `randomization.CONST_OUTPUTS`);
+        the other worlds keep theirs. By default refused: the engine shares one model."""
         raise UnsupportedFeatureError(
             f"engine {self.name!r} holds one model for all worlds; it cannot give worlds their "
             f"own {', '.join(values)}"

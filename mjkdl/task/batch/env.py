@@ -34,7 +34,7 @@ from . import cpu_engine, warp_engine
 from .cameras import image_bytes
 from .control import ActionLatency, BatchArm
 from .engine import Engine, UnsupportedFeatureError, as_numpy
-from .reset import EpisodeStarts, check_picklable
+from .reset import EpisodeStarts, check_picklable, randomized
 from .sensors import BatchObserver
 
 __all__ = [
@@ -51,9 +51,11 @@ ENGINES = ("mujoco", "warp")
 device for testing kernels)."""
 
 # The fields of `TaskSpec.randomization` each engine draws per world; the others are refused.
+# MuJoCo Warp holds `body_simple` (which a centre of mass moved off the body frame changes)
+# once for all worlds.
 RANDOMIZED: dict[str, tuple[str, ...]] = {
     "mujoco": (*MODEL_FIELDS, "action_latency"),
-    "warp": ("action_latency",),
+    "warp": (*(f for f in MODEL_FIELDS if f != "body_com"), "action_latency"),
 }
 
 MEMORY_SHARE = 0.8  # of the device's available memory a batch may plan to take
@@ -100,7 +102,9 @@ def make_batch(
     `max_episode_steps` overrides the registered time limit. `reset_workers` processes
     compute the worlds' episode starts in parallel (each builds a copy of the task; 0: this
     process): on a GPU, where one core resets the finished worlds slower than the device
-    steps them all.
+    steps them all. The task's randomization (`TaskSpec.randomization`) is drawn per world
+    and episode, as the CPU env draws it for the world's seed; a field the engine cannot
+    draw per world is refused by name (`RANDOMIZED`).
     """
     _check_engine(engine, device)
     device = _device(device, allow_cpu)
@@ -311,7 +315,9 @@ class BatchEnv(VectorEnv):
             per_world, shared = warp_engine.world_bytes(model, data, device, nconmax, njmax)
             per_world += image_bytes(host.readers, model)
             _check_memory(per_world, shared, num_envs, device, "(or smaller nconmax/njmax)")
-            self.state = warp_engine.WarpEngine(model, data, num_envs, device, nconmax, njmax)
+            self.state = warp_engine.WarpEngine(
+                model, data, num_envs, device, nconmax, njmax, randomized(host)
+            )
         else:
             per_world, shared = cpu_engine.world_bytes(model, threads)
             _check_memory(per_world, shared, num_envs, device, "(or fewer threads)")

@@ -27,7 +27,7 @@ import torch
 from gymnasium.utils.seeding import np_random
 
 from ...errors import MjkdlError, SpecError
-from ..randomization import fields_in_use, model_fields
+from ..randomization import CONST_INPUTS, CONST_OUTPUTS, fields_in_use, model_fields
 
 if TYPE_CHECKING:
     from ..env import TaskEnv
@@ -63,9 +63,13 @@ def start_of(env: TaskEnv) -> Start:
 
 
 def randomized(env: TaskEnv) -> list[str]:
-    """The model fields a reset of `env` draws per episode (none without randomization)."""
+    """The model fields a reset of `env` draws per episode (none without randomization), and
+    MuJoCo's constants that follow them (`CONST_OUTPUTS`, as `mj_setConst` computed them)."""
     description = env.task_spec.randomization
-    return [] if description is None else model_fields(description)
+    names = [] if description is None else model_fields(description)
+    if any(name in CONST_INPUTS for name in names):
+        names += CONST_OUTPUTS
+    return names
 
 
 class EpisodeStarts:
