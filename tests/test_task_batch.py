@@ -19,6 +19,7 @@ from mjkdl.task.batch.engine import UnsupportedFeatureError, mat_to_quat  # noqa
 from mjkdl.task.env import TaskEnv  # noqa: E402
 from mjkdl.task.experts import expert_for  # noqa: E402
 from mjkdl.task.initializers import PhysicsRandomizer  # noqa: E402
+from mjkdl.task.randomization import Randomization  # noqa: E402
 from mjkdl.task.rewards import batchable  # noqa: E402
 from mjkdl.task.spec import Actuation, CameraSensor  # noqa: E402
 
@@ -137,6 +138,44 @@ def test_joint_position_mode_matches_and_auto_resets() -> None:
     finally:
         batch.close()
         cpu_env.close()
+
+
+def test_each_world_draws_the_cpu_envs_randomization_for_its_seed() -> None:
+    """World i's episode is the CPU env's for seed s + i with its draw of the physical fields
+    and the latency, within float32's tolerances (the draw moves it well beyond them)."""
+    spec = registry.panda_pick_cube_spec()
+    spec.arms[0].actuation = Actuation.JOINT_POSITION
+    spec.time_limit = 0.4
+    plain = TaskEnv(spec)
+    spec.randomization = Randomization.coerce(
+        {
+            "body_mass": [0.5, 2.0],
+            "geom_friction": [0.7, 1.3],
+            "joint_damping": [0.5, 2.0],
+            "joint_armature": [0.5, 2.0],
+            "actuator_gain": [0.8, 1.2],
+            "gravity": [-0.5, 0.5],
+            "action_latency": [0, 2],
+        }
+    )
+    batch = make_batch(spec, WORLDS, **WARP)
+    cpu_env = TaskEnv(spec)
+    try:
+        rng = np.random.default_rng(3)
+        low, high = cpu_env.action_bounds
+        mid, half = 0.5 * (low + high)[:7], 0.5 * (high - low)[:7]
+        actions = np.empty((STEPS, WORLDS, 8), dtype=np.float32)
+        actions[..., :7] = (PANDA_HOME - mid) / half + rng.uniform(-0.1, 0.1, (STEPS, WORLDS, 7))
+        actions[..., 7] = 1.0
+        gaps, _ = _compare(batch, cpu_env, actions)
+        assert gaps["pos"] < POS_TOL and gaps["joint"] < JOINT_TOL, gaps
+        assert gaps["reward"] < REWARD_TOL, gaps
+        nominal, _ = _compare(batch, plain, actions)
+        assert nominal["joint"] > 100 * JOINT_TOL, nominal
+    finally:
+        batch.close()
+        cpu_env.close()
+        plain.close()
 
 
 @pytest.mark.parametrize("variant", ["joint_velocity", "joint_torque", "top_down"])

@@ -83,6 +83,62 @@ def test_joint_space_episodes_are_the_cpu_envs_bit_for_bit(actuation: str) -> No
         env.close()
 
 
+PHYSICS = {
+    "body_mass": [0.5, 2.0],
+    "body_com": [-0.005, 0.005, ["cube"]],
+    "geom_friction": [0.7, 1.3],
+    "joint_damping": [0.5, 2.0],
+    "joint_armature": [0.5, 2.0],
+    "joint_frictionloss": [0.5, 2.0],
+    "actuator_gain": [0.8, 1.2],
+    "gravity": [-0.5, 0.5],
+    "action_latency": [0, 3],
+}
+
+
+def test_each_world_draws_the_cpu_envs_randomization_for_its_seed_bit_for_bit() -> None:
+    """World i of reset(seed=s) is the CPU env's episode for seed s + i, with its draw of
+    every physical field and of the action latency (restarts draw again): the same states
+    exactly, with the reset workers too."""
+    kw = {"actuation": "joint_position", "time_limit": 0.5, "randomization": PHYSICS}
+    batch = make_batch(PICK, WORLDS, device="cpu", **kw)
+    env = gym.make(PICK, **kw).unwrapped
+    plain = make_batch(PICK, WORLDS, device="cpu", actuation="joint_position", time_limit=0.5)
+    try:
+        actions = _actions(8, 2)
+        ref_q, _ = _cpu_states(env, actions)
+        q, _, ends = _batch_states(batch, actions)
+        assert ends == 2 * WORLDS
+        assert np.array_equal(q, ref_q), np.abs(q - ref_q).max()
+        workers = make_batch(PICK, WORLDS, device="cpu", reset_workers=1, **kw)
+        try:  # the reset workers draw the same
+            assert np.array_equal(_batch_states(workers, actions)[0], ref_q)
+        finally:
+            workers.close()
+        nominal, _, _ = _batch_states(plain, actions)
+        assert np.abs(q - nominal).max() > 1e-3  # the draws changed the motion
+        # the last world's model is the CPU env's of the same (last) episode, constants too
+        mine, ref = batch.state.batch.get_model(WORLDS - 1), env.scene.model
+        for name in (
+            "body_mass",
+            "body_inertia",
+            "body_ipos",
+            "geom_friction",
+            "dof_damping",
+            "dof_armature",
+            "actuator_gainprm",
+            "body_subtreemass",
+            "dof_invweight0",
+        ):
+            assert np.array_equal(getattr(mine, name), getattr(ref, name)), name
+            assert not np.array_equal(getattr(mine, name), getattr(plain.host.scene.model, name))
+        assert np.array_equal(mine.opt.gravity, ref.opt.gravity)
+    finally:
+        batch.close()
+        plain.close()
+        env.close()
+
+
 @pytest.mark.parametrize("task_id", sorted(registry.TASKS))
 def test_cartesian_episodes_match_within_rounding(task_id: str) -> None:
     batch = make_batch(task_id, WORLDS, device="cpu", time_limit=0.5)
@@ -226,6 +282,26 @@ def test_cameras_are_refused_with_the_engine_that_renders_them() -> None:
     spec.sensors = [*spec.sensors, CameraSensor("front", 32, 32)]
     with pytest.raises(UnsupportedFeatureError, match=r"sensors\[2\].*engine='warp'"):
         make_batch(spec, 1, device="cpu")
+
+
+@pytest.mark.parametrize(
+    ("engine", "field", "value", "where"),
+    [
+        ("mujoco", "camera_fovy", [-5, 5], r"only the CPU env \(TaskEnv\) draws it"),
+        ("mujoco", "action_noise", 0.1, r"only the CPU env \(TaskEnv\) draws it"),
+        ("warp", "camera_fovy", [-5, 5], r"only the CPU env \(TaskEnv\) draws it"),
+        ("warp", "body_com", [-0.01, 0.01], "engine='mujoco' draws it per world"),
+    ],
+)
+def test_a_randomization_the_engine_cannot_draw_is_refused_by_field(
+    engine: str, field: str, value: object, where: str
+) -> None:
+    with pytest.raises(
+        UnsupportedFeatureError,
+        match=rf"TaskSpec\.randomization\.{field}: engine='{engine}' does not draw it per "
+        rf"world; {where}",
+    ):
+        make_batch(PICK, 1, device="cpu", engine=engine, randomization={field: value})
 
 
 def test_the_memory_estimate_counts_available_memory(monkeypatch) -> None:

@@ -201,6 +201,52 @@ class Randomization:
         return cls(**kwargs)
 
 
+def fields_in_use(description: Randomization) -> list[str]:
+    """The fields of `description` that vary something, in field order (an engine refuses
+    those it cannot apply by name)."""
+    out = []
+    for f in fields(description):
+        value = getattr(description, f.name)
+        if f.name == "action_latency":
+            value = value is not None and value[1] > 0
+        elif f.name == "observation_noise":
+            value = any(std > 0.0 for std in value.values())
+        if value is not None and value is not False and value != 0.0:
+            out.append(f.name)
+    return out
+
+
+# Physical field -> the MjModel fields `apply` writes for it ('opt.<name>': MjOption's), for
+# engines that hold one model per world and take its values field by field.
+MODEL_FIELDS: dict[str, tuple[str, ...]] = {
+    "body_mass": ("body_mass", "body_inertia"),
+    "body_com": ("body_ipos", "body_sameframe", "body_simple"),
+    "geom_friction": ("geom_friction",),
+    "joint_damping": ("dof_damping",),
+    "joint_armature": ("dof_armature",),
+    "joint_frictionloss": ("dof_frictionloss",),
+    "actuator_gain": ("actuator_gainprm", "actuator_biasprm"),
+    "gravity": ("opt.gravity",),
+}
+# The MjModel fields after whose change MuJoCo's derived constants must follow (mj_setConst),
+# and those constants that the dynamics read (for engines that take them as computed).
+CONST_INPUTS = ("body_mass", "body_ipos", "dof_armature")
+CONST_OUTPUTS = (
+    "body_subtreemass",
+    "body_invweight0",
+    "dof_invweight0",
+    "tendon_invweight0",
+    "actuator_acc0",
+)
+
+
+def model_fields(description: Randomization) -> list[str]:
+    """The MjModel fields that `apply` writes for the physical fields of `description` in
+    use (`MODEL_FIELDS`), in that order."""
+    used = fields_in_use(description)
+    return [f for name, written in MODEL_FIELDS.items() if name in used for f in written]
+
+
 @dataclass
 class Sample:
     """One field's draw: the compiled model's element ids and their values (n x components)."""
@@ -346,7 +392,7 @@ def undo(saved: Saved, model: mujoco.MjModel, scratch: mujoco.MjData) -> None:
 
 def _set_const(saved: Saved, model: mujoco.MjModel, scratch: mujoco.MjData) -> None:
     # body_subtreemass, dof_invweight0 and the like follow masses, centres and armature
-    if any(name in ("body_mass", "body_ipos", "dof_armature") for name, _, _ in saved):
+    if any(name in CONST_INPUTS for name, _, _ in saved):
         mujoco.mj_setConst(model, scratch)
 
 

@@ -8,10 +8,11 @@ the engines; `control`, `sensors`, `reset` and `cameras` the task's parts over a
 """
 
 from .engine import Engine, UnsupportedFeatureError
-from .env import ENGINES, BatchEnv, DeviceUnavailableError, make_batch
+from .env import ENGINES, RANDOMIZED, BatchEnv, DeviceUnavailableError, make_batch
 
 __all__ = [
     "ENGINES",
+    "RANDOMIZED",
     "BatchEnv",
     "DeviceUnavailableError",
     "Engine",

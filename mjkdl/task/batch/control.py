@@ -375,3 +375,32 @@ def _axis_rotation(cross: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
     c, s = torch.cos(angle)[:, None, None], torch.sin(angle)[:, None, None]
     eye = torch.eye(3, dtype=angle.dtype, device=angle.device)
     return eye + s * cross + (1.0 - c) * (cross @ cross)
+
+
+class ActionLatency:
+    """Each world's actions applied its episode's `action_latency` control steps late, all
+    worlds at once (the CPU env's `Randomizer.action`): a ring of the last `most` + 1 actions
+    per world, the episode's first action filling it, so until `latency` steps have passed
+    the first action is applied."""
+
+    def __init__(self, latency: torch.Tensor, n: int, most: int, dtype: torch.dtype) -> None:
+        self.latency = latency
+        """(nworld,) long: each world's latency this episode (its reset's draw)."""
+        nworld, dev = len(latency), latency.device
+        self._ring = torch.zeros(nworld, most + 1, n, dtype=dtype, device=dev)
+        self._age = torch.zeros(nworld, dtype=torch.long, device=dev)  # steps this episode
+        self._worlds = torch.arange(nworld, device=dev)
+
+    def restart(self, rows: torch.Tensor) -> None:
+        """Worlds `rows` (a bool mask) start an episode: their next action fills the ring."""
+        self._age[rows] = 0
+
+    def __call__(self, action: torch.Tensor) -> torch.Tensor:
+        """The actions applied this step, given this step's `action` of every world."""
+        ring, age, size = self._ring, self._age, self._ring.shape[1]
+        first = age == 0
+        ring[first] = action[first].unsqueeze(1)
+        ring[self._worlds, age % size] = action
+        out = ring[self._worlds, (age - self.latency) % size]  # written `latency` steps ago
+        age += 1
+        return out

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
@@ -23,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 import torch
 
+from ..randomization import CONST_INPUTS, CONST_OUTPUTS
 from .engine import Engine, Tcp
 
 if TYPE_CHECKING:
@@ -98,6 +99,7 @@ class CpuEngine(Engine):
         self._rbound = model.geom_rbound
         self._failed = np.zeros(nworld, dtype=bool)
         self._errors: dict[int, str] = {}
+        self._per_world: dict[str, np.ndarray] = {}  # the expanded model fields
         self.batch.forward()
 
     def forward(self, rows: torch.Tensor) -> None:
@@ -193,6 +195,20 @@ class CpuEngine(Engine):
         if (model.body_gravcomp[chain] > 0).any() or pm.nq != pm.njoints - 1:
             return None
         return PinocchioGravity(eff, model, self)
+
+    def set_model(self, ids: np.ndarray, values: Mapping[str, np.ndarray]) -> None:
+        """Through the batch's per-simulation model fields (`expand`), then `set_const` of
+        those worlds where masses, centres of mass or armature changed, as `mj_setConst`
+        follows them in the CPU env (it computes the constants given, the same)."""
+        for name, rows in values.items():
+            if name in CONST_OUTPUTS:
+                continue
+            if name not in self._per_world:
+                self._per_world[name] = self.batch.expand(name)
+            array = self._per_world[name]
+            array[ids] = rows.reshape((len(ids), *array.shape[1:]))
+        if any(name in CONST_INPUTS for name in values):
+            self.batch.set_const(ids)
 
     def close(self) -> None:
         del self.batch

@@ -11,7 +11,7 @@ and `warp_engine` (MuJoCo Warp, float32, on a GPU).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -123,6 +123,16 @@ class Engine(ABC):
         `jids`) against gravity at the current state, or None (the default) for the chain's
         bodies summed on the device (`control.ChainGravity`)."""
         return None
+
+    def set_model(self, ids: np.ndarray, values: Mapping[str, np.ndarray]) -> None:
+        """Worlds `ids` take their own values of MjModel fields (`values`: field -> one row
+        per world, 'opt.<name>' for MjOption's; with masses, centres of mass or armature,
+        also the constants `mj_setConst` computed from them, `randomization.CONST_OUTPUTS`);
+        the other worlds keep theirs. By default refused: the engine shares one model."""
+        raise UnsupportedFeatureError(
+            f"engine {self.name!r} holds one model for all worlds; it cannot give worlds their "
+            f"own {', '.join(values)}"
+        )
 
     def close(self) -> None:  # noqa: B027  (engines without resources keep it)
         """Release what the engine holds beyond its arrays."""

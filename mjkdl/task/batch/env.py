@@ -27,17 +27,19 @@ from ...errors import MjkdlError, SpecError, SpecTypeError
 from ..env import TaskEnv
 from ..goal import GoalTaskEnv
 from ..initializers import PhysicsRandomizer
+from ..randomization import MODEL_FIELDS, Randomization, fields_in_use
 from ..rewards import batchable
 from ..spec import TaskSpec
 from . import cpu_engine, warp_engine
 from .cameras import image_bytes
-from .control import BatchArm
+from .control import ActionLatency, BatchArm
 from .engine import Engine, UnsupportedFeatureError, as_numpy
-from .reset import EpisodeStarts, check_picklable
+from .reset import EpisodeStarts, check_picklable, randomized
 from .sensors import BatchObserver
 
 __all__ = [
     "ENGINES",
+    "RANDOMIZED",
     "BatchEnv",
     "DeviceUnavailableError",
     "UnsupportedFeatureError",
@@ -47,6 +49,14 @@ __all__ = [
 ENGINES = ("mujoco", "warp")
 """`make_batch`'s engines: MuJoCo's own batch on the CPU, MuJoCo Warp (GPU, or its CPU
 device for testing kernels)."""
+
+# The fields of `TaskSpec.randomization` each engine draws per world; the others are refused.
+# MuJoCo Warp holds `body_simple` (which a centre of mass moved off the body frame changes)
+# once for all worlds.
+RANDOMIZED: dict[str, tuple[str, ...]] = {
+    "mujoco": (*MODEL_FIELDS, "action_latency"),
+    "warp": (*(f for f in MODEL_FIELDS if f != "body_com"), "action_latency"),
+}
 
 MEMORY_SHARE = 0.8  # of the device's available memory a batch may plan to take
 # MuJoCo Warp's buffers: constraint rows per world, and contacts per world pooled over all
@@ -92,7 +102,9 @@ def make_batch(
     `max_episode_steps` overrides the registered time limit. `reset_workers` processes
     compute the worlds' episode starts in parallel (each builds a copy of the task; 0: this
     process): on a GPU, where one core resets the finished worlds slower than the device
-    steps them all.
+    steps them all. The task's randomization (`TaskSpec.randomization`) is drawn per world
+    and episode, as the CPU env draws it for the world's seed; a field the engine cannot
+    draw per world is refused by name (`RANDOMIZED`).
     """
     _check_engine(engine, device)
     device = _device(device, allow_cpu)
@@ -189,6 +201,22 @@ def _check_engine(engine: object, device: object) -> None:
         raise SpecError(f"engine='mujoco' (MuJoCo's own batch) runs on the CPU, not {device!r}")
 
 
+def _check_randomization(description: Randomization, engine: str) -> None:
+    """Refuse, by field, a randomization that `engine` cannot draw per world."""
+    for name in fields_in_use(description):
+        if name not in RANDOMIZED[engine]:
+            able = [e for e, names in RANDOMIZED.items() if name in names]
+            where = (
+                f"engine={able[0]!r} draws it per world"
+                if able
+                else "only the CPU env (TaskEnv) draws it"
+            )
+            raise UnsupportedFeatureError(
+                f"TaskSpec.randomization.{name}: engine={engine!r} does not draw it per world; "
+                f"{where}"
+            )
+
+
 def _device(device: object, allow_cpu: bool) -> str:
     if device is None:  # a GPU that torch and MuJoCo Warp can use, else (with a warning) the CPU
         return _device("cuda:0", allow_cpu=True) if torch.cuda.is_available() else "cpu"
@@ -276,14 +304,20 @@ class BatchEnv(VectorEnv):
                     f"TaskSpec.initializers[{i}] (PhysicsRandomizer) edits the model per "
                     "episode; the batched worlds share one model, so it runs only in the CPU env"
                 )
+        if spec.randomization is not None:
+            _check_randomization(spec.randomization, engine)
         host.reset(seed=0)  # configures the arms' actuators (Robot control modes) in the model
         model, data = host.scene.model, host.scene.data
+        if host._randomizer is not None:  # the engine starts from the nominal model
+            host._randomizer.restore(model)
         self.state: Engine
         if engine == "warp":
             per_world, shared = warp_engine.world_bytes(model, data, device, nconmax, njmax)
             per_world += image_bytes(host.readers, model)
             _check_memory(per_world, shared, num_envs, device, "(or smaller nconmax/njmax)")
-            self.state = warp_engine.WarpEngine(model, data, num_envs, device, nconmax, njmax)
+            self.state = warp_engine.WarpEngine(
+                model, data, num_envs, device, nconmax, njmax, randomized(host)
+            )
         else:
             per_world, shared = cpu_engine.world_bytes(model, threads)
             _check_memory(per_world, shared, num_envs, device, "(or fewer threads)")
@@ -311,6 +345,11 @@ class BatchEnv(VectorEnv):
         self._steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self._held = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self.starts = EpisodeStarts(host, self.state, self.arms, num_envs, reset_workers, maker)
+        self._delay: ActionLatency | None = None
+        if self.starts.latency is not None:
+            assert spec.randomization is not None and spec.randomization.action_latency
+            most = spec.randomization.action_latency[1]
+            self._delay = ActionLatency(self.starts.latency, len(low), most, dtype)
         self.single_observation_space = host.observation_space
         self.single_action_space = host.action_space
         self.observation_space = gym.vector.utils.batch_space(
@@ -370,6 +409,8 @@ class BatchEnv(VectorEnv):
         self, actions: Any
     ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor, torch.Tensor, dict[str, Any]]:
         a = self._checked(actions)
+        if self._delay is not None:
+            a = self._delay(a)
         for arm in self.arms:
             arm.apply(a, self._period)
         self.state.step(self._substeps)
@@ -418,6 +459,8 @@ class BatchEnv(VectorEnv):
         """Worlds `rows` start their next episode (the CPU env's reset with the world's
         generator, `EpisodeStarts`); then one `mj_forward` of every world."""
         self.starts.start(rows)
+        if self._delay is not None:
+            self._delay.restart(rows)
         self.state.clear(rows)
         self.state.forward(rows)
         self._steps[rows] = 0

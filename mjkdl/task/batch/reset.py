@@ -27,6 +27,7 @@ import torch
 from gymnasium.utils.seeding import np_random
 
 from ...errors import MjkdlError, SpecError
+from ..randomization import CONST_INPUTS, CONST_OUTPUTS, fields_in_use, model_fields
 
 if TYPE_CHECKING:
     from ..env import TaskEnv
@@ -36,6 +37,8 @@ if TYPE_CHECKING:
 # The state a reset sets, by Engine attribute and MjData field.
 FIELDS = ("qpos", "qvel", "ctrl", "act", "qacc_warmstart", "mocap_pos", "mocap_quat", "time")
 
+LATENCY = "action_latency"  # a start's row holding its episode's drawn action latency
+
 # The worker is a fresh interpreter (multiprocessing's spawn would re-run an unguarded script).
 _CHILD = "import sys; from mjkdl.task.batch.reset import _worker; _worker(sys.argv[1:])"
 
@@ -43,13 +46,30 @@ Start = tuple[dict[str, np.ndarray], list[np.ndarray], list[np.ndarray]]
 
 
 def start_of(env: TaskEnv) -> Start:
-    """The state `env`'s reset just set: MuJoCo's fields, then each arm's synced position
+    """The state `env`'s reset just set: MuJoCo's fields (and the model fields its
+    randomization drew, `randomization.model_fields`), then each arm's synced position
     command and joint velocities."""
-    data = env.scene.data
+    data, model = env.scene.data, env.scene.model
     fields = {f: np.ravel(getattr(data, f)).copy() for f in FIELDS}
+    for name in randomized(env):
+        value = model.opt.gravity if name == "opt.gravity" else getattr(model, name)
+        fields[name] = np.ravel(value).astype(np.float64)
+    description, draw = env.task_spec.randomization, env.randomization_draw
+    if description is not None and draw is not None and LATENCY in fields_in_use(description):
+        fields[LATENCY] = np.array([draw.action_latency], dtype=np.float64)
     q_cmd = [np.array(eff.robot.jnt_pos_cmd) for eff in env.effectors]
     qd = [np.array(eff.robot.jnt_vel_msr) for eff in env.effectors]
     return fields, q_cmd, qd
+
+
+def randomized(env: TaskEnv) -> list[str]:
+    """The model fields a reset of `env` draws per episode (none without randomization), and
+    MuJoCo's constants that follow them (`CONST_OUTPUTS`, as `mj_setConst` computed them)."""
+    description = env.task_spec.randomization
+    names = [] if description is None else model_fields(description)
+    if any(name in CONST_INPUTS for name in names):
+        names += CONST_OUTPUTS
+    return names
 
 
 class EpisodeStarts:
@@ -70,6 +90,14 @@ class EpisodeStarts:
         self._host, self._state, self._arms = host, state, list(arms)
         data = host.scene.data
         self._rows = {f: np.zeros((num_envs, np.size(getattr(data, f)))) for f in FIELDS}
+        self._params = randomized(host)
+        start = start_of(host)[0]
+        self._rows.update((f, np.zeros((num_envs, np.size(start[f])))) for f in self._params)
+        self.latency: torch.Tensor | None = None
+        """(num_envs,) long: each world's drawn action latency this episode (None: none)."""
+        if LATENCY in start:
+            self._rows[LATENCY] = np.zeros((num_envs, 1))
+            self.latency = torch.zeros(num_envs, dtype=torch.long, device=state.device)
         self._q_cmd = [np.zeros((num_envs, arm.n)) for arm in self._arms]
         self._qd = [np.zeros((num_envs, arm.n)) for arm in self._arms]
         self._ready = np.zeros(num_envs, dtype=bool)
@@ -130,6 +158,11 @@ class EpisodeStarts:
             if view.numel():
                 value = torch.as_tensor(self._rows[f][ids], device=dev, dtype=view.dtype)
                 view[idx] = value.reshape((len(ids), *view.shape[1:]))
+        if self._params:  # the worlds' models take their episodes' draws
+            s.set_model(ids, {f: self._rows[f][ids] for f in self._params})
+        if self.latency is not None:
+            latency = self._rows[LATENCY][ids, 0]
+            self.latency[idx] = torch.as_tensor(latency, device=dev, dtype=torch.long)
         for j, arm in enumerate(self._arms):
             arm.reset_rows(idx, self._q_cmd[j][ids], self._qd[j][ids])
         self._ready[ids] = False
@@ -148,8 +181,8 @@ class EpisodeStarts:
 
     def _store(self, ids: Sequence[int], start: Start) -> None:
         fields, q_cmd, qd = start
-        for f in FIELDS:
-            self._rows[f][ids] = fields[f]
+        for f, rows in self._rows.items():
+            rows[ids] = fields[f]
         for j in range(len(self._arms)):
             self._q_cmd[j][ids] = q_cmd[j]
             self._qd[j][ids] = qd[j]
@@ -285,7 +318,7 @@ def _worker(argv: list[str]) -> None:
                 env.np_random = rngs[i]
                 env.reset()
                 starts.append(start_of(env))
-            fields = {f: np.stack([s[0][f] for s in starts]) for f in FIELDS}
+            fields = {f: np.stack([s[0][f] for s in starts]) for f in starts[0][0]}
             q_cmd = [np.stack([s[1][j] for s in starts]) for j in range(len(env.effectors))]
             qd = [np.stack([s[2][j] for s in starts]) for j in range(len(env.effectors))]
             outbox.send(("rows", (gen, payload, fields, q_cmd, qd)))

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import copy
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import Any
 
 import mujoco
+import numpy as np
 import torch
 
 from .engine import Engine, Tcp, UnsupportedFeatureError
@@ -31,8 +32,9 @@ def warp_modules() -> tuple[Any, Any]:
     return warp, mujoco_warp
 
 
-def warp_model(model: mujoco.MjModel) -> Any:
-    """`model` put on Warp's current device; what MuJoCo Warp cannot run is named.
+def warp_model(model: mujoco.MjModel, per_world: Sequence[str] = (), nworld: int = 1) -> Any:
+    """`model` put on Warp's current device, the fields `per_world` ('opt.gravity' too) with
+    one row per world of `nworld`; what MuJoCo Warp cannot run is named.
 
     MuJoCo's own auto-reset of a diverging world (which mjkdl turns off, to report divergence)
     does not exist in MuJoCo Warp: the flag is cleared on a copy and divergence is checked per
@@ -41,8 +43,12 @@ def warp_model(model: mujoco.MjModel) -> Any:
     _, mjw = warp_modules()
     m = copy.copy(model)
     m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+    wp, _ = warp_modules()
+    batched = {name: nworld for name in per_world if name != "opt.gravity"}
     try:
-        out = mjw.put_model(m)
+        out = mjw.put_model(m, batch_sizes=batched)
+        if "opt.gravity" in per_world:  # MuJoCo Warp's kernels index it by world too
+            out.opt.gravity = wp.array(np.tile(m.opt.gravity, (nworld, 1)), dtype=wp.vec3)
         out.opt.warn_overflow = 0  # its kernels' prints; the batch reports such worlds
         return out
     except (NotImplementedError, ValueError) as err:
@@ -65,13 +71,14 @@ class WarpEngine(Engine):
         device: str,
         nconmax: int | None = None,
         njmax: int | None = None,
+        per_world: Sequence[str] = (),
     ) -> None:
         wp, mjw = warp_modules()
         self.device, self.nworld, self.dtype = device, nworld, torch.float32
         self._wp_device = wp.get_device(device)
         self._mjw = mjw
         with wp.ScopedDevice(self._wp_device):
-            self.model = warp_model(model)
+            self.model = warp_model(model, per_world, nworld)
             self.data = mjw.put_data(model, data, nworld=nworld, nconmax=nconmax, njmax=njmax)
             wp.synchronize_device()  # the uploads are done before torch reads the arrays
         d = self.data
@@ -171,6 +178,21 @@ class WarpEngine(Engine):
             else:
                 self._physics(substeps)
                 self._stepped.add(substeps)
+
+    def set_model(self, ids: np.ndarray, values: Mapping[str, np.ndarray]) -> None:
+        """Into the model's arrays with one row per world (`per_world`, made at the start),
+        in float32; the constants are taken as given (MuJoCo's float64 `mj_setConst` of the
+        host's reset), not recomputed."""
+        wp, _ = warp_modules()
+        idx = torch.as_tensor(ids, device=self.device, dtype=torch.long)
+        with self.warp():
+            for name, rows in values.items():
+                array = (
+                    self.model.opt.gravity if name == "opt.gravity" else getattr(self.model, name)
+                )
+                view = wp.to_torch(array)
+                value = torch.as_tensor(rows, device=self.device, dtype=view.dtype)
+                view[idx] = value.reshape((len(ids), *view.shape[1:]))
 
     def failed(self) -> torch.Tensor:
         """(N,) bool: the worlds that overflowed one of MuJoCo Warp's buffers since their last
