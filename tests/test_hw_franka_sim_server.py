@@ -324,8 +324,22 @@ def test_a_client_killed_mid_motion_leaves_the_arm_still(sim):
     client(sim.host, f"move_to({START_Q.tolist()}, 1.0)")
 
 
+def connect_when_free(host: str, timeout: float = 10.0) -> socket.socket:
+    """A TCP connection to the robot's port, once the server has seen the previous client
+    leave: while a client holds the arm the port is closed, as the robot's is, and it opens
+    again a moment after that client's process ends (sooner than a loaded machine may run)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return socket.create_connection((host, wire.ROBOT_PORT), timeout=timeout)
+        except ConnectionRefusedError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.05)
+
+
 def test_a_client_of_another_protocol_version_is_told_both(sim):
-    with socket.create_connection((sim.host, wire.ROBOT_PORT), timeout=10) as sock:
+    with connect_when_free(sim.host) as sock:
         sock.sendall(wire.message(0, 1, struct.pack("<HH", 9, 50000)))
         reply = sock.recv(64)
     command, command_id, size = wire.HEADER.unpack_from(reply)
