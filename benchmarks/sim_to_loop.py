@@ -7,9 +7,14 @@ empty` (started here), whose arm runs the robot's joint-impedance controller at 
 rate limits. Reported per seed: the TCP distance between the two runs after each control step
 (median, max, over the steps both ran), the lowest TCP height in each, and success in each
 (`info["is_success"]` at the end). With `--closed-loop` the expert also runs in the loop on its
-own observations (success only), as a Franka user would run it.
+own observations (success only), as a Franka user would run it. `--arm-drive
+franka_impedance` simulates the Panda with the arm's own joint impedance
+(`mjkdl.hw.joint_impedance`) instead. `--cost` times, in one process, the task env's step
+with each drive on the same actions, against raw `mj_step` of the same scene for a control
+period (no loop, no server).
 
-    python benchmarks/sim_to_loop.py [--seeds 5] [--closed-loop]
+    python benchmarks/sim_to_loop.py [--seeds 5] [--closed-loop] [--arm-drive DRIVE]
+    python benchmarks/sim_to_loop.py --cost
 """
 
 from __future__ import annotations
@@ -18,8 +23,10 @@ import argparse
 import os
 import subprocess
 import sys
+import time
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
 
@@ -56,24 +63,57 @@ def replay(env: gym.Env, seed: int, actions: list[np.ndarray]) -> tuple[np.ndarr
     return np.array(tcp), bool(info["is_success"])
 
 
+def cost(seeds: int) -> None:
+    """ms per step of each drive on the servo expert's actions, and of raw mj_step."""
+    servo = gym.make(TASK)
+    episodes = [(seed, expert_episode(servo, seed)[0]) for seed in range(seeds)]
+    print("| drive | ms per step | raw mj_step, same period (ms) | ratio to raw |")
+    print("|---|---|---|---|")
+    for drive in ("servo", "franka_impedance"):
+        env = gym.make(TASK, arm_drive=drive)
+        u = env.unwrapped
+        spent, steps = 0.0, 0
+        for seed, actions in episodes:
+            env.reset(seed=seed)
+            for action in actions:
+                t = time.perf_counter()
+                env.step(action)
+                spent += time.perf_counter() - t
+                steps += 1
+        m, d = u.scene.model, mujoco.MjData(u.scene.model)
+        t = time.perf_counter()
+        for _ in range(steps):
+            mujoco.mj_step(m, d, u.control_substeps)
+        raw = (time.perf_counter() - t) / steps
+        per = spent / steps
+        print(f"| {drive} | {1e3 * per:.2f} | {1e3 * raw:.2f} | {per / raw:.2f} |", flush=True)
+        env.close()
+    servo.close()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--closed-loop", action="store_true", help="also the expert in the loop")
+    parser.add_argument("--arm-drive", default="servo", help="the simulated arm's drive")
+    parser.add_argument("--cost", action="store_true", help="time each drive's step instead")
     args = parser.parse_args()
+    if args.cost:
+        cost(args.seeds)
+        return
     host = f"127.{os.getpid() % 250 + 1}.253.1"
     server = subprocess.Popen(
         [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", host, *SERVER],
         stderr=subprocess.PIPE,
         text=True,
     )
-    sim = gym.make(TASK)
+    sim = gym.make(TASK, arm_drive=args.arm_drive)
     loop = None
     try:
         assert server.stderr is not None
         server.stderr.readline()  # it listens
         loop = gym.make(TASK, robot_ip=host)
-        print(f"{TASK}, the expert's actions replayed in the loop (lockstep, --scene empty)")
+        print(f"{TASK}, arm_drive={args.arm_drive!r}: the expert's actions replayed in the loop")
         print(
             "| seed | steps sim/loop | TCP difference median (mm) | max (mm) "
             "| lowest TCP z sim/loop (m) | success sim | success loop (replay) |"
