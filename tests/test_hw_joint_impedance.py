@@ -11,7 +11,10 @@ from conftest import franka_sim, needs_extra
 
 import mjkdl as mjk
 import mjkdl.task
-from mjkdl.hw.joint_impedance import JOINT_STIFFNESS, TAU_MAX, JointImpedance
+from mjkdl.hw.franka_sim.arm import SimulatedArm
+from mjkdl.hw.franka_sim.limits import PANDA
+from mjkdl.hw.franka_sim.scene import franka_scene
+from mjkdl.hw.joint_impedance import JOINT_STIFFNESS, START_Q, TAU_MAX, JointImpedance
 from mjkdl.task.experts import expert_for
 
 TASK = "mjkdl/PandaPickCube-v0"
@@ -29,6 +32,20 @@ def test_the_law_is_a_critically_damped_spring_within_the_torque_limits() -> Non
     assert tau[4] == pytest.approx(-0.2 * 2 * np.sqrt(250.0))
     assert tau[6] == TAU_MAX[6] == 12.0  # 2000 N·m clipped to the wrist's limit
     np.testing.assert_array_equal(law.stiffness, JOINT_STIFFNESS)
+
+
+def test_the_simulated_arm_gives_way_by_torque_over_its_joint_stiffness() -> None:
+    arm = SimulatedArm(franka_scene("empty"), PANDA)
+    try:
+        dof = arm.env.model.joint("joint4").dofadr[0]
+        arm.env.data.qfrc_applied[dof] = 5.0  # N·m on the elbow, the arm at rest at START_Q
+        for stiffness in (2500.0, 500.0):  # the default, then as setJointImpedance sets it
+            arm.impedance.stiffness[3] = stiffness
+            for _ in range(1500):
+                arm.step(None, count_lost=False)
+            assert arm.q[3] - START_Q[3] == pytest.approx(5.0 / stiffness, rel=0.03)
+    finally:
+        arm.env.close()
 
 
 def _episode(env: gym.Env, seed: int, actions: list[np.ndarray] | None = None):
