@@ -7,6 +7,7 @@ success.
 
     python benchmarks/experts.py                     # Push, PickAndPlace, Stack (+Goal), 50 seeds
     python benchmarks/experts.py --seeds 100 --all   # every registered task
+    python benchmarks/experts.py --all --arm-drive franka_impedance   # the Franka arm's drive
 """
 
 from __future__ import annotations
@@ -41,12 +42,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=50)
     parser.add_argument("--all", action="store_true", help="every registered task")
+    parser.add_argument("--arm-drive", default="servo", help="the simulated arm's drive")
     args = parser.parse_args()
-    print(f"{args.seeds} seeds per task, whole episodes")
+    print(f"{args.seeds} seeds per task, whole episodes, arm_drive={args.arm_drive!r}")
     print("| task | success at the end | failed seeds | median steps to success |")
     print("|---|---|---|---|")
     for env_id in TASKS if args.all else NEW:
-        env = gym.make(env_id)
+        env = gym.make(env_id, arm_drive=args.arm_drive)
         expert = expert_for(env)
         rows = [episode(env, expert, s) for s in range(args.seeds)]
         env.close()

@@ -11,7 +11,8 @@ import pytest
 from mjkdl.hw.franka_sim import wire
 from mjkdl.hw.franka_sim.arm import LOST_CYCLES_LIMIT, SimulatedArm
 from mjkdl.hw.franka_sim.limits import FR3, PANDA
-from mjkdl.hw.franka_sim.scene import START_Q, franka_scene
+from mjkdl.hw.franka_sim.scene import franka_scene
+from mjkdl.hw.joint_impedance import START_Q
 
 
 @pytest.fixture(scope="module")

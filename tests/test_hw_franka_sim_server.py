@@ -26,7 +26,8 @@ from mjkdl.errors import SpecError
 from mjkdl.hw.franka_sim import AddressInUseError, FrankaSimServer, wire
 from mjkdl.hw.franka_sim.arm import SUCCESS_WINDOW, SimulatedArm
 from mjkdl.hw.franka_sim.limits import PANDA
-from mjkdl.hw.franka_sim.scene import CUBE_AT, START_Q, franka_scene
+from mjkdl.hw.franka_sim.scene import CUBE_AT, franka_scene
+from mjkdl.hw.joint_impedance import START_Q
 
 # pylibfranka and franky both bind a `Duration`: only one of them loads per process, so the
 # test process loads neither; the clients run in their own.

@@ -14,7 +14,7 @@ from conftest import ROOT, _franka_host, franka_sim, needs_extra
 from test_hw_franka_sim_server import client
 from test_viewer import display, tool  # noqa: F401  (the display fixture)
 
-from mjkdl.hw.franka_sim.scene import START_Q
+from mjkdl.hw.joint_impedance import START_Q
 
 needs_extra("franka")
 

@@ -29,6 +29,7 @@ from .rewards import check_positions, success_bonus
 
 if TYPE_CHECKING:
     from ..hw.in_the_loop import ArmLink
+    from ..hw.joint_impedance import FrankaImpedanceDrive
 from .sensors import (
     ArmReader,
     CameraReader,
@@ -49,6 +50,10 @@ from .spec import (
     TaskSpec,
 )
 
+# How a simulated arm moves: "servo", Menagerie's position actuators; "franka_impedance", the
+# Franka robot's joint impedance as the arm in the loop runs it (`FrankaImpedanceDrive`).
+ARM_DRIVES = ("servo", "franka_impedance")
+IMPEDANCE_TIMESTEP = 0.001  # s: the robot's control tick, which the impedance drive needs
 MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
@@ -235,6 +240,11 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     physics step while the rest is simulated; each `reset` brings it home; its estimated
     external torques and wrench are the observations `{arm}_ext_torques`/`{arm}_ext_wrench`.
     `haptic=True` renders the simulated contacts on it as joint torques instead.
+
+    `arm_drive="franka_impedance"` (one arm taking position targets) moves the simulated arm
+    as a Franka arm in the loop moves: the robot's joint impedance at 1 kHz behind the
+    connection's rate limiter (`mjkdl.hw.joint_impedance.FrankaImpedanceDrive`, `.drive`),
+    on a 1 ms physics timestep; the default `"servo"` keeps the model's own actuators.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012
@@ -255,6 +265,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         render_shadows: bool = False,
         robot_ip: str | None = None,
         haptic: bool = False,
+        arm_drive: str = "servo",
     ) -> None:
         if not isinstance(spec, TaskSpec):
             raise SpecError(f"TaskEnv takes a TaskSpec, got {type(spec).__name__}")
@@ -283,10 +294,17 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         self._stepper: Callable[[], bool] | None = None
         self._check_spec(self.task_spec)
         self.hardware: ArmLink | None = None
+        self.drive: FrankaImpedanceDrive | None = None
+        if arm_drive not in ARM_DRIVES:
+            raise SpecError(
+                f"arm_drive must be one of {', '.join(map(repr, ARM_DRIVES))}, got {arm_drive!r}"
+            )
+        if arm_drive == "franka_impedance":
+            self._check_impedance_drive(robot_ip)
         if robot_ip is not None:
             from ..hw.in_the_loop import ExternalForces, attach  # the [franka] extra's layer
 
-            _check_one_arm(self.task_spec)
+            _check_one_arm(self.task_spec, "robot_ip mirrors one arm")
             arm = self.task_spec.arms[0].name
             self.task_spec.sensors = [*self.task_spec.sensors, ExternalForces(arm)]
         self.scene = Env.build(self.task_spec.scene)
@@ -295,11 +313,33 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             self._build(render_camera, render_width, render_height)
             if robot_ip is not None:
                 self.hardware = attach(self.scene, self.robots[arm], robot_ip, haptic=haptic)
+            if arm_drive == "franka_impedance":
+                from ..hw.joint_impedance import FrankaImpedanceDrive
+
+                self.drive = FrankaImpedanceDrive(self.scene, self._effectors[0].robot)
         except BaseException:
             self.close()
             raise
 
     # ------------------------------------------------------------------ building
+
+    def _check_impedance_drive(self, robot_ip: str | None) -> None:
+        """`arm_drive="franka_impedance"`: one arm that takes position targets, simulated (the
+        arm in the loop runs its own impedance), at the robot's 1 ms timestep."""
+        if robot_ip is not None:
+            raise SpecError(
+                "arm_drive='franka_impedance' simulates the arm's own controller; with robot_ip "
+                "the arm in the loop runs it: leave arm_drive at 'servo'"
+            )
+        spec = self.task_spec
+        _check_one_arm(spec, "arm_drive='franka_impedance' drives one arm")
+        actuation = spec.arms[0].actuation
+        if actuation not in (Actuation.CARTESIAN_VELOCITY, Actuation.JOINT_POSITION):
+            raise SpecError(
+                f"arm_drive='franka_impedance' tracks position targets; the arm's actuation is "
+                f"{actuation.value!r} (use 'cartesian_velocity' or 'joint_position')"
+            )
+        spec.scene = dataclasses.replace(spec.scene, timestep=IMPEDANCE_TIMESTEP)
 
     @staticmethod
     def _check_spec(spec: TaskSpec) -> None:
@@ -640,6 +680,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         for eff in self._effectors:
             eff.robot.sync_commands()
             eff.start_state()
+        if self.drive is not None:
+            self.drive.start()
         mujoco.mj_forward(scene.model, scene.data)  # torques under the synced commands
         self._counters.fill(0.0)
         self._needs_reset = False
@@ -770,7 +812,9 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         """Run one control period of physics; why it diverged, or None."""
         scene = self.scene
         try:
-            if self._stepper is None:
+            if self.drive is not None:  # ticks of its own (a viewer shows them unpaced)
+                self.drive.run(self._substeps)
+            elif self._stepper is None:
                 scene.step(self._substeps)
             else:
                 self._step_through(self._stepper)
@@ -910,10 +954,10 @@ _SETTLE_STEPS = 500  # physics steps a gripper gets to open at reset (1 s at 2 m
 _SETTLE_DAMPING = 0.1  # of the tool joints' own damping, while they settle at reset
 
 
-def _check_one_arm(spec: TaskSpec) -> None:
+def _check_one_arm(spec: TaskSpec, what: str) -> None:
     if len(spec.arms) != 1:
         raise SpecError(
-            f"robot_ip mirrors one arm; this task has {len(spec.arms)} "
+            f"{what}; this task has {len(spec.arms)} "
             f"({', '.join(a.name for a in spec.arms)}): give a task with one arm"
         )
 

@@ -25,6 +25,11 @@ from .spec import Actuation
 
 _DOWN = np.array([0.0, 0.0, -1.0])
 GRASP_RAISE = 0.004  # m: the TCP over a floor cube's centre at the grasp (fingertips clear)
+# The pick experts' approach gain (1/s) for an arm that moves as a Franka arm does
+# (`arm_drive="franka_impedance"`, or the arm in the loop): it lags its target by about a
+# control period and the rate limiter's 50 ms, so at the servos' 5/s it runs past the grasp
+# height into the table.
+FRANKA_GAIN = 3.0
 
 
 class Expert(Protocol):
@@ -126,12 +131,19 @@ class _Phase(enum.Enum):
 class PickCubeExpert:
     """Over the cube, square to its sides; down; close; lift 8 cm (or carry it to the goal
     of PickAndPlace and the goal-conditioned variants) at the twist limit until 5 cm out
-    (`lift_gain`, 1/s). Starts over when the cube slips out."""
+    (`lift_gain`, 1/s). Starts over when the cube slips out. `gain` (1/s): the approach's;
+    by default 5, or `FRANKA_GAIN` where the arm moves as a Franka arm does."""
 
     def __init__(
-        self, env: TaskEnv, gain: float = 5.0, hover: float = 0.08, lift_gain: float = 10.0
+        self,
+        env: TaskEnv,
+        gain: float | None = None,
+        hover: float = 0.08,
+        lift_gain: float = 10.0,
     ) -> None:
         self._out = _Cartesian(env)
+        if gain is None:  # 5/s, or FRANKA_GAIN for an arm that moves as a Franka arm does
+            gain = FRANKA_GAIN if env.drive is not None or env.hardware is not None else 5.0
         self._gain, self._hover, self._lift_gain = gain, hover, lift_gain
         # The Panda's fingertips reach 21 mm below its TCP: grasping a cube on the floor at
         # its centre would press them into the floor (a real table), so grasp above it.

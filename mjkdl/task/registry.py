@@ -336,6 +336,11 @@ SHARED_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("render_shadows", False, "shadows and reflections in `render()`"),
     Parameter("robot_ip", None, "a Franka arm at this address in the loop (docs/hardware.md)"),
     Parameter("haptic", False, "with robot_ip: the simulated contacts on the arm"),
+    Parameter(
+        "arm_drive",
+        "servo",
+        '"servo" (Menagerie\'s actuators) or "franka_impedance" (the arm\'s own, docs/hardware.md)',
+    ),
 )
 _GOAL_DEFAULTS = {"reward_type": "sparse"}
 _NOT_FOR_GOALS = ("terminate_on_success",)
@@ -417,7 +422,7 @@ class _Registered(TaskEnv):
 
 
 _RENDER = ("render_camera", "render_width", "render_height", "render_shadows")
-_HARDWARE = ("robot_ip", "haptic")  # TaskEnv's: the arm in the loop
+_HARDWARE = ("robot_ip", "haptic", "arm_drive")  # TaskEnv's: the arm, simulated or in the loop
 
 
 class PandaReachEnv(_Registered, TaskEnv):

@@ -12,14 +12,14 @@ from mjkdl.robot import Robot
 from mjkdl.scene import Env
 from mjkdl.spec import CtrlMode, SceneSpec, ToolFrameSpec
 
+from ..joint_impedance import START_Q, JointImpedance
 from . import wire
 from .limits import ArmLimits
 from .reality import Reality, StateLag, add_load, reality_from
-from .scene import ARM_JOINTS, HAND_TCP, START_Q, arm_urdf, hand_inertia
+from .scene import ARM_JOINTS, HAND_TCP, arm_urdf, hand_inertia
 
 DT = 0.001
 # The robot's defaults (Franka's documentation; libfranka's examples set the same).
-JOINT_STIFFNESS = np.array([3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0])
 CARTESIAN_STIFFNESS = np.array([3000.0, 3000.0, 3000.0, 300.0, 300.0, 300.0])
 TORQUE_THRESHOLDS = np.array([20.0, 20.0, 18.0, 18.0, 16.0, 14.0, 12.0])
 FORCE_THRESHOLDS = np.array([20.0, 20.0, 20.0, 25.0, 25.0, 25.0])
@@ -78,13 +78,11 @@ class SimulatedArm:
         self.urdf = arm_urdf(m, limits)
         self.hand = hand_inertia(m, d)
         self._tcp_of_flange = np.linalg.inv(_hand_tcp())  # mjkdl's TCP → the flange
-        mass_diag = np.diag(self.robot.mass_matrix())
-        self._mass_diag = mass_diag
+        self.impedance = JointImpedance(np.diag(self.robot.mass_matrix()), limits.tau_max)
         if self.reality.load_mass:  # after what the robot knows of itself (URDF, hand, model)
             add_load(m, m.body("hand").id, self.reality.load_mass, self.reality.load_com)
             mujoco.mj_forward(m, d)
         # user settings (TCP service)
-        self.K_theta = JOINT_STIFFNESS.copy()
         self.K_x = CARTESIAN_STIFFNESS.copy()
         self.torque_upper = TORQUE_THRESHOLDS.copy()
         self.torque_lower = TORQUE_THRESHOLDS.copy()
@@ -378,10 +376,8 @@ class SimulatedArm:
             wire.MotionGenerator.CARTESIAN_VELOCITY,
         ):
             tau = self._cartesian_impedance(q, dq)
-        else:
-            damping = 2.0 * np.sqrt(self.K_theta * self._mass_diag)
-            tau = self.K_theta * (self.q_d - q) + damping * (self.dq_d - dq)
-        return np.clip(tau, -self.limits.tau_max, self.limits.tau_max)
+            return np.clip(tau, -self.limits.tau_max, self.limits.tau_max)
+        return self.impedance.torque(self.q_d, self.dq_d, q, dq)
 
     def _cartesian_impedance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """The robot's Cartesian impedance: a spring `K_x` (N/m, N·m/rad; axes of the stiffness

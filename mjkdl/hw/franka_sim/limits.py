@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..joint_impedance import TAU_MAX
+
 
 def _arr(values: list[float]) -> np.ndarray:
     return np.asarray(values, dtype=float)
@@ -23,7 +25,7 @@ class ArmLimits:
     dq_max: np.ndarray
     ddq_max: np.ndarray
     dddq_max: np.ndarray
-    tau_max: np.ndarray = field(default_factory=lambda: _arr([87.0] * 4 + [12.0] * 3))
+    tau_max: np.ndarray = field(default_factory=TAU_MAX.copy)
     dtau_max: float = 1000.0
     v_max: tuple[float, float] = (1.7, 2.5)
     a_max: tuple[float, float] = (13.0, 25.0)

@@ -17,8 +17,6 @@ from mjkdl.spec import Condim, RobotSpec, SceneObject, SceneSpec, Shape
 from .limits import ArmLimits
 
 ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
-# libfranka's examples start from this pose ("move to start"); the simulated arm boots in it.
-START_Q = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
 FLANGE_OFFSET = 0.107  # link7 origin to the flange along link7's z (Panda, FR3)
 HAND_TCP = 0.1034  # flange to the Franka Hand's TCP, between the fingertips
 CUBE_HALF = 0.02

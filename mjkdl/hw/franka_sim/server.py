@@ -461,7 +461,7 @@ class FrankaSimServer:
             arm.force_lower = values[40:46].copy()
             arm.force_upper = values[46:52].copy()
         elif name is wire.Command.SET_JOINT_IMPEDANCE:
-            arm.K_theta = values[:7].copy()
+            arm.impedance.stiffness = values[:7].copy()
         elif name is wire.Command.SET_CARTESIAN_IMPEDANCE:
             arm.K_x = values[:6].copy()
         elif name is wire.Command.SET_EE_TO_K:

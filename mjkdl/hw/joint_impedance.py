@@ -1,0 +1,116 @@
+"""The Franka robot's joint-impedance control, one implementation for the simulated arm behind
+the protocol (`mjkdl.hw.franka_sim`) and for a task env's Franka arm
+(`arm_drive="franka_impedance"`), so that the same commands give the same motion in both.
+
+The chain a position command takes to an arm in the loop: the control period's target is
+reached along its 1 ms ticks (`ArmLink`), each tick's position goes through the connection's
+rate limiter (`RateLimiter.position`), and the robot tracks it with its joint impedance.
+`FrankaImpedanceDrive` runs that chain in a simulation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SpecError
+from ..robot import Robot
+from ..scene import Env
+from ..spec import CtrlMode
+from .rate_limit import DT, RateLimiter, limits_for
+
+# The robot's defaults (Franka's documentation; libfranka's examples set the same).
+JOINT_STIFFNESS = np.array([3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0])
+# The arms' joint torque limits (N·m), the same for the Panda and the FR3.
+TAU_MAX = np.array([87.0] * 4 + [12.0] * 3)
+# libfranka's examples start from this pose ("move to start"); the simulated arm boots in it,
+# and its joint-space inertia there sets the impedance's damping.
+START_Q = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
+
+
+class JointImpedance:
+    """The robot's joint-impedance law: tau = K (q_d - q) + D (dq_d - dq), clipped to the
+    torque limits, with D = 2 sqrt(K m) per joint (critical damping of each joint's own
+    inertia m, the mass matrix's diagonal at `START_Q`). Gravity is not in it: the robot
+    compensates it on its own. `stiffness` (N·m/rad) is the robot's setting, changeable."""
+
+    def __init__(self, mass_diag: np.ndarray, tau_max: np.ndarray = TAU_MAX) -> None:
+        self.stiffness = JOINT_STIFFNESS.copy()
+        self._mass = np.array(mass_diag, dtype=float)
+        self._tau_max = np.array(tau_max, dtype=float)
+        self._out = np.zeros(7)
+        self._damp = np.zeros(7)
+        self._rate = np.zeros(7)
+
+    def torque(
+        self, q_d: np.ndarray, dq_d: np.ndarray, q: np.ndarray, dq: np.ndarray
+    ) -> np.ndarray:
+        """The joint torques for the setpoint (`q_d`, `dq_d`) at the state (`q`, `dq`); an
+        array owned here, overwritten by the next call."""
+        out, damp, rate = self._out, self._damp, self._rate
+        np.multiply(self.stiffness, self._mass, out=damp)
+        np.sqrt(damp, out=damp)
+        damp *= 2.0
+        np.subtract(dq_d, dq, out=rate)
+        rate *= damp
+        np.subtract(q_d, q, out=out)
+        out *= self.stiffness
+        out += rate
+        np.clip(out, -self._tau_max, self._tau_max, out=out)
+        return out
+
+
+class FrankaImpedanceDrive:
+    """A simulated 7-joint Franka arm driven as the arm in the loop is: each control period
+    the robot's position target (`jnt_pos_cmd`) is reached along the period's 1 ms physics
+    steps, rate-limited as the connection limits it, and tracked by `JointImpedance` with
+    gravity compensated. The scene's timestep must be 1 ms, the robot's tick."""
+
+    def __init__(self, scene: Env, robot: Robot, model: str = "panda") -> None:
+        if robot.n_joints != 7:
+            raise SpecError(
+                f"arm_drive: a Franka arm has 7 joints, the robot {robot.joint_names} has "
+                f"{robot.n_joints}"
+            )
+        if abs(scene.timestep() - DT) > 1e-12:
+            raise SpecError(
+                f"arm_drive: the Franka impedance runs at the robot's 1 kHz; the scene's "
+                f"timestep is {scene.timestep():g} s, it must be {DT:g} s"
+            )
+        self.scene, self.robot = scene, robot
+        self.limiter = RateLimiter(limits_for(model))
+        self.impedance = JointImpedance(np.diag(robot.mass_matrix(START_Q)))
+        self._target = np.zeros(7)  # the last period's target, where this one's starts
+        self._goal = np.zeros(7)
+        self._path = np.zeros(7)
+        self._tau = np.zeros(7)
+
+    def start(self) -> None:
+        """An episode's start: the arm at rest where it is, the target there."""
+        robot = self.robot
+        robot.update()
+        self._target[:] = robot.jnt_pos_msr
+        self.limiter.reset(self._target)
+
+    def run(self, n: int) -> None:
+        """`n` physics steps that bring the arm to the robot's `jnt_pos_cmd`; the robot is left
+        in POSITION mode with that command (what the Cartesian controller integrates)."""
+        robot, limiter, impedance = self.robot, self.limiter, self.impedance
+        goal, path, target, tau = self._goal, self._path, self._target, self._tau
+        goal[:] = robot.jnt_pos_cmd
+        robot.ctrl_mode = CtrlMode.TORQUE
+        for k in range(n):
+            np.subtract(goal, target, out=path)
+            path *= (k + 1) / n
+            path += target
+            q_d = limiter.position(path)
+            robot.update()
+            np.add(
+                impedance.torque(q_d, limiter.dq, robot.jnt_pos_msr, robot.jnt_vel_msr),
+                robot.gravity_torques(),
+                out=tau,
+            )
+            robot.jnt_trq_cmd = tau
+            self.scene.step(1)
+        target[:] = goal
+        robot.ctrl_mode = CtrlMode.POSITION
+        robot.jnt_pos_cmd = goal
