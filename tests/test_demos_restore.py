@@ -253,3 +253,18 @@ def test_convert_by_states_regenerates_a_randomised_demo(tmp_path: Path) -> None
         assert recorded.randomization and recorded.num_samples > 20
         assert _differ(recorded.obs, regenerated.obs) == []
         assert _differ(recorded.final_obs, regenerated.final_obs) == []
+
+
+def test_a_state_of_the_franka_impedance_drive_is_refused() -> None:
+    """The drive's ramp and rate limiter live outside MuJoCo's state: restoring would step on
+    wrongly, so it is refused, naming the drive and what to do instead."""
+    menagerie("franka_emika_panda")
+    env = gym.make("mjkdl/PandaPickCube-v0", arm_drive="franka_impedance")
+    try:
+        env.reset(seed=0)
+        state = np.empty(mujoco.mj_stateSize(scene_of(env).model, STATE))
+        mujoco.mj_getState(scene_of(env).model, scene_of(env).data, state, STATE)
+        with pytest.raises(mjk.SpecError, match=r"arm_drive='franka_impedance' keeps its command"):
+            restore(env, state)
+    finally:
+        env.close()
