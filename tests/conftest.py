@@ -198,7 +198,10 @@ def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Co
         if found:
             by_extra.setdefault(found.group(1), []).append(nodeid)
     if os.environ.get("MJKDL_EXTRA_SKIPS"):
-        ids = sorted({nodeid for ids in by_extra.values() for nodeid in ids})
+        # in the order they ran: some modules' tests share a server and follow each other
+        ids = list(
+            dict.fromkeys(nodeid for nodeid, reason in skipped if _EXTRA_SKIP.search(reason))
+        )
         Path(os.environ["MJKDL_EXTRA_SKIPS"]).write_text("".join(f"{i}\n" for i in ids))
     if by_extra:
         terminalreporter.write_sep("=", "extras not installed", yellow=True)
