@@ -263,10 +263,91 @@ def test_every_datasheet_names_its_source_and_how_it_was_checked() -> None:
     for sheet in DATASHEETS:
         assert sheet.velocity_source and sheet.acceleration_source, sheet.arm
         assert sheet.kinematics_source, sheet.arm
-        assert sheet.verified.startswith(("2026-11-26: ", "2026-11-27: ")), sheet.arm
+        assert sheet.verified.startswith(("2026-11-26: ", "2026-11-28: ")), sheet.arm
         assert len(sheet.velocity) == len(sheet.links) == len(sheet.kinematics), sheet.arm
     ur10e = next(s for s in DATASHEETS if s.arm == "Universal Robots UR10e")
     assert ur10e.velocity == pytest.approx(np.radians([120, 120, 180, 180, 180, 180]), abs=1e-4)
+
+
+# The joint origins (parent-frame position, quaternion or none, axis) of the published
+# descriptions the table's rows were checked against on 2026-11-28: Menagerie's franka_fr3 and
+# universal_robots_ur10e, lbr-stack's iiwa7 xacro, xarm_ros2's xarm6 xacro, ros-industrial's
+# ur3e, ur5e and ur10 default_kinematics.yaml (as URDF joints), Interbotix's vx300s xacro.
+_R = 0.5**0.5
+PUBLISHED = {
+    "Franka Research 3": [
+        ((0, 0, 0.333), None, "0 0 1"),
+        ((0, 0, 0), (1, -1, 0, 0), "0 0 1"),
+        ((0, -0.316, 0), (1, 1, 0, 0), "0 0 1"),
+        ((0.0825, 0, 0), (1, 1, 0, 0), "0 0 1"),
+        ((-0.0825, 0.384, 0), (1, -1, 0, 0), "0 0 1"),
+        ((0, 0, 0), (1, 1, 0, 0), "0 0 1"),
+        ((0.088, 0, 0), (1, 1, 0, 0), "0 0 1"),
+    ],
+    "KUKA LBR iiwa 7 R800": [
+        ((0, 0, 0.1475), None, "0 0 1"),
+        ((0, -0.0105, 0.1925), None, "0 1 0"),
+        ((0, 0.0105, 0.2075), None, "0 0 1"),
+        ((0, 0.0105, 0.1925), None, "0 -1 0"),
+        ((0, -0.0105, 0.2075), None, "0 0 1"),
+        ((0, -0.0707, 0.1925), None, "0 1 0"),
+        ((0, 0.0707, 0.091), None, "0 0 1"),
+    ],
+    "UFACTORY xArm 6": [
+        ((0, 0, 0.267), None, "0 0 1"),
+        ((0, 0, 0), (1, -1, 0, 0), "0 0 1"),
+        ((0.0535, -0.2845, 0), None, "0 0 1"),
+        ((0.0775, 0.3425, 0), (1, -1, 0, 0), "0 0 1"),
+        ((0, 0, 0), (1, 1, 0, 0), "0 0 1"),
+        ((0.076, 0.097, 0), (1, -1, 0, 0), "0 0 1"),
+    ],
+    "Universal Robots UR10e": [
+        ((0, 0, 0.181), None, "0 0 1"),
+        ((0, 0.176, 0), (1, 0, 1, 0), "0 1 0"),
+        ((0, -0.137, 0.613), None, "0 1 0"),
+        ((0, 0, 0.571), (1, 0, 1, 0), "0 1 0"),
+        ((0, 0.135, 0), None, "0 0 1"),
+        ((0, 0, 0.12), None, "0 1 0"),
+    ],
+    "Trossen ViperX 300 6DOF (vx300s)": [
+        ((0, 0, 0.079), None, "0 0 1"),
+        ((0, 0, 0.04805), None, "0 1 0"),
+        ((0.05955, 0, 0.3), None, "0 1 0"),
+        ((0.2, 0, 0), None, "1 0 0"),
+        ((0.1, 0, 0), None, "0 1 0"),
+        ((0.069744, 0, 0), None, "1 0 0"),
+    ],
+}
+for _arm, (_d1, _a2, _a3, _d4, _d5, _d6) in {
+    "Universal Robots UR3e": (0.15185, -0.24355, -0.2132, 0.13105, 0.08535, 0.0921),
+    "Universal Robots UR5e": (0.1625, -0.425, -0.3922, 0.1333, 0.0997, 0.0996),
+    "Universal Robots UR10 (CB3)": (0.1273, -0.612, -0.5723, 0.163941, 0.1157, 0.0922),
+}.items():
+    PUBLISHED[_arm] = [
+        ((0, 0, _d1), None, "0 0 1"),
+        ((0, 0, 0), (_R, _R, 0, 0), "0 0 1"),
+        ((_a2, 0, 0), None, "0 0 1"),
+        ((_a3, 0, _d4), None, "0 0 1"),
+        ((0, -_d5, 0), (_R, _R, 0, 0), "0 0 1"),
+        ((0, _d6, 0), (_R, -_R, 0, 0), "0 0 1"),  # rpy (π/2, π, π)
+    ]
+
+
+@pytest.mark.parametrize("arm", sorted(PUBLISHED))
+def test_a_published_description_of_each_arm_matches_its_table_row(arm: str) -> None:
+    """A chain with the joint origins of the arm's published description, its bodies named
+    as the row's, is recognised as that row, and as no other."""
+    sheet = next(s for s in DATASHEETS if s.arm == arm)
+    spec = mujoco.MjSpec()
+    body = spec.worldbody
+    for k, (pos, quat, axis) in enumerate(PUBLISHED[arm]):
+        body = body.add_body(name=f"arm/{sheet.links[k]}", pos=pos, mass=1.0, inertia=[1e-3] * 3)
+        if quat is not None:
+            body.quat = np.asarray(quat, dtype=float) / np.linalg.norm(quat)
+        body.add_joint(name=f"j{k}", axis=[float(v) for v in axis.split()])
+    model = spec.compile()
+    found = match_datasheet(model, [f"j{k}" for k in range(len(PUBLISHED[arm]))])
+    assert (found.sheet.arm if found.sheet else found.note) == arm
 
 
 # ---------------------------------------------------------------------- per-robot limits

@@ -154,7 +154,10 @@ def _deg(*values: float) -> tuple[float, ...]:
 
 
 # Among the entries an arm matches, the one with the longest names wins (fr3_link1 before
-# link1); entries that match equally are ambiguous and none is used.
+# link1); entries that match equally are ambiguous and none is used. Each row's `verified`
+# cites the published copy its figures were checked against; on 2026-11-28 the FR3, iiwa 7,
+# xArm 6, UR3e, UR5e, UR10e, UR10 and vx300s rows were checked against published models
+# (tests/test_plan_limits.py builds their joint origins): all matched, none changed.
 DATASHEETS: tuple[Datasheet, ...] = (
     Datasheet(
         "Franka Research 3",
@@ -166,7 +169,9 @@ DATASHEETS: tuple[Datasheet, ...] = (
         "Franka FCI documentation, 'Limits for Franka Research 3' (dq_max)",
         "Franka FCI documentation, 'Limits for Franka Research 3' (ddq_max)",
         _FRANKA_KIN,
-        "2026-11-26: against the FCI documentation's limit tables",
+        "2026-11-28: frankaemika/franka_description robots/fr3/joint_limits.yaml gives the "
+        "same velocities; Menagerie's franka_fr3/fr3.xml joint origins match the kinematics "
+        "(2026-11-26: the FCI documentation's limit tables)",
     ),
     Datasheet(
         "Franka Emika Panda",
@@ -204,8 +209,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         "(spez_lbr_iiwa_en.pdf)",
         _NO_ACCEL,
         _KUKA_KIN,
-        "2026-11-26: the same seven figures in lbr-stack's lbr_description iiwa7 "
-        "joint_limits.yaml (the KUKA PDF itself was not reachable)",
+        "2026-11-28: lbr-stack/lbr_fri_ros2_stack lbr_description/urdf/iiwa7: "
+        "joint_limits.yaml gives the same seven velocities, iiwa7_description.xacro's joint "
+        "origins match the kinematics (0.34 m shoulder, 0.40 m upper arm and forearm, "
+        "0.126 m to the flange)",
     ),
     Datasheet(
         "UFACTORY xArm 7",
@@ -246,6 +253,9 @@ DATASHEETS: tuple[Datasheet, ...] = (
         "speed 180°/s",
         _NO_ACCEL,
         _UFACTORY_KIN,
+        "2026-11-28: xArm-Developer/xarm_ros2 xarm_description/urdf/xarm6/xarm6.urdf.xacro's "
+        "joint origins match the kinematics (its URDF velocity limits are 3.14 rad/s and its "
+        "MoveIt joint_limits.yaml 2.14 rad/s, not the manual's figure, which is kept); "
         "2026-11-26: UFACTORY's own manual source (xArm-Developer/ufactory_doc_usermanual)",
     ),
     Datasheet(
@@ -287,8 +297,9 @@ DATASHEETS: tuple[Datasheet, ...] = (
         "Universal Robots UR3e user manual (e-Series, 5.8), joint speeds",
         _NO_ACCEL,
         _UR_KIN,
-        "2026-11-26: Universal Robots' Universal_Robots_ROS2_Description ur3e "
-        "joint_limits.yaml, which cites that manual",
+        "2026-11-28: Universal_Robots_ROS2_Description config/ur3e/joint_limits.yaml "
+        "(which cites that manual) gives the same speeds; ros-industrial/universal_robot "
+        "ur_description/config/ur3e/default_kinematics.yaml the same DH parameters",
     ),
     Datasheet(
         "Universal Robots UR5e",
@@ -300,8 +311,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         "Universal Robots UR5e user manual (e-Series, 5.8), joint speeds",
         _NO_ACCEL,
         _UR_KIN,
-        "2026-11-26: Universal Robots' Universal_Robots_ROS2_Description ur5e "
-        "joint_limits.yaml, which cites that manual",
+        "2026-11-28: Universal_Robots_ROS2_Description config/ur5e/joint_limits.yaml "
+        "(which cites that manual) gives the same speeds; ros-industrial/universal_robot "
+        "ur_description/config/ur5e/default_kinematics.yaml the same DH parameters, "
+        "Menagerie's universal_robots_ur5e/ur5e.xml the same to the millimetre",
     ),
     Datasheet(
         "Universal Robots UR5 (CB3)",
@@ -326,8 +339,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         "Universal Robots UR10e user manual (e-Series, 5.8), joint speeds",
         _NO_ACCEL,
         _UR_KIN,
-        "2026-11-26: Universal Robots' Universal_Robots_ROS2_Description ur10e "
-        "joint_limits.yaml, which cites that manual",
+        "2026-11-28: Universal_Robots_ROS2_Description config/ur10e/joint_limits.yaml "
+        "(which cites that manual) gives the same speeds, its physical_parameters.yaml the "
+        "same DH parameters to the millimetre, as does Menagerie's "
+        "universal_robots_ur10e/ur10e.xml",
     ),
     Datasheet(
         "Universal Robots UR10 (CB3)",
@@ -340,9 +355,10 @@ DATASHEETS: tuple[Datasheet, ...] = (
         "120°/s, the others 180°/s)",
         _NO_ACCEL,
         _UR_KIN,
-        "2026-11-27: not re-checked against a published copy (no network); the same figures "
-        "as the UR10e row, and example-robot-data's UR10 URDF gives 2.16 rad/s (124°/s) for "
-        "the base and shoulder",
+        "2026-11-28: Universal_Robots_ROS2_Description config/ur10/joint_limits.yaml "
+        "(which cites the UR10/CB3 manual 3.13) gives the same speeds; "
+        "ros-industrial/universal_robot ur_description/config/ur10/default_kinematics.yaml "
+        "the same DH parameters",
     ),
     Datasheet(
         "Trossen WidowX 250 6DOF (wx250s)",
@@ -367,8 +383,8 @@ DATASHEETS: tuple[Datasheet, ...] = (
         "no datasheet figure: Interbotix xsarm_descriptions URDF joint velocity limits (π rad/s)",
         _NO_ACCEL,
         _TROSSEN_KIN,
-        "2026-11-26: Interbotix's wx250s and vx300s .urdf.xacro: every arm joint's "
-        "velocity limit is π",
+        "2026-11-28: Interbotix/interbotix_ros_manipulators interbotix_xsarm_descriptions/"
+        "urdf/vx300s.urdf.xacro: the same joint origins and every arm joint's velocity limit π",
     ),
 )
 
