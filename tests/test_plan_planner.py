@@ -819,3 +819,101 @@ def test_a_constrained_query_the_constraint_walls_off_fails_fast_with_the_reason
             planner.plan([1.0, 0.0], constraint=level, timeout=3.0)
         assert error.value.reason == "disconnected"
         assert planner.checks - checks < 10000  # the search's 2000, the wall's samples
+
+
+def _two_link_under(tmp_path, yaw: float) -> tuple[mjk.Scene, mjk.Robot]:
+    """The two-link arm with a box just above its outer link's tip at `yaw` (j1): the link
+    level (j2 = 0) is 2 mm under it, inside the 5 mm margin; pitched 0.07 rad (4°) it is
+    clear."""
+    path = tmp_path / "two_link.xml"
+    path.write_text(two_link_arm())
+    box = mjk.SceneObject(
+        name="box",
+        shape=mjk.Shape.BOX,
+        size=[0.03, 0.03, 0.03],
+        pos=[0.51 * np.cos(yaw), 0.51 * np.sin(yaw), 0.102],
+        fixed=True,
+    )
+    scene = mjk.Scene.build(
+        base_spec(add_floor=False, robots=[mjk.RobotSpec(path=str(path))], objects=[box])
+    )
+    return scene, scene.create_robot("base", "l2")
+
+
+def test_a_constrained_end_no_projected_step_can_leave_fails_before_searching(tmp_path) -> None:
+    """The goal's tool axis is 4° off level (the tolerance is 5°), under a box: every state
+    next to it put on the axis (the outer link level) is in collision, so every path's last
+    projected step would be; the start likewise. Both fail before the search, naming the
+    pair and the counts (they used to spend the whole timeout refusing projected paths)."""
+    from mjkdl.plan import OrientationConstraint
+
+    level = OrientationConstraint((0.0, 0.0, 1.0), (0.0, 0.0, 1.0), np.radians(5.0))
+    scene, arm = _two_link_under(tmp_path, 1.0)
+    with scene:
+        planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
+        assert planner.checker.valid([1.0, 0.07]) and not planner.checker.valid([1.0, 0.0])
+        began = time.perf_counter()
+        with pytest.raises(
+            InfeasibleError,
+            match=r"^no path along the constraint can reach the goal: none of 50 states within "
+            r"0\.02 rad of it \(any joint\) projects onto the constraint collision-free \(margin "
+            r"5 mm\) inside the bounds: 0 did not converge, 0 left the bounds, 50 were in "
+            r"collision \(e\.g\. bodies '(l2|box)' and '(l2|box)' -?\d\.\d mm apart\); every "
+            r"path's last step would fail its projection$",
+        ) as error:
+            planner.plan([1.0, 0.07], start=[-1.0, 0.0], constraint=level, timeout=5.0)
+        assert error.value.reason == "constraint"
+        assert planner.last_stats["search"] == 0.0  # no search ran
+        print(f"goal verdict in {time.perf_counter() - began:.3f} s")
+        # The start under the box instead.
+        with pytest.raises(
+            InfeasibleError,
+            match=r"^no path can leave the start along the constraint: none of 50 states .* 0 "
+            r"moved more than 0\.13 rad, 50 were in collision .*; every path's first step would "
+            r"fail its projection$",
+        ):
+            planner.plan([-1.0, 0.0], start=[1.0, 0.07], constraint=level, timeout=5.0)
+        # Away from the box, the same tilted goal plans.
+        traj = planner.plan([-1.5, 0.07], start=[-1.0, 0.0], constraint=level, timeout=5.0)
+        assert np.abs(traj.positions[-1] - [-1.5, 0.07]).max() < 1e-12
+        # Past the box: the search (the axis within 45°) passes under it pitched, every path
+        # fails its projection (level, the link hits the box); after eight, the joint values
+        # between the ends are sampled on the constraint and the box's is a wall.
+        began = time.perf_counter()
+        with pytest.raises(
+            InfeasibleError,
+            match=r"^no path kept on the constraint joins the start and the goal: joint 'j1' "
+            r"must pass 0\.9\d\d rad between them, and none of 2000 random configurations with "
+            r"it there, projected onto the constraint \(the joint held\), is collision-free "
+            r"inside the bounds \(checked after 8 paths failed their projection\)$",
+        ) as error:
+            planner.plan([1.3, 0.07], start=[-1.0, 0.0], constraint=level, timeout=5.0)
+        assert error.value.reason == "disconnected"
+        print(f"manifold wall verdict in {time.perf_counter() - began:.3f} s")
+
+
+def test_a_constraint_no_configuration_in_the_bounds_meets_fails_saying_so(tmp_path) -> None:
+    """The outer link may pitch only ±0.5 rad (29°): its axis can never lie along the world's
+    x axis. The start breaks the constraint and the error adds that no configuration inside
+    the bounds meets it (200 random ones projected), before any search."""
+    from mjkdl.plan import OrientationConstraint
+
+    along_x = OrientationConstraint((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), np.radians(5.0))
+    scene, arm = _two_link_under(tmp_path, 1.0)
+    with scene:
+        planner = MotionPlanner(arm, velocity_limits=[1.0, 1.0], acceleration_limits=[5.0, 5.0])
+        bounds = ([-3.0, -0.5], [3.0, 0.5])
+        with pytest.raises(
+            InfeasibleError,
+            match=r"^the start breaks the constraint: the tool axis is 90\.0° from the world axis "
+            r"\(tolerance 5\.0°\); nor can any configuration inside the joint bounds meet it: "
+            r"none of 200 random ones projects onto it inside them$",
+        ) as error:
+            planner.plan([2.0, 0.0], start=[-2.0, 0.0], bounds=bounds, constraint=along_x)
+        assert error.value.reason == "constraint"
+        assert planner.last_stats["search"] == 0.0
+        # Where the bounds allow it, only the start is at fault.
+        with pytest.raises(
+            InfeasibleError, match=r"90\.0° from the world axis \(tolerance 5\.0°\)$"
+        ):
+            planner.plan([2.0, 0.0], start=[-2.0, 0.0], constraint=along_x)

@@ -63,11 +63,13 @@ class OrientationConstraint:
         q: np.ndarray,
         fk: Callable[[np.ndarray], Any],
         jacobian: Callable[[np.ndarray], np.ndarray],
+        hold: int | None = None,
     ) -> np.ndarray | None:
         """Joint positions near `q` whose tool axis is on the world axis (within
         `PROJECTION_TOLERANCE`): damped Gauss-Newton on the axis alone, the TCP's position
         left free (a 2-D constraint, not a 6-D pose); None when it does not converge.
-        `fk(q)` gives the TCP pose, `jacobian(q)` its 6×n world-aligned Jacobian."""
+        `fk(q)` gives the TCP pose, `jacobian(q)` its 6×n world-aligned Jacobian; joint
+        `hold` (an index), if given, is not moved."""
         tool, world = np.asarray(self.tool_axis), np.asarray(self.world_axis)
         q = np.array(q, dtype=float)
         for _ in range(PROJECTION_ITERATIONS):
@@ -77,5 +79,7 @@ class OrientationConstraint:
                 return q
             # d(axis)/dq = omega × axis, omega the angular rows of the Jacobian.
             j = -_skew(axis) @ jacobian(q)[3:]
+            if hold is not None:
+                j[:, hold] = 0.0
             q -= j.T @ np.linalg.solve(j @ j.T + PROJECTION_DAMPING * np.eye(3), error)
         return None

@@ -15,6 +15,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+import zlib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -105,6 +106,21 @@ WALL_STEP = 0.05
 WALL_SAMPLES = 2000
 # Random goal states drawn within a goal tolerance when the exact goal is in collision.
 TOLERANCE_SAMPLES = 50
+# The ends of a constrained query (`MotionPlanner._approach`): up to APPROACH_SAMPLES states
+# within PROJECTION_STEP (rad, any joint) of the start and of each goal are projected onto the
+# constraint, as a path's first and last steps are; where none lands collision-free inside the
+# bounds (from the start: within the 3 * PROJECTION_STEP a projected step may move), every
+# path fails its projection there and the query fails before searching. Where an end breaks
+# the constraint, up to CONSTRAINT_SEEDS random configurations inside the bounds are projected
+# to tell whether the constraint can be met there at all.
+APPROACH_SAMPLES = 50
+CONSTRAINT_SEEDS = 200
+# After every this many paths of one query failed their projection, the joint values between
+# the start and the goal are sampled on the constraint for a wall (`_manifold_wall`), for at
+# most MANIFOLD_SHARE of the time left (then the search goes on: on the Panda's upright
+# queries across the wall, after 3 and without a limit, it cost 7 of 100 solutions at 1 s).
+MANIFOLD_AFTER = 8
+MANIFOLD_SHARE = 0.25
 
 
 class MotionPlanner:
@@ -417,7 +433,9 @@ class MotionPlanner:
 
         Raises `InfeasibleError` (with a `reason`) when the query cannot be solved, before
         searching: a start or goal in collision or outside the bounds, no collision-free IK
-        solution, or a start or goal in a pocket of free space (`POCKET_RADIUS`); with
+        solution, a start or goal in a pocket of free space (`POCKET_RADIUS`), or with a
+        `constraint` a start or goal that breaks it or that no path projected onto it can
+        leave or reach (`APPROACH_SAMPLES`, reason "constraint"); with
         RRTConnect, after `WALL_CHECKS` validity checks, a joint value that divides the free
         space between them ("disconnected", see `_wall`); raises `PlanningTimeout` when the
         search used its time.
@@ -443,11 +461,11 @@ class MotionPlanner:
             q_from, q0 = self._jiggled_start(start, lower, upper, jiggle)
             goals = self._goals(goal, q0, lower, upper, tolerance, pose_tolerance)
             if constraint is not None:
-                self._constraint_ends(q0, goals, constraint)
+                goals = self._constraint_ends(q0, goals, constraint, lower, upper)
                 self._cone = constraint
             self.last_stats["ends"] = time.perf_counter() - began
             straight = True
-            found, failure = 0, ""
+            found, failure, unprojected = 0, "", 0
             while True:  # a path whose timing cuts into the margin is searched again
                 try:
                     waypoints = self._search(q0, goals, budget, began, straight, lower, upper)
@@ -478,6 +496,20 @@ class MotionPlanner:
                     trajectory = self._timed(waypoints, timer, lower, upper, constraint)
                 except PlanningError as error:  # the projection: another path may do
                     failure = f"failed its projection onto the constraint (last: {error})"
+                    unprojected += 1
+                    if constraint is not None and unprojected % MANIFOLD_AFTER == 0:
+                        left = began + budget - time.perf_counter()
+                        wall = self._manifold_wall(
+                            q0,
+                            goals,
+                            constraint,
+                            lower,
+                            upper,
+                            time.perf_counter() + MANIFOLD_SHARE * max(0.0, left),
+                            unprojected,
+                        )
+                        if wall is not None:
+                            raise InfeasibleError(wall, "disconnected") from error
                 if trajectory is not None:
                     return trajectory
                 straight = False
@@ -1042,15 +1074,69 @@ class MotionPlanner:
                     )
         return None
 
+    def _manifold_wall(
+        self,
+        q0: np.ndarray,
+        goals: np.ndarray,
+        constraint: OrientationConstraint,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        deadline: float,
+        refused: int,
+    ) -> str | None:
+        """Why no path kept on `constraint` joins the start and the (single) goal, or None: a
+        value c of a joint between the start's and the goal's (both first put on the axis,
+        `_first_reach` kept clear of each) at which none of `WALL_SAMPLES` random
+        configurations, projected onto the constraint with the joint held at c, is
+        collision-free inside the bounds; every such path crosses c. Evidence, not proof, like
+        `_wall`. Gives up (None) at `deadline`."""
+        if len(goals) != 1:
+            return None
+        robot = self._robot
+        ends = []
+        for q in (q0, goals[0]):
+            on_axis = constraint.project_joints(q, robot.fk_frame, robot.jacobian)
+            if on_axis is None:
+                return None
+            ends.append((on_axis, self._first_reach(q, constraint)))
+        (a, reach_a), (b, reach_b) = ends
+        for i in range(self._n):
+            low, high = sorted((float(a[i]), float(b[i])))
+            low, high = low + max(reach_a, reach_b), high - max(reach_a, reach_b)
+            if high <= low:
+                continue
+            count = max(1, math.floor((high - low) / WALL_STEP))
+            for c in np.linspace(low, high, count + 1).tolist():
+                blocked = self._blocked(i, c, lower, upper, deadline, onto=constraint)
+                if blocked is None:
+                    return None
+                if blocked:
+                    return (
+                        f"no path kept on the constraint joins the start and the goal: joint "
+                        f"{robot.joint_names[i]!r} must pass {c:.3f} rad between them, and none "
+                        f"of {WALL_SAMPLES} random configurations with it there, projected onto "
+                        f"the constraint (the joint held), is collision-free inside the bounds "
+                        f"(checked after {refused} paths failed their projection)"
+                    )
+        return None
+
     def _blocked(
-        self, i: int, c: float, lower: np.ndarray, upper: np.ndarray, deadline: float
+        self,
+        i: int,
+        c: float,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        deadline: float,
+        onto: OrientationConstraint | None = None,
     ) -> bool | None:
         """Whether all `WALL_SAMPLES` random configurations (the other joints uniform within
         [lower, upper]) with joint `i` at `c` fail the checker in use (with a path
-        constraint, the search's: the tool axis within `SEARCH_CONE` too); None at
-        `deadline`. The samples depend only on the planner's seed, the joint and the value,
-        so the same slice gets the same verdict whatever ran before."""
-        cone, fk = self._cone, self._robot.fk_frame
+        constraint, the search's: the tool axis within `SEARCH_CONE` too; with `onto`, each
+        is first projected onto that constraint, joint `i` held, and must land inside the
+        bounds); None at `deadline`. The samples depend only on the planner's seed, the joint
+        and the value, so the same slice gets the same verdict whatever ran before."""
+        robot = self._robot
+        cone, fk = self._cone, robot.fk_frame
         rng = np.random.default_rng([self._seed, i, round(abs(c) * 1e6), int(c < 0)])
         batch = 100
         for first in range(0, WALL_SAMPLES, batch):
@@ -1059,6 +1145,10 @@ class MotionPlanner:
             rows = rng.uniform(lower, upper, (min(batch, WALL_SAMPLES - first), self._n))
             rows[:, i] = c
             for q in rows:
+                if onto is not None:
+                    q = onto.project_joints(q, fk, robot.jacobian, hold=i)
+                    if q is None or self._outside(q, "", lower, upper) is not None:
+                        continue
                 self.checks += 1
                 if self._checker.valid(q) and (
                     cone is None or cone.error(fk(q).rotation) <= SEARCH_CONE
@@ -1149,16 +1239,115 @@ class MotionPlanner:
         return None
 
     def _constraint_ends(
-        self, q0: np.ndarray, goals: np.ndarray, constraint: OrientationConstraint
-    ) -> None:
+        self,
+        q0: np.ndarray,
+        goals: np.ndarray,
+        constraint: OrientationConstraint,
+        lower: np.ndarray,
+        upper: np.ndarray,
+    ) -> np.ndarray:
+        """The goals a path kept on `constraint` can reach from `q0`; InfeasibleError
+        ("constraint") when the start or a goal breaks it, when no path can leave the start
+        along it, or when none can reach any goal (`_approach`)."""
+        fk = self._robot.fk_frame
         for q, what in ((q0, "the start"), *((g, "the goal") for g in goals)):
-            error = constraint.error(self._robot.fk_frame(q).rotation)
+            error = constraint.error(fk(q).rotation)
             if error > constraint.tolerance:
                 raise InfeasibleError(
                     f"{what} breaks the constraint: the tool axis is {math.degrees(error):.1f}° "
-                    f"from the world axis (tolerance {math.degrees(constraint.tolerance):.1f}°)",
+                    f"from the world axis (tolerance {math.degrees(constraint.tolerance):.1f}°)"
+                    + self._unmet(constraint, lower, upper),
                     "constraint",
                 )
+        why = self._approach(q0, constraint, lower, upper, self._first_reach(q0, constraint))
+        if why is not None:
+            raise InfeasibleError(
+                f"no path can leave the start along the constraint: {why}; every path's first "
+                "step would fail its projection",
+                "constraint",
+            )
+        reasons = [self._approach(g, constraint, lower, upper, None) for g in goals]
+        kept = [g for g, why in zip(goals, reasons, strict=True) if why is None]
+        if not kept:
+            what = "the goal" if len(goals) == 1 else f"any of the {len(goals)} goals"
+            raise InfeasibleError(
+                f"no path along the constraint can reach {what}: {reasons[0]}; every path's "
+                "last step would fail its projection",
+                "constraint",
+            )
+        return np.array(kept)
+
+    def _first_reach(self, q: np.ndarray, constraint: OrientationConstraint) -> float:
+        """How far (rad, any joint) a path's first projected state may be from its start `q`:
+        3 `PROJECTION_STEP`s, plus how far `q` itself is from the axis in joint space (a start
+        within the tolerance but off the axis)."""
+        robot = self._robot
+        on_axis = constraint.project_joints(q, robot.fk_frame, robot.jacobian)
+        off = 0.0 if on_axis is None else float(np.abs(on_axis - q).max())
+        return 3 * PROJECTION_STEP + off
+
+    def _approach(
+        self,
+        q: np.ndarray,
+        constraint: OrientationConstraint,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        reach: float | None,
+    ) -> str | None:
+        """None as soon as one of `APPROACH_SAMPLES` states within `PROJECTION_STEP` of `q`
+        (`q` first, then random ones inside the bounds, seeded by the planner's seed and `q`)
+        projects onto the constraint collision-free inside the bounds, within `reach` (rad, any
+        joint) of `q` where given; else why none does, with the counts."""
+        robot = self._robot
+        rng = np.random.default_rng([self._seed, zlib.crc32(np.round(q, 9).tobytes())])
+        jitter = rng.uniform(-PROJECTION_STEP, PROJECTION_STEP, (APPROACH_SAMPLES - 1, self._n))
+        seeds = np.clip(np.vstack([q[None], q + jitter]), lower, upper)
+        counts = dict.fromkeys(("diverged", "outside", "far", "collision"), 0)
+        contact = ""
+        for seed in seeds:
+            result = constraint.project_joints(seed, robot.fk_frame, robot.jacobian)
+            if result is None:
+                counts["diverged"] += 1
+            elif self._outside(result, "", lower, upper) is not None:
+                counts["outside"] += 1
+            elif reach is not None and float(np.abs(result - q).max()) > reach:
+                counts["far"] += 1
+            elif not self._checker.valid(result):
+                counts["collision"] += 1
+                if not contact:
+                    a, b, d = self._checker.contacts(result)[0]
+                    contact = f" (e.g. bodies {a!r} and {b!r} {d * 1000:.1f} mm apart)"
+            else:
+                return None
+        parts = [
+            f"{counts['diverged']} did not converge",
+            f"{counts['outside']} left the bounds",
+            f"{counts['collision']} were in collision{contact}",
+        ]
+        if reach is not None:
+            parts.insert(2, f"{counts['far']} moved more than {reach:g} rad")
+        return (
+            f"none of {APPROACH_SAMPLES} states within {PROJECTION_STEP:g} rad of it (any "
+            f"joint) projects onto the constraint collision-free (margin "
+            f"{self._margin * 1000:g} mm) inside the bounds: " + ", ".join(parts)
+        )
+
+    def _unmet(
+        self, constraint: OrientationConstraint, lower: np.ndarray, upper: np.ndarray
+    ) -> str:
+        """ ", and no configuration inside the bounds meets it ..." when none of
+        `CONSTRAINT_SEEDS` random configurations inside the bounds (seeded by the planner's
+        seed) projects onto the constraint inside them; else ""."""
+        robot = self._robot
+        rng = np.random.default_rng([self._seed, CONSTRAINT_SEEDS])
+        for seed in rng.uniform(lower, upper, (CONSTRAINT_SEEDS, self._n)):
+            result = constraint.project_joints(seed, robot.fk_frame, robot.jacobian)
+            if result is not None and self._outside(result, "", lower, upper) is None:
+                return ""
+        return (
+            f"; nor can any configuration inside the joint bounds meet it: none of "
+            f"{CONSTRAINT_SEEDS} random ones projects onto it inside them"
+        )
 
     def _project(
         self,
@@ -1178,11 +1367,12 @@ class MotionPlanner:
             dense.extend(a + (b - a) * (k / count) for k in range(1, count + 1))
         out = [waypoints[0]]
         q = waypoints[0]
+        reach = self._first_reach(q, constraint)
         for k, state in enumerate(dense[1:-1], start=1):
             where = f"at {k / (len(dense) - 1):.0%} of the path"
             for seed in (state, q + (state - dense[k - 1])):
                 result = constraint.project_joints(seed, robot.fk_frame, robot.jacobian)
-                if result is not None and float(np.abs(result - q).max()) <= 3 * PROJECTION_STEP:
+                if result is not None and float(np.abs(result - q).max()) <= reach:
                     break
             else:
                 raise PlanningError(f"constraint: the projection does not converge {where}")
@@ -1193,6 +1383,7 @@ class MotionPlanner:
                 raise PlanningError(clash)
             q = result
             out.append(q)
+            reach = 3 * PROJECTION_STEP
         out.append(waypoints[-1])
         return np.array(out)
 
