@@ -883,7 +883,7 @@ def test_a_constrained_end_no_projected_step_can_leave_fails_before_searching(tm
         with pytest.raises(
             InfeasibleError,
             match=r"^no path kept on the constraint joins the start and the goal: joint 'j1' "
-            r"must pass 0\.9\d\d rad between them, and none of 2000 random configurations with "
+            r"must pass 0\.9\d\d rad between them, and none of 500 random configurations with "
             r"it there, projected onto the constraint \(the joint held\), is collision-free "
             r"inside the bounds \(checked after 8 paths failed their projection\)$",
         ) as error:

@@ -121,6 +121,9 @@ CONSTRAINT_SEEDS = 200
 # queries across the wall, after 3 and without a limit, it cost 7 of 100 solutions at 1 s).
 MANIFOLD_AFTER = 8
 MANIFOLD_SHARE = 0.25
+# Configurations a slice of the constraint's wall test projects (each costs up to
+# PROJECTION_ITERATIONS Jacobians: a tenth of a millisecond to a few on the shared machine).
+MANIFOLD_SAMPLES = 500
 
 
 class MotionPlanner:
@@ -212,6 +215,7 @@ class MotionPlanner:
         self._upper = np.where(np.isfinite(ranges[:, 1]), ranges[:, 1], UNLIMITED_RANGE)
         self._ends = np.zeros((2, self._n))  # start and goal of the search under way
         self._cone: OrientationConstraint | None = None  # the search's loose constraint
+        self._open_slices: set[tuple[int, float]] = set()  # `_manifold_wall`'s, for one plan
         # Leaving a jiggled start: the clearance it needs, how far (rad) that holds.
         self._start_need: tuple[float, float] | None = None
         self.checks = 0  # validity checks since the planner was made
@@ -519,6 +523,7 @@ class MotionPlanner:
             self._start_need = None
             self._padded = True
             self._cone = None
+            self._open_slices.clear()
             if carry is not None:
                 self._checker.carry(None)
 
@@ -1086,10 +1091,11 @@ class MotionPlanner:
     ) -> str | None:
         """Why no path kept on `constraint` joins the start and the (single) goal, or None: a
         value c of a joint between the start's and the goal's (both first put on the axis,
-        `_first_reach` kept clear of each) at which none of `WALL_SAMPLES` random
+        `_first_reach` kept clear of each) at which none of `MANIFOLD_SAMPLES` random
         configurations, projected onto the constraint with the joint held at c, is
         collision-free inside the bounds; every such path crosses c. Evidence, not proof, like
-        `_wall`. Gives up (None) at `deadline`."""
+        `_wall`. Gives up (None) at `deadline`; the slices found open are kept for the next
+        call of the same plan."""
         if len(goals) != 1:
             return None
         robot = self._robot
@@ -1107,16 +1113,20 @@ class MotionPlanner:
                 continue
             count = max(1, math.floor((high - low) / WALL_STEP))
             for c in np.linspace(low, high, count + 1).tolist():
+                if (i, c) in self._open_slices:
+                    continue
                 blocked = self._blocked(i, c, lower, upper, deadline, onto=constraint)
                 if blocked is None:
                     return None
-                if blocked:
+                if not blocked:
+                    self._open_slices.add((i, c))
+                else:
                     return (
                         f"no path kept on the constraint joins the start and the goal: joint "
                         f"{robot.joint_names[i]!r} must pass {c:.3f} rad between them, and none "
-                        f"of {WALL_SAMPLES} random configurations with it there, projected onto "
-                        f"the constraint (the joint held), is collision-free inside the bounds "
-                        f"(checked after {refused} paths failed their projection)"
+                        f"of {MANIFOLD_SAMPLES} random configurations with it there, projected "
+                        "onto the constraint (the joint held), is collision-free inside the "
+                        f"bounds (checked after {refused} paths failed their projection)"
                     )
         return None
 
@@ -1131,18 +1141,19 @@ class MotionPlanner:
     ) -> bool | None:
         """Whether all `WALL_SAMPLES` random configurations (the other joints uniform within
         [lower, upper]) with joint `i` at `c` fail the checker in use (with a path
-        constraint, the search's: the tool axis within `SEARCH_CONE` too; with `onto`, each
-        is first projected onto that constraint, joint `i` held, and must land inside the
-        bounds); None at `deadline`. The samples depend only on the planner's seed, the joint
-        and the value, so the same slice gets the same verdict whatever ran before."""
+        constraint, the search's: the tool axis within `SEARCH_CONE` too; with `onto`,
+        `MANIFOLD_SAMPLES` of them, each first projected onto that constraint, joint `i` held,
+        and landing inside the bounds); None at `deadline`. The samples depend only on the
+        planner's seed, the joint and the value, so the same slice gets the same verdict
+        whatever ran before."""
         robot = self._robot
         cone, fk = self._cone, robot.fk_frame
         rng = np.random.default_rng([self._seed, i, round(abs(c) * 1e6), int(c < 0)])
-        batch = 100
-        for first in range(0, WALL_SAMPLES, batch):
+        samples, batch = (WALL_SAMPLES, 100) if onto is None else (MANIFOLD_SAMPLES, 5)
+        for first in range(0, samples, batch):
             if time.perf_counter() > deadline:
                 return None
-            rows = rng.uniform(lower, upper, (min(batch, WALL_SAMPLES - first), self._n))
+            rows = rng.uniform(lower, upper, (min(batch, samples - first), self._n))
             rows[:, i] = c
             for q in rows:
                 if onto is not None:
