@@ -344,6 +344,7 @@ def test_a_carried_body_moves_with_the_hand_in_the_checks() -> None:
         checker = CollisionChecker(arm, 0.005)
         assert checker.valid(lower)  # the cube stays where it is: nothing touches
         checker.carry("cube")
+        assert checker.carried == "cube"
         assert [pair[:2] for pair in checker.contacts(lower)] == [("shelf_a", "cube")]
         wide = CollisionChecker(arm, 0.005, reach=0.05)  # measures distances up to 5 cm
         wide.carry("cube")
@@ -351,7 +352,7 @@ def test_a_carried_body_moves_with_the_hand_in_the_checks() -> None:
         assert gaps == [pytest.approx(0.03, abs=2e-4)]  # the cube's bottom above shelf A
         assert env.data.body("cube").xpos[2] == pytest.approx(0.35)  # the scene's did not move
         checker.carry(None)
-        assert checker.valid(lower)
+        assert checker.carried is None and checker.valid(lower)
         with pytest.raises(mjk.SpecError, match=r"carry: body 'wall' is not a free body"):
             checker.carry("wall")
         with pytest.raises(

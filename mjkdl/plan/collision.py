@@ -189,6 +189,11 @@ class CollisionChecker:
         self._unpadded_names = set(names)
         self._masks(self._arm_body)
 
+    @property
+    def carried(self) -> str | None:
+        """The free body moved with the tip (`carry`), or None."""
+        return self._carry_name
+
     def carry(self, body: str | None) -> None:
         """Move free body `body` with the tip from now on (None: stop carrying)."""
         model = self._model
