@@ -845,7 +845,9 @@ def test_a_constrained_end_no_projected_step_can_leave_fails_before_searching(tm
     """The goal's tool axis is 4° off level (the tolerance is 5°), under a box: every state
     next to it put on the axis (the outer link level) is in collision, so every path's last
     projected step would be; the start likewise. Both fail before the search, naming the
-    pair and the counts (they used to spend the whole timeout refusing projected paths)."""
+    pair and the counts (they used to spend the whole timeout refusing projected paths).
+    The link kept 4° down all along would pass: the verdicts say they are about paths on the
+    axis, which are the ones this planner makes."""
     from mjkdl.plan import OrientationConstraint
 
     level = OrientationConstraint((0.0, 0.0, 1.0), (0.0, 0.0, 1.0), np.radians(5.0))
@@ -856,11 +858,12 @@ def test_a_constrained_end_no_projected_step_can_leave_fails_before_searching(tm
         began = time.perf_counter()
         with pytest.raises(
             InfeasibleError,
-            match=r"^no path along the constraint can reach the goal: none of 50 states within "
+            match=r"^no path on the constraint's axis can reach the goal: none of 50 states within "
             r"0\.02 rad of it \(any joint\) projects onto the constraint collision-free \(margin "
             r"5 mm\) inside the bounds: 0 did not converge, 0 left the bounds, 50 were in "
             r"collision \(e\.g\. bodies '(l2|box)' and '(l2|box)' -?\d\.\d mm apart\); every "
-            r"path's last step would fail its projection$",
+            r"path's last projected step would fail \(paths are projected onto the axis; the "
+            r"tolerance is slack for the ends and the timing\)$",
         ) as error:
             planner.plan([1.0, 0.07], start=[-1.0, 0.0], constraint=level, timeout=5.0)
         assert error.value.reason == "constraint"
@@ -869,9 +872,9 @@ def test_a_constrained_end_no_projected_step_can_leave_fails_before_searching(tm
         # The start under the box instead.
         with pytest.raises(
             InfeasibleError,
-            match=r"^no path can leave the start along the constraint: none of 50 states .* 0 "
-            r"moved more than 0\.13 rad, 50 were in collision .*; every path's first step would "
-            r"fail its projection$",
+            match=r"^no path on the constraint's axis can leave the start: none of 50 states .* 0 "
+            r"moved more than 0\.13 rad, 50 were in collision .*; every path's first projected "
+            r"step would fail \(paths are projected onto the axis; .*\)$",
         ):
             planner.plan([-1.0, 0.0], start=[1.0, 0.07], constraint=level, timeout=5.0)
         # Away from the box, the same tilted goal plans.
@@ -883,10 +886,11 @@ def test_a_constrained_end_no_projected_step_can_leave_fails_before_searching(tm
         began = time.perf_counter()
         with pytest.raises(
             InfeasibleError,
-            match=r"^no path kept on the constraint joins the start and the goal: joint 'j1' "
+            match=r"^no path on the constraint's axis joins the start and the goal: joint 'j1' "
             r"must pass 0\.9\d\d rad between them, and none of 500 random configurations with "
             r"it there, projected onto the constraint \(the joint held\), is collision-free "
-            r"inside the bounds \(checked after 8 paths failed their projection\)$",
+            r"inside the bounds \(checked after 8 paths failed their projection; paths are "
+            r"projected onto the axis; the tolerance is slack for the ends and the timing\)$",
         ) as error:
             planner.plan([1.3, 0.07], start=[-1.0, 0.0], constraint=level, timeout=5.0)
         assert error.value.reason == "disconnected"

@@ -124,6 +124,9 @@ MANIFOLD_SHARE = 0.25
 # Configurations a slice of the constraint's wall test projects (each costs up to
 # PROJECTION_ITERATIONS Jacobians: a tenth of a millisecond to a few on the shared machine).
 MANIFOLD_SAMPLES = 500
+# What the constrained verdicts are about: the projected paths, not every path the tolerance
+# allows (one tilted within it all along, under something the level tool hits, is not searched).
+_ON_AXIS = "paths are projected onto the axis; the tolerance is slack for the ends and the timing"
 
 
 class MotionPlanner:
@@ -1124,11 +1127,12 @@ class MotionPlanner:
                     self._open_slices.add((i, c))
                 else:
                     return (
-                        f"no path kept on the constraint joins the start and the goal: joint "
+                        f"no path on the constraint's axis joins the start and the goal: joint "
                         f"{robot.joint_names[i]!r} must pass {c:.3f} rad between them, and none "
                         f"of {MANIFOLD_SAMPLES} random configurations with it there, projected "
                         "onto the constraint (the joint held), is collision-free inside the "
-                        f"bounds (checked after {refused} paths failed their projection)"
+                        f"bounds (checked after {refused} paths failed their projection; "
+                        f"{_ON_AXIS})"
                     )
         return None
 
@@ -1275,8 +1279,8 @@ class MotionPlanner:
         why = self._approach(q0, constraint, lower, upper, self._first_reach(q0, constraint))
         if why is not None:
             raise InfeasibleError(
-                f"no path can leave the start along the constraint: {why}; every path's first "
-                "step would fail its projection",
+                f"no path on the constraint's axis can leave the start: {why}; every path's "
+                f"first projected step would fail ({_ON_AXIS})",
                 "constraint",
             )
         reasons = [self._approach(g, constraint, lower, upper, None) for g in goals]
@@ -1284,8 +1288,8 @@ class MotionPlanner:
         if not kept:
             what = "the goal" if len(goals) == 1 else f"any of the {len(goals)} goals"
             raise InfeasibleError(
-                f"no path along the constraint can reach {what}: {reasons[0]}; every path's "
-                "last step would fail its projection",
+                f"no path on the constraint's axis can reach {what}: {reasons[0]}; every "
+                f"path's last projected step would fail ({_ON_AXIS})",
                 "constraint",
             )
         return np.array(kept)
