@@ -41,17 +41,24 @@ Runner = Callable[[float], int]  # seconds to run -> control steps taken (summed
 
 
 def cpu_env() -> Runner:
-    """One CPU env, reset as its episodes end."""
+    """One CPU env, reset as its episodes end: on success, or at the registered time limit
+    (`gym.make`'s `TimeLimit`, counted here without the wrapper's cost), as the batch's and
+    the vector env's worlds are."""
     env = gym.make(TASK).unwrapped
+    horizon = gym.spec(TASK).max_episode_steps or np.inf
     env.reset(seed=0)
     rng = np.random.default_rng(0)
+    taken = 0
 
     def run(seconds: float) -> int:
+        nonlocal taken
         steps, start = 0, time.perf_counter()
         while time.perf_counter() - start < seconds:
             _, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 7).astype(np.float32))
-            if terminated or truncated:
+            taken += 1
+            if terminated or truncated or taken >= horizon:
                 env.reset()
+                taken = 0
             steps += 1
         return steps
 

@@ -413,8 +413,7 @@ class BatchEnv(VectorEnv):
             a = self._delay(a)
         for arm in self.arms:
             arm.apply(a, self._period)
-        self.state.step(self._substeps)
-        self.starts.prefetch()  # on a GPU, while the physics runs
+        self.state.step(self._substeps, meanwhile=self.starts.prefetch)
         s = self.state
         failed = s.failed()
         diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1)) | failed
