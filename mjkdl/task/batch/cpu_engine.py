@@ -148,10 +148,10 @@ class CpuEngine(Engine):
         )
 
     def clear(self, rows: torch.Tensor) -> None:
-        ids = np.flatnonzero(rows.numpy())
-        self._failed[ids] = False
-        for i in ids.tolist():
-            self._errors.pop(i, None)
+        mask = rows.numpy()
+        self._failed[mask] = False
+        for i in [i for i in self._errors if mask[i]]:
+            del self._errors[i]
 
     def contacts(
         self, body: int | None = None, others: Sequence[int] = ()
