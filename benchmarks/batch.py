@@ -145,7 +145,8 @@ def breakdown(n: int, steps: int) -> None:
     """Where a batch step's CPU time goes, on one thread (so that the physics' CPU time is
     its own) with the starts computed after the physics instead of beside it: each part's
     CPU microseconds per world and control step, and its share of the physics; then the
-    physics alone (`Batch.step` of the same worlds, the controls held) for the floor."""
+    physics alone (`Batch.step` of the same worlds, the controls held: another workload, the
+    arms pressing on at the last command) and one CPU env's step, restarts included."""
     import importlib
 
     import mujoco
@@ -211,6 +212,10 @@ def breakdown(n: int, steps: int) -> None:
     print(f"{'everything besides the physics':56s} {rest * per:8.1f} {100 * rest / physics:9.1f}%")
     print(f"{'the whole step':56s} {total * per:8.1f}")
     print(f"{'physics alone (Batch.step, controls held)':56s} {floor * per:8.1f}")
+    one = cpu_env()
+    start, steps = time.process_time(), one(3.0)
+    env_us = 1e6 * (time.process_time() - start) / steps
+    print(f"{'one CPU env (TaskEnv.step, restarts included)':56s} {env_us:8.1f}")
 
 
 _FIRST_STEP = """
