@@ -41,17 +41,24 @@ Runner = Callable[[float], int]  # seconds to run -> control steps taken (summed
 
 
 def cpu_env() -> Runner:
-    """One CPU env, reset as its episodes end."""
+    """One CPU env, reset as its episodes end: on success, or at the registered time limit
+    (`gym.make`'s `TimeLimit`, counted here without the wrapper's cost), as the batch's and
+    the vector env's worlds are."""
     env = gym.make(TASK).unwrapped
+    horizon = gym.spec(TASK).max_episode_steps or np.inf
     env.reset(seed=0)
     rng = np.random.default_rng(0)
+    taken = 0
 
     def run(seconds: float) -> int:
+        nonlocal taken
         steps, start = 0, time.perf_counter()
         while time.perf_counter() - start < seconds:
             _, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 7).astype(np.float32))
-            if terminated or truncated:
+            taken += 1
+            if terminated or truncated or taken >= horizon:
                 env.reset()
+                taken = 0
             steps += 1
         return steps
 
@@ -113,6 +120,102 @@ def batch(n: int, device: str, **kwargs: object) -> tuple[Runner, Runner, object
         return steps
 
     return run, physics, envs
+
+
+# The parts of a batch step, by the method that does each (exclusive CPU time: a part's
+# time leaves out the parts it calls).
+PARTS = (
+    ("physics (Batch.step: 50 substeps, then mj_forward)", "cpu_engine.CpuEngine", "_step"),
+    ("next episodes' starts (the CPU env's reset, per world)", "reset.EpisodeStarts", "prefetch"),
+    ("restarts: the rows written", "reset.EpisodeStarts", "start"),
+    ("restarts: mj_forward of them", "cpu_engine.CpuEngine", "forward"),
+    ("Cartesian QP (eigh, active set)", "control.BatchArm", "_solve"),
+    ("chain kinematics at the command", "control.ChainKinematics", "__call__"),
+    ("gravity feed-forward (Pinocchio)", "cpu_engine.PinocchioGravity", "__call__"),
+    ("control: the rest (ctrl written, gripper)", "control.BatchArm", "apply"),
+    ("observations", "sensors.BatchObserver", "read"),
+    ("contacts (worlds near the fingers recomputed)", "cpu_engine.CpuEngine", "contacts"),
+    ("reward, success, termination", "env.BatchEnv", "_evaluate"),
+    ("action checks and scaling", "env.BatchEnv", "_checked"),
+    ("the step's own (ends, autoreset, info)", "env.BatchEnv", "_step"),
+)
+
+
+def breakdown(n: int, steps: int) -> None:
+    """Where a batch step's CPU time goes, on one thread (so that the physics' CPU time is
+    its own) with the starts computed after the physics instead of beside it: each part's
+    CPU microseconds per world and control step, and its share of the physics; then the
+    physics alone (`Batch.step` of the same worlds, the controls held: another workload, the
+    arms pressing on at the last command) and one CPU env's step, restarts included."""
+    import importlib
+
+    import mujoco
+    import torch
+
+    from mjkdl.task.batch import cpu_engine
+
+    spent = dict.fromkeys([name for name, _, _ in PARTS], 0.0)
+    inner: list[float] = []
+
+    def timed(name: str, fn: Callable[..., object]) -> Callable[..., object]:
+        def wrapper(*args: object, **kwargs: object) -> object:
+            start = time.process_time()
+            inner.append(0.0)
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                took = time.process_time() - start
+                spent[name] += took - inner.pop()
+                if inner:
+                    inner[-1] += took
+
+        return wrapper
+
+    saved = []
+    for name, owner, method in PARTS:
+        module, cls = owner.split(".")
+        klass = getattr(importlib.import_module(f"mjkdl.task.batch.{module}"), cls)
+        saved.append((klass, method, getattr(klass, method)))
+        setattr(klass, method, timed(name, getattr(klass, method)))
+
+    def serial(self: cpu_engine.CpuEngine, substeps: int, meanwhile=None) -> None:  # type: ignore[no-untyped-def]
+        self._step(substeps)
+        if meanwhile is not None:
+            meanwhile()
+
+    saved.append((cpu_engine.CpuEngine, "step", cpu_engine.CpuEngine.step))
+    cpu_engine.CpuEngine.step = serial  # type: ignore[method-assign]
+    try:
+        _, _, envs = batch(n, "cpu", threads=1)
+        spent.update((k, 0.0) for k in spent)
+        start = time.process_time()
+        gen = torch.Generator().manual_seed(1)
+        for _ in range(steps):
+            envs.step(torch.rand(n, 7, generator=gen) * 2 - 1)  # type: ignore[attr-defined]
+        total = time.process_time() - start
+        raw = envs.state.batch  # type: ignore[attr-defined]
+        start = time.process_time()
+        for _ in range(steps):
+            raw.step(nstep=SUBSTEPS, stage=mujoco.mjtStage.mjSTAGE_ACC)
+        floor = time.process_time() - start
+        envs.close()  # type: ignore[attr-defined]
+    finally:
+        for klass, method, fn in saved:
+            setattr(klass, method, fn)
+    physics = spent[PARTS[0][0]]
+    per = 1e6 / (n * steps)
+    print(f"\nbreakdown, {n} worlds, 1 thread, {steps} steps: CPU us per world and control step")
+    print(f"{'part':56s} {'CPU us':>8s} {'of physics':>10s}")
+    for name, value in spent.items():
+        print(f"{name:56s} {value * per:8.1f} {100 * value / physics:9.1f}%")
+    rest = total - physics
+    print(f"{'everything besides the physics':56s} {rest * per:8.1f} {100 * rest / physics:9.1f}%")
+    print(f"{'the whole step':56s} {total * per:8.1f}")
+    print(f"{'physics alone (Batch.step, controls held)':56s} {floor * per:8.1f}")
+    one = cpu_env()
+    start, steps = time.process_time(), one(3.0)
+    env_us = 1e6 * (time.process_time() - start) / steps
+    print(f"{'one CPU env (TaskEnv.step, restarts included)':56s} {env_us:8.1f}")
 
 
 _FIRST_STEP = """
@@ -203,7 +306,19 @@ def main() -> None:
         "--warp-worlds", type=int, nargs="+", default=None, help="--warp: worlds (--worlds')"
     )
     parser.add_argument("--camera-size", type=int, default=64, help="--warp: image side, px")
+    parser.add_argument(
+        "--breakdown",
+        type=int,
+        nargs="*",
+        default=None,
+        help="only the CPU time by part, at these worlds (default 64 256)",
+    )
+    parser.add_argument("--breakdown-steps", type=int, default=60, help="--breakdown: steps")
     args = parser.parse_args()
+    if args.breakdown is not None:
+        for n in args.breakdown or [64, 256]:
+            breakdown(n, args.breakdown_steps)
+        return
     import torch
 
     from mjkdl.task.batch.cpu_engine import available_threads

@@ -335,3 +335,67 @@ def test_joint_actuation_spec_runs_in_the_batch() -> None:
         )
     finally:
         batch.close()
+
+
+_CHAIN = """
+<mujoco>
+  <worldbody>
+    <body name="base" pos="0.1 -0.2 0.3" quat="0.9 0.1 0.3 -0.2">
+      <body name="l1" pos="0 0 0.2" quat="0.7 0.7 0 0">
+        <joint name="j1" type="hinge" axis="0 0 1"/>
+        <geom size="0.05" mass="1"/>
+        <body name="l2" pos="0.3 0 0">
+          <joint name="j2" type="slide" axis="1 0.5 0"/>
+          <geom size="0.05" mass="1"/>
+          <body name="fixed" pos="0 0.1 0" quat="0.8 0 0.6 0">
+            <geom size="0.05" mass="1"/>
+            <body name="l3" pos="0.2 0 0" quat="0.6 0 0 0.8">
+              <joint name="j3" type="hinge" axis="0 1 1" pos="0 0 0.1"/>
+              <geom size="0.05" mass="1"/>
+              <site name="tcp" pos="0.05 0.02 0.1" quat="0.5 0.5 0.5 0.5"/>
+            </body>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_the_chain_kinematics_is_mujocos_with_slides_and_hinges_off_their_origin() -> None:
+    """The QP's Jacobian comes from the chain walked in torch: anchors, axes and the TCP at
+    given joint positions equal MuJoCo's `mj_kinematics` there, for a hinge about an axis off
+    its body's origin, a slide, and a body without a joint between them."""
+    from types import SimpleNamespace
+
+    from mjkdl.task.batch.control import ChainKinematics
+    from mjkdl.task.batch.engine import Tcp
+
+    model = mujoco.MjModel.from_xml_string(_CHAIN)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    jids = [model.joint(n).id for n in ("j1", "j2", "j3")]
+    site = model.site("tcp").id
+    offset = np.array([0.01, -0.02, 0.03])
+    tcp = Tcp(site, int(model.site_bodyid[site]), torch.as_tensor(offset), torch.eye(3))
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-1.5, 1.5, (5, 3))
+    base = model.body("base").id
+    state = SimpleNamespace(
+        device="cpu",
+        dtype=torch.float64,
+        xpos=torch.as_tensor(np.repeat(data.xpos[None], 5, 0)),
+        xmat=torch.as_tensor(np.repeat(data.xmat.reshape(1, -1, 3, 3), 5, 0)),
+    )
+    arm = SimpleNamespace(name="toy", prefix="", base_body="l1", tip_body="l3")
+    chain = ChainKinematics(model, arm, jids, tcp, state)  # type: ignore[arg-type]
+    anchors, axes, at = (x.numpy() for x in chain(torch.as_tensor(q)))
+    assert int(model.body_parentid[model.body("l1").id]) == base
+    for w in range(5):
+        data.qpos[:] = q[w]
+        mujoco.mj_kinematics(model, data)
+        np.testing.assert_allclose(anchors[w], data.xanchor[jids], atol=1e-14)
+        np.testing.assert_allclose(axes[w], data.xaxis[jids], atol=1e-14)
+        want = data.site_xpos[site] + data.site_xmat[site].reshape(3, 3) @ offset
+        np.testing.assert_allclose(at[w], want, atol=1e-14)

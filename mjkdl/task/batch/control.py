@@ -67,6 +67,7 @@ class BatchArm:
         self._hinge = torch.tensor(
             [int(model.jnt_type[j]) == hinge for j in jids], device=dev
         ).reshape(1, n, 1)
+        self._all_hinge = bool(self._hinge.all())
         self._act = torch.tensor(robot.actuator_ids, device=dev)
         self._mode = robot.ctrl_mode
         # Feed-forward of the gravity torques into the servo setpoint, as the Robot adds it.
@@ -127,6 +128,8 @@ class BatchArm:
         else:
             anchor, axis, tcp = self._chain(q)
         lin_h = torch.linalg.cross(axis, tcp.unsqueeze(1) - anchor, dim=-1)
+        if self._all_hinge:
+            return torch.cat([lin_h, axis], dim=-1).transpose(1, 2)
         lin = torch.where(self._hinge, lin_h, axis)
         ang = torch.where(self._hinge, axis, torch.zeros_like(axis))
         return torch.cat([lin, ang], dim=-1).transpose(1, 2)
@@ -174,9 +177,8 @@ class BatchArm:
         sigma = torch.sqrt(torch.clamp(eig[:, n_null], min=0.0))
         damp, threshold = self._sing
         ratio = sigma / threshold
-        lam = self._damping + torch.where(
-            sigma < threshold, damp * (1.0 - ratio * ratio), torch.zeros_like(sigma)
-        )
+        # Damping grows as the smallest singular value falls below the threshold.
+        lam = self._damping + damp * torch.clamp(1.0 - ratio * ratio, min=0.0)
         d = eig + lam.unsqueeze(1)
         f = (J.transpose(1, 2) @ v.unsqueeze(-1))[..., 0]
         if n_null:
@@ -248,25 +250,24 @@ def _box_qp(
     past a bound are pinned there, pinned joints whose multiplier has the wrong sign are
     freed, the rest re-solved) for up to `ACTIVE_SET_PASSES` passes, then a final clip. Exact
     once the active set settles (the KKT conditions then hold in every world)."""
-    side = torch.zeros_like(f)  # +1 pinned at ub, -1 at lb, 0 free
-    qd = f
-    for _ in range(ACTIVE_SET_PASSES):
-        pinned = side != 0
-        value = torch.where(side > 0, ub, torch.where(side < 0, lb, torch.zeros_like(f)))
-        free = (~pinned).to(H.dtype)
+    qd = torch.linalg.solve(H, f)  # the first pass: nothing pinned
+    over, under = qd > ub, qd < lb
+    if not bool((over | under).any()):
+        return qd
+    side = torch.where(over, 1.0, torch.where(under, -1.0, torch.zeros_like(f)))  # +1 at ub
+    for _ in range(ACTIVE_SET_PASSES - 1):
+        free = side == 0
+        pinned = torch.where(free, 0.0, torch.where(side > 0, ub, lb))
         # Pinned rows become identity rows holding the bound; free rows see them as known.
-        A = H * free.unsqueeze(2) * free.unsqueeze(1) + eye * (1.0 - free).unsqueeze(2)
-        rhs = torch.where(pinned, value, f - (H @ (value * (1.0 - free)).unsqueeze(-1))[..., 0])
+        A = torch.where(free.unsqueeze(2) & free.unsqueeze(1), H, eye)
+        rhs = torch.where(free, f - (H @ pinned.unsqueeze(-1)).squeeze(-1), pinned)
         qd = torch.linalg.solve(A, rhs)
-        grad = (H @ qd.unsqueeze(-1))[..., 0] - f
-        release = ((side > 0) & (grad > 0)) | ((side < 0) & (grad < 0))
-        over, under = (qd > ub) & ~pinned, (qd < lb) & ~pinned
+        grad = (H @ qd.unsqueeze(-1)).squeeze(-1) - f
+        release = side * grad > 0  # a pinned joint whose multiplier has the wrong sign
+        over, under = (qd > ub) & free, (qd < lb) & free
         if not bool((release | over | under).any()):
             return qd
-        side = torch.where(release, torch.zeros_like(side), side)
-        side = torch.where(
-            over, torch.ones_like(side), torch.where(under, -torch.ones_like(side), side)
-        )
+        side = torch.where(over, 1.0, torch.where(under, -1.0, torch.where(release, 0.0, side)))
     return torch.maximum(torch.minimum(qd, ub), lb)
 
 
@@ -279,7 +280,11 @@ def _rotation(quat: np.ndarray) -> np.ndarray:
 class ChainKinematics:
     """The chain's joint anchors, axes and TCP at given joint positions, in float64, from the
     model's body offsets (MuJoCo's `mj_kinematics` along the chain), starting from the base's
-    parent as it is now: the Jacobian at the command, where the CPU QP takes it."""
+    parent as it is now: the Jacobian at the command, where the CPU QP takes it.
+
+    Each body's fixed rotation and its joint's rotation are one matrix, `brot R(angle)` =
+    `brot + sin brot K + (1 - cos) brot K²` (Rodrigues, K the axis' cross-product matrix),
+    made for every joint at once; the walk down the chain is then one product per body."""
 
     def __init__(
         self, model: mujoco.MjModel, arm: ArmSpec, jids: list[int], tcp: Tcp, state: Engine
@@ -296,7 +301,19 @@ class ChainKinematics:
         path.reverse()
         self._parent = int(model.body_parentid[base])
         index = {j: i for i, j in enumerate(jids)}
-        self._steps = []
+        n = len(jids)
+        fixed, k, k2 = np.zeros((n, 3, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3, 3))
+        q0, self._slides = np.zeros(n), []
+        self._pivots: dict[int, torch.Tensor] = {}  # hinges off their body's origin: jnt_pos
+        along, at = np.zeros((n, 3)), np.zeros((n, 3))  # axis and anchor in the parent frame
+        self._steps: list[tuple[torch.Tensor | None, int, torch.Tensor | None]] = []
+        if tcp.site >= 0:
+            ref_body = int(model.site_bodyid[tcp.site])
+            site_pos, site_rot = model.site_pos[tcp.site], _rotation(model.site_quat[tcp.site])
+        else:
+            ref_body, site_pos, site_rot = tcp.body, np.zeros(3), np.eye(3)
+        if ref_body not in path:
+            raise SpecError(f"arm {arm.name!r}: the TCP's site is not on the chain's bodies")
         for b in path:
             joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
             if any(j not in index for j in joints) or len(joints) > 1:
@@ -304,77 +321,74 @@ class ChainKinematics:
                     f"batched Cartesian control of arm {arm.name!r} needs one chain joint (or "
                     f"none) per body; body {model.body(b).name!r} has other joints"
                 )
-            j = joints[0] if len(joints) else -1
-            hinge = j >= 0 and int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE)
-            self._steps.append(
-                (
-                    b,
-                    torch.tensor(model.body_pos[b], device=dev, dtype=f64),
-                    torch.tensor(_rotation(model.body_quat[b]), device=dev, dtype=f64),
-                    index.get(j, -1),
-                    torch.tensor(
-                        model.jnt_pos[j] if j >= 0 else np.zeros(3), device=dev, dtype=f64
-                    ),
-                    torch.tensor(
-                        model.jnt_axis[j] if j >= 0 else np.zeros(3), device=dev, dtype=f64
-                    ),
-                    float(model.qpos0[model.jnt_qposadr[j]]) if j >= 0 else 0.0,
-                    hinge,
-                    _cross_matrix(model.jnt_axis[j] if j >= 0 else np.zeros(3), dev),
-                )
-            )
-        if tcp.site >= 0:
-            self._ref_body = int(model.site_bodyid[tcp.site])
-            site_pos, site_rot = model.site_pos[tcp.site], _rotation(model.site_quat[tcp.site])
-        else:
-            self._ref_body, site_pos, site_rot = tcp.body, np.zeros(3), np.eye(3)
-        if self._ref_body not in path:
-            raise SpecError(f"arm {arm.name!r}: the TCP's site is not on the chain's bodies")
-        self._site_pos = torch.tensor(site_pos, device=dev, dtype=f64)
-        self._site_rot = torch.tensor(site_rot, device=dev, dtype=f64)
-        self._offset = tcp.offset.double()
-        self._n = len(jids)
+            brot = _rotation(model.body_quat[b])
+            bpos = model.body_pos[b]
+            shift = None if not bpos.any() else torch.tensor(bpos, device=dev, dtype=f64)
+            if not len(joints):
+                self._steps.append((shift, -1, torch.tensor(brot, device=dev, dtype=f64)))
+            else:
+                j = joints[0]
+                i = index[j]
+                axis, jpos = model.jnt_axis[j], model.jnt_pos[j]
+                fixed[i], along[i], at[i] = brot, brot @ axis, brot @ jpos
+                q0[i] = model.qpos0[model.jnt_qposadr[j]]
+                if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE):
+                    cross = _cross_matrix(axis)
+                    k[i], k2[i] = brot @ cross, brot @ cross @ cross
+                    if jpos.any():  # the body turns about its anchor, off its frame's origin
+                        self._pivots[i] = torch.tensor(jpos, device=dev, dtype=f64)
+                else:
+                    self._slides.append(i)
+                self._steps.append((shift, i, None))
+            if b == ref_body:
+                # The TCP in this body's frame: the site's pose, then the tool's offset.
+                tip = site_pos + site_rot @ tcp.offset.double().cpu().numpy()
+                self._tip = torch.tensor(tip, device=dev, dtype=f64)
+                self._tip_index = len(self._steps)
+        self._fixed, self._k, self._k2 = (
+            torch.tensor(x, device=dev, dtype=f64) for x in (fixed, k, k2)
+        )
+        self._q0 = torch.tensor(q0, device=dev, dtype=f64)
+        self._along = torch.tensor(along, device=dev, dtype=f64).unsqueeze(-1)
+        self._at = torch.tensor(at, device=dev, dtype=f64).unsqueeze(-1) if at.any() else None
+        self._n = n
 
     def __call__(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(anchors (N, n, 3), axes (N, n, 3), TCP (N, 3)) at joint positions `q` (N, n)."""
         s = self._state
         pos = s.xpos[:, self._parent].double()
         rot = s.xmat[:, self._parent].double()
-        anchors = [torch.zeros_like(pos)] * self._n
-        axes = [torch.zeros_like(pos)] * self._n
-        ref_pos, ref_rot = pos, rot
-        for body, bpos, brot, i, jpos, jaxis, q0, hinge, cross in self._steps:
-            pos = pos + (rot @ bpos)
-            rot = rot @ brot
-            if i >= 0:
-                anchor = pos + rot @ jpos
-                axis = rot @ jaxis
-                anchors[i], axes[i] = anchor, axis
-                angle = q[:, i] - q0
-                if hinge:
-                    rot = rot @ _axis_rotation(cross, angle)
-                    pos = anchor - rot @ jpos
-                else:
-                    pos = pos + axis * angle.unsqueeze(1)
-            if body == self._ref_body:
-                ref_pos = pos + rot @ self._site_pos
-                ref_rot = rot @ self._site_rot
-        tcp = ref_pos + ref_rot @ self._offset
-        return torch.stack(anchors, 1), torch.stack(axes, 1), tcp
+        angle = q - self._q0
+        sin = torch.sin(angle)[..., None, None]
+        turned = self._fixed + sin * self._k + (1.0 - torch.cos(angle))[..., None, None] * self._k2
+        frames: list[torch.Tensor] = [rot] * self._n  # each joint's parent frame
+        origins: list[torch.Tensor] = [pos] * self._n
+        tcp = pos
+        for k, (shift, i, brot) in enumerate(self._steps):
+            if shift is not None:
+                pos = pos + rot @ shift
+            if i < 0:
+                rot = rot @ brot  # type: ignore[operator]
+            else:
+                frames[i], origins[i] = rot, pos
+                rot = rot @ turned[:, i]
+                if i in self._slides:
+                    pos = pos + (frames[i] @ self._along[i])[..., 0] * angle[:, i : i + 1]
+                elif i in self._pivots:  # the anchor stays where it is
+                    pos = pos + frames[i] @ self._at[i, :, 0] - rot @ self._pivots[i]  # type: ignore[index]
+            if k + 1 == self._tip_index:
+                tcp = pos + rot @ self._tip
+        parents = torch.stack(frames, 1)
+        axes = (parents @ self._along)[..., 0]
+        anchors = torch.stack(origins, 1)
+        if self._at is not None:
+            anchors = anchors + (parents @ self._at)[..., 0]
+        return anchors, axes, tcp
 
 
-def _cross_matrix(axis: np.ndarray, device: str) -> torch.Tensor:
+def _cross_matrix(axis: np.ndarray) -> np.ndarray:
     x, y, z = (float(v) for v in axis)
-    k = [[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]]
-    return torch.tensor(k, dtype=torch.float64, device=device)
-
-
-def _axis_rotation(cross: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
-    """(N, 3, 3) rotations by `angle` (N,) about the unit axis whose cross-product matrix is
-    `cross`: Rodrigues' formula."""
-    c, s = torch.cos(angle)[:, None, None], torch.sin(angle)[:, None, None]
-    eye = torch.eye(3, dtype=angle.dtype, device=angle.device)
-    return eye + s * cross + (1.0 - c) * (cross @ cross)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 class ActionLatency:

@@ -12,10 +12,12 @@ it, so joint-space commands are the CPU env's bit for bit.
 from __future__ import annotations
 
 import os
+import threading
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import mujoco.batch
@@ -96,10 +98,13 @@ class CpuEngine(Engine):
         self._model = self.batch.get_model(0)  # the batch's own copy, for contacts
         self._scratch = mujoco.MjData(self._model)
         self._geom_body = model.geom_bodyid
-        self._rbound = model.geom_rbound
+        self._rbound = model.geom_rbound.copy()
+        self._pairs: dict[tuple[int, tuple[int, ...]], Any] = {}  # `_near`'s geoms, by bodies
         self._failed = np.zeros(nworld, dtype=bool)
         self._errors: dict[int, str] = {}
         self._per_world: dict[str, np.ndarray] = {}  # the expanded model fields
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="mjkdl-batch")
+        self._entering = threading.Event()
         self.batch.forward()
 
     def forward(self, rows: torch.Tensor) -> None:
@@ -107,7 +112,28 @@ class CpuEngine(Engine):
         if len(ids):
             self._call(self.batch.forward, ids)
 
-    def step(self, substeps: int) -> None:
+    def step(self, substeps: int, meanwhile: Callable[[], None] | None = None) -> None:
+        """The batch's call on a thread of the engine's own while `meanwhile` runs on this
+        one: the call leaves Python (MuJoCo releases the GIL), so the host work shares the
+        cores with the physics instead of waiting for it. This thread starts `meanwhile` once
+        the other is about to enter the call: started at once, it would keep the GIL from the
+        physics for Python's switch interval (5 ms, a fifth of 64 worlds' step)."""
+        if meanwhile is None:
+            self._step(substeps)
+            return
+        self._entering.clear()
+        physics = self._pool.submit(self._entered_step, substeps)
+        try:
+            self._entering.wait()
+            meanwhile()
+        finally:
+            physics.result()
+
+    def _entered_step(self, substeps: int) -> None:
+        self._entering.set()
+        self._step(substeps)
+
+    def _step(self, substeps: int) -> None:
         self._call(self.batch.step, None, nstep=substeps, stage=mujoco.mjtStage.mjSTAGE_ACC)
 
     def _call(self, fn: Callable[..., None], ids: np.ndarray | None, **kwargs: int) -> None:
@@ -132,10 +158,10 @@ class CpuEngine(Engine):
         )
 
     def clear(self, rows: torch.Tensor) -> None:
-        ids = np.flatnonzero(rows.numpy())
-        self._failed[ids] = False
-        for i in ids.tolist():
-            self._errors.pop(i, None)
+        mask = rows.numpy()
+        self._failed[mask] = False
+        for i in [i for i in self._errors if mask[i]]:
+            del self._errors[i]
 
     def contacts(
         self, body: int | None = None, others: Sequence[int] = ()
@@ -171,17 +197,33 @@ class CpuEngine(Engine):
     def _near(self, body: int, others: Sequence[int]) -> np.ndarray:
         """(nworld,) bool: some geom of `body` within bounding-sphere reach of a geom of
         `others` (a plane, whose bound is 0, always reaches)."""
+        key = (body, tuple(others))
+        pairs = self._pairs.get(key)
+        if pairs is None:
+            pairs = self._pairs[key] = self._pairs_of(body, others)
+        if pairs is True:
+            return np.ones(self.nworld, dtype=bool)
+        if pairs is False:
+            return np.zeros(self.nworld, dtype=bool)
+        mine, theirs, reach = pairs
+        pos = self.geom_xpos.numpy()  # type: ignore[attr-defined]
+        gap = pos[:, mine, None] - pos[:, None, theirs]
+        return np.asarray((np.einsum("wijk,wijk->wij", gap, gap) <= reach).any(axis=(1, 2)))
+
+    def _pairs_of(
+        self, body: int, others: Sequence[int]
+    ) -> bool | tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The geoms of `body` and of `others` and their squared reach; True where a plane
+        is among them (always near), False where either side has no geom (never)."""
         mine = np.flatnonzero(self._geom_body == body)
         theirs = np.flatnonzero(np.isin(self._geom_body, list(others)))
         if not len(mine) or not len(theirs):
-            return np.zeros(self.nworld, dtype=bool)
+            return False
         rb = self._rbound
         if (rb[mine] == 0).any() or (rb[theirs] == 0).any():
-            return np.ones(self.nworld, dtype=bool)
-        pos = self.geom_xpos.numpy()  # type: ignore[attr-defined]
-        gap = np.linalg.norm(pos[:, mine, None] - pos[:, None, theirs], axis=-1)
+            return True
         reach = rb[mine][:, None] + rb[theirs][None, :] + 1e-6
-        return np.asarray((gap <= reach).any(axis=(1, 2)))
+        return mine, theirs, reach * reach
 
     def gravity(
         self, eff: ArmEffector, model: mujoco.MjModel, jids: list[int]
@@ -211,6 +253,7 @@ class CpuEngine(Engine):
             self.batch.set_const(ids)
 
     def close(self) -> None:
+        self._pool.shutdown()
         del self.batch
 
     @contextmanager
@@ -228,24 +271,29 @@ class CpuEngine(Engine):
 
 
 class PinocchioGravity:
-    """(nworld, n) gravity torques of one arm: `pin.computeGeneralizedGravity` of the arm's
-    Pinocchio model at each world's joint positions (1.6 us a world on a Panda), the arm's
-    entries of it; the same call, on the same numbers, as the CPU env's `Robot.update`."""
+    """(nworld, n) gravity torques of one arm: Pinocchio's inverse dynamics at rest
+    (`rneaInParallel`, zero velocity and acceleration, one C++ call for all worlds) at each
+    world's joint positions, the arm's entries of it. Bit for bit the CPU env's
+    `Robot.update` (`computeGeneralizedGravity`): the velocity terms it adds are exact zeros."""
 
     def __init__(self, eff: ArmEffector, model: mujoco.MjModel, engine: CpuEngine) -> None:
         robot = eff.robot
-        self._pin = robot.model
-        self._pdata = self._pin.createData()
-        names = [self._pin.names[j] for j in range(1, self._pin.njoints)]
+        pm = robot.model
+        self._pool = pin.ModelPool(pm, 1)
+        names = [pm.names[j] for j in range(1, pm.njoints)]
         self._qadr = np.array([model.joint(n).qposadr[0] for n in names])
-        self._arm_v = robot.arm_v
+        self._arm_v = np.arange(pm.nv)[robot.arm_v]
         self._qpos = engine.qpos.numpy()
-        self.out = torch.zeros(engine.nworld, robot.n_joints, dtype=torch.float64)
+        nworld = engine.nworld
+        # Pinocchio takes one column per world (column-major): rows of these transposes.
+        self._q = np.zeros((pm.nq, nworld), order="F")
+        self._rest = np.zeros((pm.nv, nworld), order="F")
+        self._tau = np.zeros((pm.nv, nworld), order="F")
+        self.out = torch.zeros(nworld, robot.n_joints, dtype=torch.float64)
         self._out = self.out.numpy()
 
     def __call__(self) -> torch.Tensor:
-        q = self._qpos[:, self._qadr]
-        model, data, arm, out = self._pin, self._pdata, self._arm_v, self._out
-        for i in range(len(q)):
-            out[i] = pin.computeGeneralizedGravity(model, data, q[i])[arm]
+        np.take(self._qpos, self._qadr, axis=1, out=self._q.T)
+        pin.rneaInParallel(1, self._pool, self._q, self._rest, self._rest, self._tau)
+        np.take(self._tau.T, self._arm_v, axis=1, out=self._out)
         return self.out

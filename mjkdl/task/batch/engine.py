@@ -91,9 +91,10 @@ class Engine(ABC):
         other worlds step on as if this had not run."""
 
     @abstractmethod
-    def step(self, substeps: int) -> None:
+    def step(self, substeps: int, meanwhile: Callable[[], None] | None = None) -> None:
         """`substeps` physics steps of every world, then the derived fields of the new state
-        (as the CPU env's `mj_forward` after `mj_step`)."""
+        (as the CPU env's `mj_forward` after `mj_step`); `meanwhile` (host work that touches
+        no engine field: the next episodes' starts) runs while the physics does."""
 
     @abstractmethod
     def failed(self) -> torch.Tensor:
@@ -163,44 +164,40 @@ class Engine(ABC):
         _, rot = self.frame_pos(tcp)
         return rot @ tcp.rotation
 
-    def tcp_vel(self, tcp: Tcp) -> torch.Tensor:
+    def tcp_vel(self, tcp: Tcp, pos: torch.Tensor | None = None) -> torch.Tensor:
         """(N, 6) [v, w] of the TCP point, world axes: MuJoCo's `cvel` (at the root's
-        subtree centre of mass) moved to the TCP."""
+        subtree centre of mass) moved to the TCP (at `pos`, its `tcp_pos`, if given)."""
         cvel = self.cvel[:, tcp.body]
         w, v = cvel[:, :3], cvel[:, 3:]
         com = self.subtree_com[:, self.root[tcp.body]]
-        lin = v + torch.linalg.cross(w, self.tcp_pos(tcp) - com, dim=-1)
+        lever = (self.tcp_pos(tcp) if pos is None else pos) - com
+        lin = v + torch.linalg.cross(w, lever, dim=-1)
         return torch.cat([lin, w], dim=1)
 
 
 def mat_to_quat(mat: torch.Tensor) -> torch.Tensor:
     """(N, 3, 3) rotations to (N, 4) quaternions [w, x, y, z] with MuJoCo's `mju_mat2Quat`
-    branches, so the sign matches the CPU env's."""
-    m = mat.reshape(-1, 9)
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m.unbind(1)
+    branches, so the sign matches the CPU env's. Each branch's quaternion is a multiple
+    (by 1 / (4 q_k), q_k its largest entry) of a vector of sums of entries, so the chosen
+    vector, normalised, is it."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat.reshape(-1, 9).unbind(1)
     tr = m00 + m11 + m22
-    one = torch.ones_like(tr)
-
-    def q(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
-        return torch.stack([a, b, c, d], 1)
-
-    s0 = 0.5 * torch.sqrt(torch.clamp(tr + 1, min=1e-12))
-    q0 = q(s0, (m21 - m12) / (4 * s0), (m02 - m20) / (4 * s0), (m10 - m01) / (4 * s0))
-    s1 = 0.5 * torch.sqrt(torch.clamp(one + m00 - m11 - m22, min=1e-12))
-    q1 = q((m21 - m12) / (4 * s1), s1, (m01 + m10) / (4 * s1), (m02 + m20) / (4 * s1))
-    s2 = 0.5 * torch.sqrt(torch.clamp(one - m00 + m11 - m22, min=1e-12))
-    q2 = q((m02 - m20) / (4 * s2), (m01 + m10) / (4 * s2), s2, (m12 + m21) / (4 * s2))
-    s3 = 0.5 * torch.sqrt(torch.clamp(one - m00 - m11 + m22, min=1e-12))
-    q3 = q((m10 - m01) / (4 * s3), (m02 + m20) / (4 * s3), (m12 + m21) / (4 * s3), s3)
-    out = torch.where(
-        (tr > 0).unsqueeze(1),
-        q0,
-        torch.where(
-            ((m00 > m11) & (m00 > m22)).unsqueeze(1),
-            q1,
-            torch.where((m11 > m22).unsqueeze(1), q2, q3),
-        ),
+    a, b, c = m21 - m12, m02 - m20, m10 - m01
+    d, e, f = m01 + m10, m02 + m20, m12 + m21
+    # Row k: the branch where entry k is largest (w, x, y, z), scaled by 4 q_k.
+    rows = torch.stack(
+        [
+            1.0 + tr, a, b, c,
+            a, 1.0 + m00 - m11 - m22, d, e,
+            b, d, 1.0 - m00 + m11 - m22, f,
+            c, e, f, 1.0 - m00 - m11 + m22,
+        ],
+        1,
+    ).reshape(-1, 4, 4)  # fmt: skip
+    branch = torch.where(
+        tr > 0, 0, torch.where((m00 > m11) & (m00 > m22), 1, torch.where(m11 > m22, 2, 3))
     )
+    out = rows[torch.arange(len(branch), device=mat.device), branch]
     return out / torch.linalg.norm(out, dim=1, keepdim=True)
 
 

@@ -388,7 +388,7 @@ class BatchEnv(VectorEnv):
                 raise SpecError(f"reset(seed=[...]) needs {self.num_envs} seeds, got {len(seeds)}")
             self.starts.seed(seeds)
         rows = torch.ones(self.num_envs, dtype=torch.bool, device=self.device)
-        with self.state.host_work():
+        with torch.no_grad(), self.state.host_work():
             self._reset_rows(rows)
             self._needs_reset = False
             obs = self.observer.read()
@@ -402,7 +402,9 @@ class BatchEnv(VectorEnv):
         self._check_open()
         if self._needs_reset:
             raise RuntimeError("BatchEnv.step() before reset(): call reset() first")
-        with self.state.host_work():
+        # The physics is not differentiable: an action that requires grad is taken as data,
+        # and no op of the step pays autograd's bookkeeping.
+        with torch.no_grad(), self.state.host_work():
             return self._step(actions)
 
     def _step(
@@ -413,8 +415,7 @@ class BatchEnv(VectorEnv):
             a = self._delay(a)
         for arm in self.arms:
             arm.apply(a, self._period)
-        self.state.step(self._substeps)
-        self.starts.prefetch()  # on a GPU, while the physics runs
+        self.state.step(self._substeps, meanwhile=self.starts.prefetch)
         s = self.state
         failed = s.failed()
         diverged = ~(torch.isfinite(s.qpos).all(1) & torch.isfinite(s.qvel).all(1)) | failed
@@ -449,9 +450,8 @@ class BatchEnv(VectorEnv):
             self._reset_rows(done)
             fresh = self.observer.read()
             restart = self._evaluate(fresh, done)[1]
-            shown = {
-                k: torch.where(_rows(done, v), self._shown(fresh)[k], v) for k, v in shown.items()
-            }
+            started = self._shown(fresh)
+            shown = {k: torch.where(_rows(done, v), started[k], v) for k, v in shown.items()}
             info["is_success"] = torch.where(done, restart, success)
         return shown, reward, terminated, truncated, info
 
@@ -463,8 +463,8 @@ class BatchEnv(VectorEnv):
             self._delay.restart(rows)
         self.state.clear(rows)
         self.state.forward(rows)
-        self._steps[rows] = 0
-        self._held[rows] = 0
+        self._steps.masked_fill_(rows, 0)
+        self._held.masked_fill_(rows, 0)
 
     def _evaluate(
         self, obs: dict[str, torch.Tensor], live: torch.Tensor

@@ -4,7 +4,8 @@ A world's episodes draw only on its own generator, so the start of its next epis
 as soon as the current one has begun. `EpisodeStarts` computes it while the device runs the
 physics (`prefetch`), and a finished world restarts from one batched upload of every
 finished world's row (`start`): the episodes stay exactly the CPU env's
-`TaskEnv.reset(seed=...)` sequence, and the host's reset cost leaves the critical path on a GPU.
+`TaskEnv.reset(seed=...)` sequence, and the host's reset cost leaves the critical path: on a
+GPU, and on the CPU beside MuJoCo's batch, which steps on its own threads without the GIL.
 
 With `workers`, separate processes (each with its own copy of the env, owning every
 `workers`-th world's generator) compute the starts in parallel and in the background: a GPU

@@ -117,7 +117,7 @@ class BatchObserver:
 
         def read() -> dict[str, torch.Tensor]:
             pos = s.tcp_pos(tcp)
-            vel = s.tcp_vel(tcp)
+            vel = s.tcp_vel(tcp, pos)
             if cf_rot is not None:
                 rot_t = cf_rot().transpose(1, 2)
                 vel = torch.cat(

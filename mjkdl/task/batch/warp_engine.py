@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import copy
 import warnings
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import Any
 
@@ -145,10 +145,10 @@ class WarpEngine(Engine):
             self._mjw.forward(self.model, self.data)
         self.qacc_warmstart[keep] = saved[keep]
 
-    def step(self, substeps: int) -> None:
+    def step(self, substeps: int, meanwhile: Callable[[], None] | None = None) -> None:
         """`substeps` physics steps of every world, then poses and velocities of the new state
         (the CPU env's refresh after `mj_step`; forces stay those of the last step). On a GPU
-        a replayed graph returns once it is queued.
+        a replayed graph returns once it is queued, and `meanwhile` runs after that.
 
         The first call runs Warp's launches one by one (loading the kernels); later calls
         replay them as one captured graph, the same launches on the same arrays without
@@ -178,6 +178,8 @@ class WarpEngine(Engine):
             else:
                 self._physics(substeps)
                 self._stepped.add(substeps)
+        if meanwhile is not None:
+            meanwhile()
 
     def set_model(self, ids: np.ndarray, values: Mapping[str, np.ndarray]) -> None:
         """Into the model's arrays with one row per world (`per_world`, made at the start),
