@@ -350,3 +350,24 @@ def test_a_lost_server_is_a_fault_naming_the_connection() -> None:
         f"the connection to the arm at {sim.host} is lost, so nothing here can move it: a "
         "Franka arm stops by itself once commands stop coming (its communication reflex)"
     ), text
+
+
+def test_a_reflex_is_a_fault_with_the_arm_at_rest() -> None:
+    """Against the server's pick scene (its own table, which the env's scene does not know of)
+    a policy driving the hand straight down ends in the robot's reflex."""
+    needs_extra("franka")
+    with franka_sim("--lockstep", "--command-timeout", "10", "--scene", "pick") as sim:
+
+        def down(env: Any) -> Any:
+            a = np.zeros(env.action_space.shape, np.float32)
+            a[2] = env.action_space.low[2]  # the TCP down at full speed
+            return lambda obs: a
+
+        with pytest.raises(DeploymentFault) as caught:
+            evaluate(PICK, down, episodes=1, robot_ip=sim.host, progress=False)
+        _, dq = arm_state(sim.host)
+    text = str(caught.value)
+    assert re.search(r"a fault ended the run at seed 0, after \d+ control steps \(0 episodes "
+                     r"done, 0 successful\): ReflexError: .*reflex.*serve `--scene empty`.*; "
+                     r"the arm is at rest \(joint speeds <= ", text, re.S), text  # fmt: skip
+    assert np.abs(dq).max() < 0.01
