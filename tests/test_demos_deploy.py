@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import ast
 import json
+import os
+import pty
 import re
 import signal
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -114,22 +115,17 @@ def test_chunk_execution_follows_the_policys_config() -> None:
 
 
 def test_the_stop_key_reads_a_terminal_only() -> None:
-    class Tty:
-        def __init__(self, line: str) -> None:
-            self.line = line
-
-        def isatty(self) -> bool:
-            return True
-
-        def readline(self) -> str:
-            return self.line
-
-    key = StopKey(Tty("\n"))
-    assert key.active and key.pressed.wait(5)
-    key = StopKey(Tty(""))  # the end of the stream is no key
-    time.sleep(0.05)
-    assert key.active and not key.pressed.is_set()
-    assert not StopKey(open(__file__)).active  # noqa: SIM115  (a file: no thread, no key)
+    main, side = pty.openpty()
+    with open(side, closefd=True) as terminal:
+        key = StopKey(terminal)
+        assert key.active and not key.pressed.wait(0.2)
+        os.write(main, b"\n")  # Enter
+        assert key.pressed.wait(5)
+        key.close()
+    os.close(main)
+    with open(__file__) as file:  # not a terminal: nothing watched, never pressed
+        key = StopKey(file)
+        assert not key.active and not key.pressed.wait(0.1)
 
 
 def test_robot_ip_refuses_workers_and_a_second_address() -> None:
@@ -260,24 +256,16 @@ def test_policy_faults_end_the_run_with_the_arm_at_rest(arm: str) -> None:
 
 
 def test_the_stop_key_ends_the_run_with_the_arm_at_rest(arm: str) -> None:
-    class Key:  # a terminal whose Enter the policy presses at its third step
-        line = threading.Event()
-
-        def isatty(self) -> bool:
-            return True
-
-        def readline(self) -> str:
-            self.line.wait(60)
-            return "\n"
-
-    key = StopKey(Key())
+    main, side = pty.openpty()
+    terminal = open(side)  # noqa: SIM115  (closed below)
+    key = StopKey(terminal)
 
     def pressing(env: Any) -> Any:
         steps = iter(range(100))
 
         def policy(obs: dict[str, np.ndarray]) -> np.ndarray:
-            if next(steps) == 2:
-                Key.line.set()
+            if next(steps) == 2:  # Enter during the third step
+                os.write(main, b"\n")
                 assert key.pressed.wait(5)
             a = np.zeros(env.action_space.shape, np.float32)
             a[1] = 0.5
@@ -285,13 +273,18 @@ def test_the_stop_key_ends_the_run_with_the_arm_at_rest(arm: str) -> None:
 
         return policy
 
-    with pytest.raises(DeploymentStopped) as caught:
-        evaluate(PICK, pressing, episodes=2, robot_ip=arm, stop_key=key, progress=False)
+    try:
+        with pytest.raises(DeploymentStopped) as caught:
+            evaluate(PICK, pressing, episodes=2, robot_ip=arm, stop_key=key, progress=False)
+    finally:
+        terminal.close()
+        os.close(main)
     assert re.match(
         r"stopped by the stop key \(Enter\) at seed 0, after 3 control steps \(0 episodes done, "
         r"0 successful\); the arm is at rest \(joint speeds <= ",
         str(caught.value),
     ), str(caught.value)
+    assert caught.value.episodes == []
 
 
 def test_ctrl_c_brings_the_arm_to_rest_and_exits_130(arm: str) -> None:
@@ -300,7 +293,7 @@ def test_ctrl_c_brings_the_arm_to_rest_and_exits_130(arm: str) -> None:
         [sys.executable, "-m", "mjkdl.demos", "evaluate", PICK, "--expert", "--episodes", "3",
          "--robot-ip", arm],
         stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env={**__import__("os").environ, **env},
+        env={**os.environ, **env},
     )  # fmt: skip
     try:
         assert proc.stdout is not None

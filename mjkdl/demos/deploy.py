@@ -16,6 +16,8 @@ where it stopped) and the message says where it rests.
 
 from __future__ import annotations
 
+import os
+import select
 import sys
 import threading
 from collections.abc import Callable, Mapping, Sequence
@@ -52,19 +54,31 @@ class DeploymentFault(MjkdlError, RuntimeError):
 
 
 class StopKey:
-    """Enter (a line, `q` or empty) on `stream` asks the run to stop, when `stream` is a
-    terminal (stdin by default); read by a daemon thread, checked once per control step."""
+    """Enter (a line: empty, `q`, anything) on `stream` asks the run to stop, when `stream` is
+    a terminal (stdin by default); watched by a thread until `close()`, checked once per
+    control step."""
 
     def __init__(self, stream: TextIO | None = None) -> None:
         self.stream = sys.stdin if stream is None else stream
         self.pressed = threading.Event()
+        self._closed = threading.Event()
         self.active = bool(self.stream is not None and self.stream.isatty())
         if self.active:
-            threading.Thread(target=self._read, daemon=True).start()
+            threading.Thread(target=self._watch, daemon=True).start()
 
-    def _read(self) -> None:
-        if self.stream.readline():  # "" is the end of the stream, not a key
-            self.pressed.set()
+    def _watch(self) -> None:
+        # The descriptor, polled: a thread blocked in the stream's readline would hold its
+        # buffer's lock when the interpreter shuts down, which aborts the process.
+        fd = self.stream.fileno()
+        while not self._closed.is_set():
+            if select.select([fd], [], [], 0.05)[0]:
+                if os.read(fd, 4096):  # a terminal in canonical mode hands over whole lines
+                    self.pressed.set()
+                return  # b"": the end of the input, no key
+
+    def close(self) -> None:
+        """Stop watching the terminal."""
+        self._closed.set()
 
 
 class _Stop(Exception):
@@ -137,9 +151,14 @@ def deploy(
     videos = dict(videos or {})
     results: list[EpisodeResult] = []
     env = make_env(env_id, env_kwargs)
+    try:  # a policy that does not load is bad input, as without an arm (nothing moved)
+        policy = _Guarded(make_policy(source, env), source, key)
+    except BaseException:
+        env.close()
+        key.close()
+        raise
     seed: int | None = None
     try:
-        policy = _Guarded(make_policy(source, env), source, key)
         for seed in seeds:
             result = run_episode(env, policy, seed, video=videos.get(seed), source=source)
             results.append(result)
@@ -159,6 +178,7 @@ def deploy(
         ) from err
     finally:
         env.close()
+        key.close()
     return results
 
 
