@@ -287,36 +287,65 @@ def test_the_stop_key_ends_the_run_with_the_arm_at_rest(arm: str) -> None:
     assert caught.value.episodes == []
 
 
-def test_ctrl_c_brings_the_arm_to_rest_and_exits_130(arm: str) -> None:
-    env = {"PYTHONPATH": f"{ROOT}:{ROOT / 'tests'}"}
-    proc = subprocess.Popen(
+def _deploy_cli(arm: str, stdin: int, *extra: str) -> subprocess.Popen:
+    """`python -m mjkdl.demos evaluate PICK --expert --robot-ip arm`, started."""
+    return subprocess.Popen(
         [sys.executable, "-m", "mjkdl.demos", "evaluate", PICK, "--expert", "--episodes", "3",
-         "--robot-ip", arm],
-        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env={**os.environ, **env},
+         "--robot-ip", arm, *extra],
+        stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONPATH": f"{ROOT}:{ROOT / 'tests'}"},
     )  # fmt: skip
+
+
+def _stopped(proc: subprocess.Popen, stop: Any) -> tuple[int, str]:
+    """Stop the run with `stop()` once it moves the arm; (exit code, the `stopped:` line)."""
     try:
         assert proc.stdout is not None
         assert "rate-limited" in proc.stdout.readline()  # connected
         time.sleep(8.0)  # home, then the expert's first steps
-        proc.send_signal(signal.SIGINT)
+        stop()
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err, err[-2000:]
     line = [ln for ln in err.splitlines() if ln.startswith("stopped: ")]
     assert line, err[-2000:]
+    return proc.returncode, line[0]
+
+
+def test_ctrl_c_brings_the_arm_to_rest_and_exits_130(arm: str) -> None:
+    proc = _deploy_cli(arm, subprocess.DEVNULL)
+    code, line = _stopped(proc, lambda: proc.send_signal(signal.SIGINT))
+    assert code == 130
     assert re.match(
         r"stopped: stopped by Ctrl\+C at seed \d, after \d+ control steps \(\d episodes done, "
         r"\d successful\); the arm is at rest \(joint speeds <= \S+ rad/s\) at q = \[",
-        line[0],
-    ), line[0]
-    rest_q = np.array(ast.literal_eval(line[0][line[0].index("at q = ") + 7 :]))
+        line,
+    ), line
+    rest_q = np.array(ast.literal_eval(line[line.index("at q = ") + 7 :]))
     q, dq = arm_state(arm)
     np.testing.assert_allclose(q, rest_q, atol=2e-3)
     assert np.abs(dq).max() < 0.01
-    assert "Traceback" not in err
+
+
+def test_enter_on_the_terminal_stops_the_command_and_bad_input_exits_2(arm: str) -> None:
+    main, side = pty.openpty()
+    try:
+        proc = _deploy_cli(arm, side)
+        code, line = _stopped(proc, lambda: os.write(main, b"\n"))
+    finally:
+        os.close(main)
+        os.close(side)
+    assert code == 130
+    assert re.match(r"stopped: stopped by the stop key \(Enter\) at seed \d, after \d+ control "
+                    r"steps .*; the arm is at rest \(joint speeds <= ", line), line  # fmt: skip
+    r = subprocess.run(
+        [sys.executable, "-m", "mjkdl.demos", "evaluate", PICK, "--policy", "sb3:nothing.zip",
+         "--episodes", "1", "--robot-ip", arm],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 2 and "error: --policy sb3:nothing.zip: no such file" in r.stderr
 
 
 def test_a_lost_server_is_a_fault_naming_the_connection() -> None:
