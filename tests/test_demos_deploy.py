@@ -366,7 +366,7 @@ def test_a_lost_server_is_a_fault_naming_the_connection() -> None:
         with pytest.raises(DeploymentFault) as caught:
             evaluate(PICK, kills, episodes=1, robot_ip=sim.host, progress=False)
     text = str(caught.value)
-    assert re.search(r"a fault ended the run at seed 0, after [23] control steps .*: "
+    assert re.search(r"a fault ended the run at seed 0, after \d control steps .*: "
                      r"ArmConnectionError: .*", text), text  # fmt: skip
     assert text.endswith(
         f"the connection to the arm at {sim.host} is lost, so nothing here can move it: a "
