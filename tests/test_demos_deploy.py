@@ -287,17 +287,17 @@ def test_the_stop_key_ends_the_run_with_the_arm_at_rest(arm: str) -> None:
     assert caught.value.episodes == []
 
 
-def _deploy_cli(arm: str, stdin: int, *extra: str) -> subprocess.Popen:
+def _deploy_cli(arm: str, stdin: int) -> subprocess.Popen:
     """`python -m mjkdl.demos evaluate PICK --expert --robot-ip arm`, started."""
     return subprocess.Popen(
         [sys.executable, "-m", "mjkdl.demos", "evaluate", PICK, "--expert", "--episodes", "3",
-         "--robot-ip", arm, *extra],
+         "--robot-ip", arm],
         stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "PYTHONPATH": f"{ROOT}:{ROOT / 'tests'}"},
     )  # fmt: skip
 
 
-def _stopped(proc: subprocess.Popen, stop: Any) -> tuple[int, str]:
+def _stopped(proc: subprocess.Popen, arm: str, stop: Any) -> tuple[int, str]:
     """Stop the run with `stop()` once it moves the arm; (exit code, the `stopped:` line)."""
     try:
         assert proc.stdout is not None
@@ -309,6 +309,7 @@ def _stopped(proc: subprocess.Popen, stop: Any) -> tuple[int, str]:
         if proc.poll() is None:
             proc.kill()
     assert "Traceback" not in err, err[-2000:]
+    assert f"deploying expert on the arm at {arm}: 10 actions/s\n" in err, err[-2000:]
     line = [ln for ln in err.splitlines() if ln.startswith("stopped: ")]
     assert line, err[-2000:]
     return proc.returncode, line[0]
@@ -316,7 +317,7 @@ def _stopped(proc: subprocess.Popen, stop: Any) -> tuple[int, str]:
 
 def test_ctrl_c_brings_the_arm_to_rest_and_exits_130(arm: str) -> None:
     proc = _deploy_cli(arm, subprocess.DEVNULL)
-    code, line = _stopped(proc, lambda: proc.send_signal(signal.SIGINT))
+    code, line = _stopped(proc, arm, lambda: proc.send_signal(signal.SIGINT))
     assert code == 130
     assert re.match(
         r"stopped: stopped by Ctrl\+C at seed \d, after \d+ control steps \(\d episodes done, "
@@ -333,7 +334,7 @@ def test_enter_on_the_terminal_stops_the_command_and_bad_input_exits_2(arm: str)
     main, side = pty.openpty()
     try:
         proc = _deploy_cli(arm, side)
-        code, line = _stopped(proc, lambda: os.write(main, b"\n"))
+        code, line = _stopped(proc, arm, lambda: os.write(main, b"\n"))
     finally:
         os.close(main)
         os.close(side)

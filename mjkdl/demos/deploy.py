@@ -145,8 +145,9 @@ def deploy(
     stop_key: StopKey | None = None,
 ) -> list[EpisodeResult]:
     """One episode per seed of `source` on the env with the arm (`env_kwargs` holds
-    `robot_ip`), in this process; `on_episode` is told each result. The end, whatever it is,
-    leaves the arm at rest (see the module doc)."""
+    `robot_ip`), in this process; `on_episode` is told each result. Before the first, stderr
+    says what runs where, at how many actions per second (and how a LeRobot policy executes
+    its chunks). The end, whatever it is, leaves the arm at rest (see the module doc)."""
     key = stop_key if stop_key is not None else StopKey()
     videos = dict(videos or {})
     results: list[EpisodeResult] = []
@@ -157,6 +158,14 @@ def deploy(
         env.close()
         key.close()
         raise
+    unwrapped: Any = env.unwrapped
+    how = getattr(policy.policy, "execution", "")  # a LeRobot policy's chunks
+    print(
+        f"deploying {describe(source)} on the arm at {unwrapped.hardware.address}: "
+        f"{1.0 / unwrapped.control_timestep:g} actions/s{', ' + how if how else ''}",
+        file=sys.stderr,
+        flush=True,
+    )
     seed: int | None = None
     try:
         for seed in seeds:
