@@ -26,7 +26,7 @@ from typing import Any, TextIO
 import gymnasium as gym
 import numpy as np
 
-from ..errors import MjkdlError
+from ..errors import MjkdlError, SpecError
 from .episodes import EpisodeResult, Video, make_env, run_episode
 from .policy import Obs, Policy, PolicyError, PolicySource, describe, make_policy
 
@@ -152,13 +152,18 @@ def deploy(
     videos = dict(videos or {})
     results: list[EpisodeResult] = []
     env = make_env(env_id, env_kwargs)
+    unwrapped: Any = env.unwrapped
     try:  # a policy that does not load is bad input, as without an arm (nothing moved)
+        if getattr(unwrapped, "hardware", None) is None:
+            raise SpecError(
+                f"--robot-ip: {type(unwrapped).__name__} is no mjkdl task env with the arm in "
+                "the loop (TaskEnv's robot_ip)"
+            )
         policy = _Guarded(make_policy(source, env), source, key)
     except BaseException:
         env.close()
         key.close()
         raise
-    unwrapped: Any = env.unwrapped
     how = getattr(policy.policy, "execution", "")  # a LeRobot policy's chunks
     print(
         f"deploying {describe(source)} on the arm at {unwrapped.hardware.address}: "
@@ -174,9 +179,9 @@ def deploy(
             if on_episode is not None:
                 on_episode(result)
     except (KeyboardInterrupt, _Stop) as err:
-        how = "Ctrl+C" if isinstance(err, KeyboardInterrupt) else "the stop key (Enter)"
+        by = "Ctrl+C" if isinstance(err, KeyboardInterrupt) else "the stop key (Enter)"
         where = _where(env, seed, results)
-        raise DeploymentStopped(f"stopped by {how} {where}; {rest(env)}", results) from None
+        raise DeploymentStopped(f"stopped by {by} {where}; {rest(env)}", results) from None
     except Exception as err:
         from ..hw.faults import ArmConnectionError
 
