@@ -290,7 +290,7 @@ def test_the_stop_key_ends_the_run_with_the_arm_at_rest(arm: str) -> None:
 def _deploy_cli(arm: str, stdin: int) -> subprocess.Popen:
     """`python -m mjkdl.demos evaluate PICK --expert --robot-ip arm`, started."""
     return subprocess.Popen(
-        [sys.executable, "-m", "mjkdl.demos", "evaluate", PICK, "--expert", "--episodes", "3",
+        [sys.executable, "-m", "mjkdl.demos", "evaluate", PICK, "--expert", "--episodes", "100",
          "--robot-ip", arm],
         stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "PYTHONPATH": f"{ROOT}:{ROOT / 'tests'}"},
@@ -302,7 +302,7 @@ def _stopped(proc: subprocess.Popen, arm: str, stop: Any) -> tuple[int, str]:
     try:
         assert proc.stdout is not None
         assert "rate-limited" in proc.stdout.readline()  # connected
-        time.sleep(8.0)  # home, then the expert's first steps
+        time.sleep(8.0)  # home, then the expert's first steps (or episodes: 100 take minutes)
         stop()
         _, err = proc.communicate(timeout=60)
     finally:
@@ -320,8 +320,8 @@ def test_ctrl_c_brings_the_arm_to_rest_and_exits_130(arm: str) -> None:
     code, line = _stopped(proc, arm, lambda: proc.send_signal(signal.SIGINT))
     assert code == 130
     assert re.match(
-        r"stopped: stopped by Ctrl\+C at seed \d, after \d+ control steps \(\d episodes done, "
-        r"\d successful\); the arm is at rest \(joint speeds <= \S+ rad/s\) at q = \[",
+        r"stopped: stopped by Ctrl\+C at seed \d+, after \d+ control steps \(\d+ episodes done, "
+        r"\d+ successful\); the arm is at rest \(joint speeds <= \S+ rad/s\) at q = \[",
         line,
     ), line
     rest_q = np.array(ast.literal_eval(line[line.index("at q = ") + 7 :]))
@@ -339,7 +339,7 @@ def test_enter_on_the_terminal_stops_the_command_and_bad_input_exits_2(arm: str)
         os.close(main)
         os.close(side)
     assert code == 130
-    assert re.match(r"stopped: stopped by the stop key \(Enter\) at seed \d, after \d+ control "
+    assert re.match(r"stopped: stopped by the stop key \(Enter\) at seed \d+, after \d+ control "
                     r"steps .*; the arm is at rest \(joint speeds <= ", line), line  # fmt: skip
     r = subprocess.run(
         [sys.executable, "-m", "mjkdl.demos", "evaluate", PICK, "--policy", "sb3:nothing.zip",
