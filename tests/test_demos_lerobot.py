@@ -362,3 +362,59 @@ def test_evaluate_runs_a_lerobot_policy(trained: tuple[Path, Path]) -> None:
     assert r.returncode == 2 and "takes an observation.state of 28 numbers; cube_pose give 7" in (
         r.stderr
     )
+
+
+@NO_LEROBOT
+def test_action_chunks_run_as_the_policys_config_says(
+    trained: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """LeRobot's own select_action executes the chunks; ours asks once per control step and
+    resets its queues per episode, and the policy acts at its dataset's fps."""
+    import shutil
+
+    from mjkdl.demos import make_env, policy_rate
+    from mjkdl.demos.lerobot_policy import LeRobotPolicy
+
+    _, model = trained
+    assert policy_rate(f"lerobot:{model}") == 10.0  # the export's fps: PickCube's 0.1 s period
+    env = make_env(PICK, {**CAMERA, "max_episode_steps": 7})
+    if "act" not in model.parts:
+        policy = LeRobotPolicy(model, env)
+        assert policy.execution == "chunk-wise: 4 actions of each chunk of 8, then a new chunk"
+        env.close()
+        return
+
+    def counted(policy: LeRobotPolicy) -> list[int]:
+        chunks, predict = [0], policy._policy.predict_action_chunk
+
+        def counting(batch: object) -> object:
+            chunks[0] += 1
+            return predict(batch)
+
+        policy._policy.predict_action_chunk = counting
+        return chunks
+
+    def run(policy: LeRobotPolicy, steps: int) -> None:
+        obs, _ = env.reset(seed=0)
+        policy.reset()
+        for _ in range(steps):
+            obs, *_ = env.step(policy(obs))
+
+    policy = LeRobotPolicy(model, env)
+    assert policy.execution == "chunk-wise: 4 actions of each chunk of 4, then a new chunk"
+    chunks = counted(policy)
+    run(policy, 6)
+    assert chunks == [2]  # steps 0 and 4
+    run(policy, 1)  # reset emptied the queue: a new chunk at once
+    assert chunks == [3]
+    ensembled = tmp_path / "te"
+    shutil.copytree(model, ensembled)
+    config = json.loads((ensembled / "config.json").read_text())
+    config.update(temporal_ensemble_coeff=0.01, n_action_steps=1)
+    (ensembled / "config.json").write_text(json.dumps(config))
+    policy = LeRobotPolicy(ensembled, env)
+    assert policy.execution == "temporal ensembling (coefficient 0.01, chunks of 4)"
+    chunks = counted(policy)
+    run(policy, 3)
+    assert chunks == [3]  # a chunk every step, averaged with the earlier ones' predictions
+    env.close()

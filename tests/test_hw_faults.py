@@ -60,6 +60,12 @@ def test_bad_addresses_and_watchdogs_are_refused_before_connecting() -> None:
             ArmConnectionError,
             "no other client is connected",
         ),
+        (  # panda-py raises libfranka's errors as RuntimeError
+            "RuntimeError",
+            "libfranka: UDP receive: Timeout",
+            ArmConnectionError,
+            "no other client is connected",
+        ),
         (
             "NetworkException",
             "libfranka: Connection to FCI refused. Please install FCI feature or enable FCI "

@@ -121,3 +121,64 @@ def test_a_task_env_with_robot_ip_starts_its_episodes_on_the_arm(franka_server: 
 def test_robot_ip_refuses_what_it_cannot_mirror() -> None:
     with pytest.raises(mjk.SpecError, match="robot_ip must be a host name or IP address"):
         gym.make("mjkdl/PandaReach-v0", robot_ip="")
+
+
+class _ClockArm:
+    """An arm connection whose clock runs to whatever time is waited for; it records the arm
+    time and target of every command sent (no server: what `ArmLink.step` sends, and when)."""
+
+    def __init__(self, address: str, *args: object, **kw: object) -> None:
+        from mjkdl.hw.connection import _S_LEN, _S_Q
+
+        self.address = address
+        self.block = np.zeros(_S_LEN)
+        self.block[_S_Q : _S_Q + 7] = START
+        self.sent: list[tuple[float, np.ndarray]] = []
+
+    def read(self) -> np.ndarray:
+        return self.block
+
+    def check(self) -> None:
+        pass
+
+    def send(self, mode: int, command: np.ndarray) -> None:
+        from mjkdl.hw.connection import _S_TIME
+
+        self.sent.append((float(self.block[_S_TIME]), np.array(command)))
+
+    def wait_until(self, arm_time: float) -> np.ndarray:
+        from mjkdl.hw.connection import _S_TIME
+
+        self.block[_S_TIME] = max(self.block[_S_TIME], arm_time)
+        return self.block
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_position_target_is_interpolated_once_per_arm_tick(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A 2 ms scene sends 2 targets per timestep: the linear path from the last target to the
+    new one, one per 1 ms tick, each sent once the arm's clock reached its tick."""
+    import mjkdl.hw.in_the_loop as loop
+
+    monkeypatch.setattr(loop, "ArmConnection", _ClockArm)
+    env = mjk.Env.build(panda_spec())
+    try:
+        robot = env.create_robot("link0", "hand", robot_ip="clock")
+        conn = env._link.connection
+        robot.ctrl_mode = mjk.CtrlMode.POSITION
+        goal = START + np.array([0.1, -0.05, 0.0, 0.02, 0.0, 0.0, 0.01])
+        robot.jnt_pos_cmd = goal
+        env.step(5)  # 10 ms: 10 ticks
+        times = np.array([t for t, _ in conn.sent])
+        targets = np.array([c for _, c in conn.sent])
+        np.testing.assert_allclose(times, np.arange(10) * 1e-3, atol=1e-12)
+        share = np.arange(1, 11)[:, None] / 10
+        np.testing.assert_allclose(targets, START + share * (goal - START), atol=1e-12)
+        conn.sent.clear()
+        env.step(1)  # held at the goal
+        np.testing.assert_allclose([c for _, c in conn.sent], [goal, goal], atol=1e-12)
+    finally:
+        env.close()

@@ -1,11 +1,13 @@
 """Demonstrations: record episodes to HDF5 (robomimic's layout), replay them exactly,
-drive the arm by hand, evaluate policies, export to LeRobot.
+drive the arm by hand, evaluate policies (in simulation, or deployed on an arm), export to
+LeRobot.
 
 The command line is `python -m mjkdl.demos collect | replay | teleop | evaluate |
 export-lerobot`; each command is a function here too.
 """
 
 from .collect import CollectResult, collect
+from .deploy import DeploymentFault, DeploymentStopped, StopKey
 from .episodes import EpisodeResult, file_env, make_env, restore, run_episode, run_seeds
 from .evaluate import Evaluation, evaluate, wilson_interval
 from .hdf5 import (
@@ -20,8 +22,9 @@ from .hdf5 import (
 )
 from .lerobot import ExportError, LeRobotExport, export_lerobot
 from .lerobot_policy import LeRobotPolicy  # registers `lerobot:PATH` policy sources
-from .policy import Policy, PolicyError, PolicySource, make_policy
+from .policy import Policy, PolicyError, PolicySource, make_policy, policy_rate
 from .replay import ReplayResult, ReplayWarning, replay, replay_all
+from .sb3_policy import SB3Policy  # registers `sb3:PATH.zip` policy sources
 
 __all__ = [
     "CollectResult",
@@ -29,6 +32,8 @@ __all__ = [
     "DemoFile",
     "DemoFileError",
     "DemoWriteError",
+    "DeploymentFault",
+    "DeploymentStopped",
     "EpisodeBuffer",
     "EpisodeData",
     "EpisodeResult",
@@ -42,6 +47,8 @@ __all__ = [
     "PolicySource",
     "ReplayResult",
     "ReplayWarning",
+    "SB3Policy",
+    "StopKey",
     "StoredModelWarning",
     "collect",
     "evaluate",
@@ -49,6 +56,7 @@ __all__ = [
     "file_env",
     "make_env",
     "make_policy",
+    "policy_rate",
     "replay",
     "replay_all",
     "restore",

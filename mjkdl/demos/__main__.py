@@ -11,8 +11,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..errors import MjkdlError
+from .deploy import EXIT_FAULT, EXIT_STOPPED, DeploymentFault, DeploymentStopped
+from .episodes import EpisodeResult
 from .hdf5 import VALID_FRACTION
-from .policy import PolicySource
+from .policy import PolicySource, at_policy_rate
 
 
 def _policy_flags(p: argparse.ArgumentParser) -> None:
@@ -23,7 +25,7 @@ def _policy_flags(p: argparse.ArgumentParser) -> None:
         "--policy",
         metavar="MODULE:FN",
         help="MODULE:FN, fn(env) returns a policy(obs) -> action (with an optional reset()); "
-        "or lerobot:PATH, a policy lerobot-train saved",
+        "lerobot:PATH, a policy lerobot-train saved; or sb3:PATH.zip, a Stable-Baselines3 model",
     )
 
 
@@ -105,6 +107,13 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--video", default=None, metavar="DIR", help="MP4s of the first episodes")
     p.add_argument("--videos", type=int, default=3, help="how many episodes to film")
+    p.add_argument(
+        "--robot-ip",
+        default=None,
+        metavar="HOST",
+        help="deploy on the Franka arm at HOST, in the loop (docs/hardware.md): Enter or Ctrl+C "
+        f"stop it (exit {EXIT_STOPPED}), a fault ends it (exit {EXIT_FAULT}), the arm at rest",
+    )
 
     p = sub.add_parser(
         "convert", help="regenerate observations for other env keywords (cameras, sizes, keys)"
@@ -302,25 +311,40 @@ def _evaluate(args: argparse.Namespace) -> int:
     from .evaluate import evaluate
 
     source = _source(args)
+    kwargs = at_policy_rate(source, parse_env_kwargs(args.env_kwargs))
     if args.state_keys is not None and isinstance(source, str) and source.startswith("lerobot:"):
         from .lerobot_policy import lerobot_policy
 
         keys = [k for k in args.state_keys.split(",") if k]
         source = functools.partial(lerobot_policy, source, state_keys=keys)
-    ev = evaluate(
-        args.env_id,
-        source,
-        episodes=args.episodes,
-        seed=0 if args.seed is None else args.seed,
-        env_kwargs=parse_env_kwargs(args.env_kwargs),
-        video_dir=args.video,
-        videos=args.videos,
-        workers=args.workers,
-    )
+    try:
+        ev = evaluate(
+            args.env_id,
+            source,
+            episodes=args.episodes,
+            seed=0 if args.seed is None else args.seed,
+            env_kwargs=kwargs,
+            video_dir=args.video,
+            videos=args.videos,
+            workers=args.workers,
+            robot_ip=args.robot_ip,
+        )
+    except (DeploymentStopped, DeploymentFault) as end:
+        for e in end.episodes:
+            _print_episode(e)
+        print(
+            f"{'stopped' if isinstance(end, DeploymentStopped) else 'error'}: {end}",
+            file=sys.stderr,
+        )
+        return EXIT_STOPPED if isinstance(end, DeploymentStopped) else EXIT_FAULT
     for e in ev.episodes:
-        print(f"seed {e.seed}: success={e.success} return={e.total_reward:.3f} length={e.length}")
+        _print_episode(e)
     print(ev.summary())
     return 0
+
+
+def _print_episode(e: EpisodeResult) -> None:
+    print(f"seed {e.seed}: success={e.success} return={e.total_reward:.3f} length={e.length}")
 
 
 def _export(args: argparse.Namespace) -> int:

@@ -13,8 +13,9 @@ from tqdm import tqdm
 
 from ..errors import SpecError
 from ..task._check import integer
+from .deploy import StopKey, deploy
 from .episodes import EpisodeResult, Video, run_seeds
-from .policy import PolicySource
+from .policy import PolicySource, at_policy_rate
 
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile
 
@@ -85,11 +86,28 @@ def evaluate(
     video_size: tuple[int, int] = (640, 480),
     workers: int = 1,
     progress: bool = True,
+    robot_ip: str | None = None,
+    stop_key: StopKey | None = None,
 ) -> Evaluation:
     """Run `policy` for `episodes` episodes on seeds `seed`, `seed + 1`, ...; with
-    `video_dir`, MP4s of the first `videos` episodes (`episode_<seed>.mp4`, `video_size`)."""
+    `video_dir`, MP4s of the first `videos` episodes (`episode_<seed>.mp4`, `video_size`).
+    A policy with a rate of its own (a LeRobot policy's dataset fps) acts at it: the env's
+    `control_timestep` is its period.
+
+    With `robot_ip` the policy is deployed on the arm at that address, in the loop, in this
+    process (`mjkdl.demos.deploy`): Enter on the terminal (`stop_key`, stdin's by default) or
+    Ctrl+C raise `DeploymentStopped`, a fault `DeploymentFault`, each with the arm at rest."""
     episodes = integer(episodes, "--episodes")
     seed = integer(seed, "--seed", least=0)
+    kwargs = at_policy_rate(policy, env_kwargs or {})
+    if robot_ip is not None:
+        if workers != 1:
+            raise SpecError(
+                f"--robot-ip: the arm takes one client, run --workers 1 (got {workers})"
+            )
+        if "robot_ip" in kwargs:
+            raise SpecError("--robot-ip and --env-kwargs' robot_ip: give the address once")
+        kwargs["robot_ip"] = robot_ip
     seeds = list(range(seed, seed + episodes))
     paths: dict[int, Video] = {}
     if video_dir is not None:
@@ -98,11 +116,17 @@ def evaluate(
         paths = {
             s: Video(folder / f"episode_{s}.mp4", *video_size) for s in seeds[: max(0, videos)]
         }
-    results = []
-    gen = run_seeds(env_id, env_kwargs or {}, policy, seeds, videos=paths, workers=workers)
+    results: list[EpisodeResult] = []
     with tqdm(total=episodes, desc=f"evaluate {env_id}", unit="ep", disable=not progress) as bar:
-        for result in gen:
+
+        def done(result: EpisodeResult) -> None:
             results.append(result)
             bar.update()
             bar.set_postfix(success=sum(r.success for r in results))
+
+        if robot_ip is not None:
+            deploy(env_id, kwargs, policy, seeds, videos=paths, on_episode=done, stop_key=stop_key)
+        else:
+            for result in run_seeds(env_id, kwargs, policy, seeds, videos=paths, workers=workers):
+                done(result)
     return Evaluation(results, [v.path for v in paths.values()])

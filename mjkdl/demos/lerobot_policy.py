@@ -5,10 +5,18 @@ The observation reaches the policy as the export wrote it (`mjkdl.demos.lerobot`
 `observation.state` the same keys in the same order (the robot's proprioception unless
 `state_keys` names others), `observation.images.<camera>` each `<camera>_rgb` frame as a
 channel-first float image in [0, 1], what LeRobot's loader gives for a video frame. The policy's
-own saved pre- and post-processors (normalisation) run around it, as in `lerobot-eval`."""
+own saved pre- and post-processors (normalisation) run around it, as in `lerobot-eval`.
+
+The policy acts at its dataset's rate (`lerobot_fps`: the fps of the dataset it was trained on,
+which `evaluate` makes the env's control period). Action chunks are LeRobot's to execute: one
+`select_action` per control step, and `reset()` at each episode's start, which clears the
+policy's queues, so ACT runs as its config says (`execution`): temporal ensembling where
+`temporal_ensemble_coeff` is set, otherwise chunks of `n_action_steps` actions."""
 
 from __future__ import annotations
 
+import json
+import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -108,10 +116,52 @@ class LeRobotPolicy:
     def reset(self) -> None:
         self._policy.reset()
 
+    @property
+    def execution(self) -> str:
+        """How the policy's action chunks are executed, from its config (LeRobot does it)."""
+        return chunk_execution(self._policy.config)
+
+
+def chunk_execution(config: Any) -> str:
+    """`config`'s way of executing action chunks, in words (ACT's two, diffusion's queue)."""
+    coeff = getattr(config, "temporal_ensemble_coeff", None)
+    chunk = getattr(config, "chunk_size", getattr(config, "horizon", None))
+    if coeff is not None:
+        return f"temporal ensembling (coefficient {coeff:g}, chunks of {chunk})"
+    steps = getattr(config, "n_action_steps", None)
+    if steps is None:
+        return "one action per call"
+    return f"chunk-wise: {steps} actions of each chunk of {chunk}, then a new chunk"
+
+
+def lerobot_fps(source: str) -> float | None:
+    """The fps of the dataset the policy at `lerobot:PATH` was trained on (the
+    `train_config.json` lerobot-train saved beside it: its env's fps, or its dataset's
+    `meta/info.json`); None where neither is there."""
+    folder = Path(source.removeprefix(PREFIX))
+    try:
+        train = json.loads((folder / "train_config.json").read_text())
+    except (OSError, ValueError):
+        return None
+    env = train.get("env") or {}
+    if env.get("fps"):
+        return float(env["fps"])
+    dataset = train.get("dataset") or {}
+    root = dataset.get("root")
+    if root is None and dataset.get("repo_id"):
+        home = os.environ.get("HF_LEROBOT_HOME", "~/.cache/huggingface/lerobot")
+        root = Path(home).expanduser() / dataset["repo_id"]
+    if root is None:
+        return None
+    try:
+        return float(json.loads((Path(root) / "meta" / "info.json").read_text())["fps"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
 
 def lerobot_policy(source: str, env: gym.Env, state_keys: Sequence[str] | None = None) -> Any:
     """The `LeRobotPolicy` that `lerobot:PATH` names."""
     return LeRobotPolicy(source.removeprefix(PREFIX), env, state_keys)
 
 
-register_source("lerobot", lerobot_policy)
+register_source("lerobot", lerobot_policy, lerobot_fps)

@@ -1,5 +1,6 @@
-"""Where actions come from: a scripted expert, random actions, `module:fn`, or a saved LeRobot
-policy (`lerobot:PATH`, see `mjkdl.demos.lerobot_policy`).
+"""Where actions come from: a scripted expert, random actions, `module:fn`, a saved LeRobot
+policy (`lerobot:PATH`, see `mjkdl.demos.lerobot_policy`) or a saved Stable-Baselines3 model
+(`sb3:PATH.zip`, `mjkdl.demos.sb3_policy`).
 
 The `module:fn` convention: `fn(env)` is called once per env (in each worker process) and
 returns the policy, a callable `policy(obs) -> action`; when it also has `reset()`, that is
@@ -48,13 +49,49 @@ def describe(source: PolicySource) -> str:
     return source if isinstance(source, str) else getattr(source, "__qualname__", repr(source))
 
 
-# Sources named `PREFIX:...` that a higher module builds (`lerobot:PATH`: lerobot_policy.py).
+# Sources named `PREFIX:...` that a higher module builds (`lerobot:PATH`: lerobot_policy.py,
+# `sb3:PATH.zip`: sb3_policy.py), and how to read the rate each acts at.
 _PREFIXED: dict[str, Callable[[str, gym.Env], Policy]] = {}
+_RATES: dict[str, Callable[[str], float | None]] = {}
 
 
-def register_source(prefix: str, make: Callable[[str, gym.Env], Policy]) -> None:
-    """Let `make_policy` build sources `PREFIX:...` with `make(source, env)`."""
+def register_source(
+    prefix: str,
+    make: Callable[[str, gym.Env], Policy],
+    rate: Callable[[str], float | None] | None = None,
+) -> None:
+    """Let `make_policy` build sources `PREFIX:...` with `make(source, env)`; `rate(source)`
+    gives the actions per second the policy was trained at (None: the env's control rate)."""
     _PREFIXED[prefix] = make
+    if rate is not None:
+        _RATES[prefix] = rate
+
+
+def policy_rate(source: PolicySource) -> float | None:
+    """Actions per second `source` acts at, where it says (a LeRobot policy: its dataset's
+    fps); None where it acts at the env's control rate (experts, `module:fn`, SB3)."""
+    if not isinstance(source, str):
+        return None
+    rate = _RATES.get(source.split(":", 1)[0])
+    return None if rate is None else rate(source)
+
+
+def at_policy_rate(source: PolicySource, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """`env_kwargs` with the control period of the policy's rate (`control_timestep` =
+    1 / `policy_rate`); a `control_timestep` given otherwise is refused, naming both."""
+    kwargs = dict(env_kwargs)
+    fps = policy_rate(source)
+    if fps is None:
+        return kwargs
+    period = 1.0 / fps
+    given = kwargs.setdefault("control_timestep", period)
+    number = isinstance(given, (int, float)) and not isinstance(given, bool)
+    if number and not math.isclose(float(given), period, rel_tol=1e-9):
+        raise PolicyError(
+            f"policy {describe(source)} acts at {fps:g} actions/s (control_timestep "
+            f"{period:g} s); --env-kwargs sets control_timestep {given}: leave it out"
+        )
+    return kwargs  # a given value that is no number: the env's own check names it
 
 
 def make_policy(source: PolicySource, env: gym.Env) -> Policy:

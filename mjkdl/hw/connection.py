@@ -270,8 +270,14 @@ class ArmConnection:
     def closed(self) -> bool:
         return self._closed
 
+    @property
+    def alive(self) -> bool:
+        """Whether the control loop runs (it ends on close, or when the arm is lost)."""
+        return self._proc.poll() is None
+
     def close(self, timeout: float = 5.0) -> None:
-        """Bring the arm to rest, finish the motion and close the connection (idempotent)."""
+        """Bring the arm to rest, finish the motion, wait until the measured arm is at rest
+        (up to 2 s) and close the connection (idempotent)."""
         if self._closed:
             return
         self._closed = True
@@ -469,6 +475,19 @@ class _Loop:
                 self.faults += 1.0
                 self.send("fault", type(err).__name__, str(err))
                 self.publish(self.robot.read_once(), IDLE)
+        self.settle()
+
+    def settle(self, timeout: float = 2.0) -> None:
+        """Publish the arm's state until it is at rest (every measured joint speed below
+        `_REST_SPEED`) or `timeout` s passed: the stopped motion ends at zero commanded
+        velocity, which the measured arm reaches a little later, and the last state a closed
+        connection leaves is the arm's at rest."""
+        end = time.monotonic() + timeout
+        while True:
+            self.publish(self.robot.read_once(), IDLE)
+            if self._below(self._dq, _REST_SPEEDS) or time.monotonic() > end:
+                return
+            time.sleep(0.002)
 
     def motion(self) -> None:
         """One motion in the current mode, 1 kHz, until stopped, switched or the watchdog."""

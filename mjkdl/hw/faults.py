@@ -46,7 +46,8 @@ def translate(kind: str, message: str, address: str) -> HardwareError:
             "arm (or `python -m mjkdl.hw.franka_sim`) runs at this address with FCI activated "
             "in Desk"
         )
-    if kind == "NetworkException" or "connection" in message.lower():
+    lower = message.lower()
+    if kind == "NetworkException" or "connection" in lower or "udp receive" in lower:
         return ArmConnectionError(
             f"{text}: check that the arm (or `python -m mjkdl.hw.franka_sim`) is running and "
             "reachable at this address, that FCI is activated in Desk, and that no other "

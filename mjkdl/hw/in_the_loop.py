@@ -10,7 +10,8 @@ the simulated arm follows the real one exactly, its contacts push the simulated 
 against a real arm a step takes its timestep of wall-clock time; where the arm runs ahead
 (a slow loop), the simulation mirrors its latest state. In POSITION mode a `step(n)` leads
 the arm from the last target to the new `jnt_pos_cmd` along its n timesteps (a policy's
-command held for a control period), not in one jump.
+command held for a control period), not in one jump: linearly, one target per 1 ms tick of the
+arm (`rate_limit.DT`), whatever the scene's timestep.
 
 HAPTIC (`haptic=True`, as the Panda environment's `Actuation.HAPTIC`): the arm is torque
 controlled with what the simulated contacts do to the simulated arm — the constraint torques
@@ -41,6 +42,7 @@ from .connection import (
     ArmConnection,
 )
 from .faults import ArmConnectionError, ReflexError
+from .rate_limit import DT
 
 # What a reflex in the loop most often means: the arm touched something of the arm's world
 # that this scene does not simulate (the simulator's default scene has a floor, table, cube).
@@ -146,13 +148,20 @@ class ArmLink:
 
     def step(self, n: int) -> None:
         """`n` timesteps: each sends the command, steps MuJoCo, then mirrors the arm's state
-        one timestep of the arm's clock later."""
+        one timestep of the arm's clock later. A POSITION target goes along the n timesteps
+        one arm tick (1 ms) at a time: a timestep of several ticks sends one target per tick,
+        each once the arm's clock reached that tick."""
         model, data = self.scene.model, self.scene.data
         dt = model.opt.timestep
         conn = self.connection
+        position = self.robot.ctrl_mode is CtrlMode.POSITION and not self.haptic
+        ticks = max(1, round(dt / DT)) if position else 1
         try:
             for k in range(n):
                 conn.check()
+                for j in range(1, ticks):  # this timestep's ticks before its last
+                    self._send((k * ticks + j) / (n * ticks))
+                    conn.wait_until(self._arm_time + j * dt / ticks)
                 self._send((k + 1) / n)
                 mujoco.mj_step(model, data)
                 self._arm_time += dt
