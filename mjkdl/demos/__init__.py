@@ -22,6 +22,7 @@ from .lerobot import ExportError, LeRobotExport, export_lerobot
 from .lerobot_policy import LeRobotPolicy  # registers `lerobot:PATH` policy sources
 from .policy import Policy, PolicyError, PolicySource, make_policy
 from .replay import ReplayResult, ReplayWarning, replay, replay_all
+from .robomimic_policy import RobomimicPolicy  # registers `robomimic:CKPT` policy sources
 
 __all__ = [
     "CollectResult",
@@ -42,6 +43,7 @@ __all__ = [
     "PolicySource",
     "ReplayResult",
     "ReplayWarning",
+    "RobomimicPolicy",
     "StoredModelWarning",
     "collect",
     "evaluate",
