@@ -1,23 +1,26 @@
 """The sim-to-real gap, measured: PickCube success in the simulation, in the loop against the
 nominal simulated arm, and in the loop against the "real" preset, for three policies.
 
-The policies: (a) the scripted expert; (b) robomimic's BC trained on expert demonstrations
-recorded in the plain simulation; (c) the same BC trained on demonstrations recorded under
-domain randomisation (`RANDOMIZATION`, given to `gym.make` as `randomization=`). Every
-simulated episode runs `arm_drive="franka_impedance"` (the arm's own joint impedance, the law
-the server's arm runs). The settings: "sim", the task env (no randomisation); "loop nominal",
-`TaskEnv(robot_ip=...)` against `python -m mjkdl.hw.franka_sim --lockstep --scene empty`;
-"loop real", the same server with `--reality panda-gaz2019` (the Panda's identified joint
-friction). Each cell: `--seeds` episodes on seeds from `--eval-seed` (apart from the
-demonstrations' seeds 0, 1, ...), success at the episode's end with its 95 % Wilson interval.
-BC: robomimic's default BC config (an MLP, here of `LAYERS`), `--epochs` epochs of 100
-gradient steps of batch 100, on the low-dimensional observations `OBS_KEYS`. Everything
-goes to `--out` (demonstrations, robomimic's runs and logs).
+The policies (rows, `--policies`): "expert", the scripted expert; "bc", robomimic's BC trained
+on expert demonstrations recorded in the plain simulation; "bc-rand", the same BC trained on
+demonstrations recorded under domain randomisation (`RANDOMIZATION`, given to `gym.make` as
+`randomization=`). Every simulated episode runs `arm_drive="franka_impedance"` (the arm's own
+joint impedance, the law the server's arm runs). The settings (columns, `--settings`): "sim",
+the task env (no randomisation); "nominal", `TaskEnv(robot_ip=...)` against `python -m
+mjkdl.hw.franka_sim --lockstep --scene empty`; "panda-gaz2019", the same server with
+`--reality panda-gaz2019` (the Panda's identified joint friction), the "real" arm. Each cell:
+`--seeds` episodes on seeds from `--eval-seed` (apart from the demonstrations' seeds 0, 1,
+...), success at the episode's end with its 95 % Wilson interval. BC: robomimic's default BC
+config (an MLP, here of `LAYERS`), `--epochs` epochs of 100 gradient steps of batch 100, on
+the low-dimensional observations `OBS_KEYS`, from `--demos` successful demonstrations.
+Everything goes to `--out` (demonstrations, robomimic's runs and logs); `--reuse` evaluates
+the checkpoints it holds instead of training again.
 
 robomimic, torch and the franka extra in one environment (robomimic pins its own torch):
 
     pip install robomimic==0.3.0 pylibfranka==0.21.3 panda-python==1.1.1 franky-control==2.0.0
     nice python benchmarks/sim_to_real.py [--demos 100] [--epochs 30] [--seeds 30] [--out DIR]
+    nice python benchmarks/sim_to_real.py --policies expert --settings sim,nominal
 """
 
 from __future__ import annotations
@@ -45,18 +48,17 @@ DRIVE = {"arm_drive": "franka_impedance"}
 OBS_KEYS = ["panda_tcp_pos", "panda_tcp_quat", "panda_gripper", "cube_rel"]
 # What varies per training episode in (c): the arm's and the cube's masses (the controller's
 # model stays nominal), joint damping (standing in for the joint friction the simulation
-# lacks), armature, contact friction, a control step of latency, and noise on the actions
-# and on what the policy sees.
+# lacks), armature, contact friction, and noise on the actions and on what the policy sees.
 RANDOMIZATION = {
     "body_mass": [0.8, 1.2],
     "joint_damping": [0.5, 3.0],
     "joint_armature": [0.8, 1.2],
     "geom_friction": [0.7, 1.3],
-    "action_latency": [0, 1],
     "action_noise": 0.05,
-    "observation_noise": {"panda_tcp_pos": 0.002, "cube_rel": 0.003},
+    "observation_noise": {"panda_tcp_pos": 0.001, "cube_rel": 0.002},
 }
-REALITIES = ("nominal", "panda-gaz2019")
+POLICIES = ("expert", "bc", "bc-rand")  # (a), (b), (c)
+SETTINGS = ("sim", "nominal", "panda-gaz2019")  # the simulation, then the loop's realities
 RETRIES = 2
 LAYERS = [256, 256]  # the MLP's hidden layers (robomimic's default: 1024, 1024)
 
@@ -188,53 +190,63 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1, help="processes recording demos")
     parser.add_argument("--out", type=Path, default=Path("sim_to_real_out"))
     parser.add_argument("--reuse", action="store_true", help="keep checkpoints --out holds")
+    parser.add_argument("--policies", default=",".join(POLICIES), help="rows, comma-separated")
+    parser.add_argument("--settings", default=",".join(SETTINGS), help="columns, comma-separated")
     args = parser.parse_args()
+    rows, columns = args.policies.split(","), args.settings.split(",")
+    for given, known in ((rows, POLICIES), (columns, SETTINGS)):
+        if not set(given) <= set(known):
+            parser.error(f"{sorted(set(given) - set(known))} not among {', '.join(known)}")
     args.out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    policies = {"expert": "expert"}
-    for name, randomized in (("BC", False), ("BC, randomised", True)):
-        tag = "rand" if randomized else "plain"
-        data = args.out / f"demos_{tag}.hdf5"
-        folder = args.out / f"bc_{tag}"
-        done = sorted(folder.glob(f"bc/*/models/model_epoch_{args.epochs}.pth"))
-        if args.reuse and done:
-            print(f"{name}: {done[-1]} (--reuse)", flush=True)
-            policies[name] = f"robomimic:{done[-1]}"
-            continue
-        t = time.perf_counter()
-        tried = record(data, args.demos, randomized, args.workers)
-        t_rec = time.perf_counter() - t
-        ckpt = train(data, folder, args.epochs)
-        print(f"{name}: {args.demos} demos of {tried} expert episodes in {t_rec:.0f} s, trained in "
-              f"{time.perf_counter() - t - t_rec:.0f} s: {ckpt}", flush=True)  # fmt: skip
-        policies[name] = f"robomimic:{ckpt}"
+    policies = {"expert": "expert"} if "expert" in rows else {}
+    for name in (r for r in rows if r != "expert"):
+        policies[name] = f"robomimic:{bc_policy(name, args)}"
     results: dict[str, dict[str, Cell]] = {p: {} for p in policies}
-    for name, source in policies.items():
-        t = time.perf_counter()
-        results[name]["sim"] = cell(source, DRIVE, args.seeds, args.eval_seed)
-        print(f"{name}, sim: {show(results[name]['sim'])} ({time.perf_counter() - t:.0f} s)",
-              flush=True)  # fmt: skip
-    for reality in REALITIES:
-        server = Server(reality)
+    for setting in columns:
+        server = None if setting == "sim" else Server(setting)
+        kwargs = DRIVE if server is None else {"robot_ip": server.host}
         try:
             for name, source in policies.items():
                 t = time.perf_counter()
-                res = cell(source, {"robot_ip": server.host}, args.seeds, args.eval_seed)
-                results[name][reality] = res
-                print(f"{name}, loop {reality}: {show(res)} ({time.perf_counter() - t:.0f} s)",
+                res = cell(source, kwargs, args.seeds, args.eval_seed)
+                results[name][setting] = res
+                print(f"{name}, {setting}: {show(res)} ({time.perf_counter() - t:.0f} s)",
                       flush=True)  # fmt: skip
         finally:
-            server.close()
+            if server is not None:
+                server.close()
     print()
     print(f"{TASK}, {args.demos} demos, {args.epochs} BC epochs, {args.seeds} seeds per cell "
           f"from {args.eval_seed}; {platform.node()}, {os.cpu_count()} cores; "
           f"{(time.perf_counter() - start) / 60:.1f} min")  # fmt: skip
-    print("| policy | sim | loop, nominal | loop, panda-gaz2019 | sim to panda-gaz2019 |")
-    print("|---|---|---|---|---|")
+    print(f"| policy | {' | '.join(columns)} |")
+    print("|---|" + "---|" * len(columns))
     for name, r in results.items():
-        loss = 100 * (r["sim"].rate - r["panda-gaz2019"].rate)
-        row = " | ".join(show(r[k]) for k in ("sim", "nominal", "panda-gaz2019"))
-        print(f"| {name} | {row} | {loss:.0f} points lost |")
+        print(f"| {name} | {' | '.join(show(r[k]) for k in columns)} |")
+    if {"sim", "panda-gaz2019"} <= set(columns):
+        for name, r in results.items():
+            loss = 100 * (r["sim"].rate - r["panda-gaz2019"].rate)
+            print(f"{name}: {loss:.0f} points lost from sim to panda-gaz2019")
+
+
+def bc_policy(name: str, args: argparse.Namespace) -> Path:
+    """The checkpoint of BC policy `name` ("bc", "bc-rand"): recorded and trained here, or
+    with `--reuse` the one `--out` holds."""
+    randomized = name == "bc-rand"
+    data = args.out / f"demos_{name}.hdf5"
+    folder = args.out / name
+    done = sorted(folder.glob(f"bc/*/models/model_epoch_{args.epochs}.pth"))
+    if args.reuse and done:
+        print(f"{name}: {done[-1]} (--reuse)", flush=True)
+        return done[-1]
+    t = time.perf_counter()
+    tried = record(data, args.demos, randomized, args.workers)
+    t_rec = time.perf_counter() - t
+    ckpt = train(data, folder, args.epochs)
+    print(f"{name}: {args.demos} demos of {tried} expert episodes in {t_rec:.0f} s, trained in "
+          f"{time.perf_counter() - t - t_rec:.0f} s: {ckpt}", flush=True)  # fmt: skip
+    return ckpt
 
 
 if __name__ == "__main__":
