@@ -37,6 +37,7 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+import gymnasium as gym
 import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
 
 import mjkdl.demos.robomimic  # noqa: F401  (torch's Triton before any EGL context)
@@ -125,50 +126,64 @@ def train(data: Path, folder: Path, epochs: int) -> Path:
 
 class Server:
     """`python -m mjkdl.hw.franka_sim --lockstep --scene empty --reality NAME` on a loopback
-    address of its own."""
+    address of its own; `restart()` serves a fresh arm."""
 
     def __init__(self, reality: str) -> None:
         self.host = f"127.{os.getpid() % 250 + 1}.252.1"
-        cmd = [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", self.host, "--lockstep"]
-        cmd += ["--scene", "empty", "--reality", reality]
-        self._proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+        self._cmd = [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", self.host]
+        self._cmd += ["--lockstep", "--scene", "empty", "--reality", reality]
+        self._start()
+
+    def _start(self) -> None:
+        self._proc = subprocess.Popen(self._cmd, stderr=subprocess.PIPE, text=True)
         assert self._proc.stderr is not None
         self._proc.stderr.readline()  # it listens
+
+    def restart(self) -> None:
+        self.close()
+        self._start()
 
     def close(self) -> None:
         self._proc.terminate()
         self._proc.wait(30)
 
 
-def cell(source: str, env_kwargs: dict, seeds: int, seed: int) -> Cell:
-    """`source` on seeds `seed`, `seed + 1`, ...: the episodes `evaluate` runs, except that an
-    episode the arm ends with a reflex counts as a failure (the arm recovers at its next
-    command), and one the connection loses (a client-side timeout of this loaded machine) is
-    run again on a new connection, up to `RETRIES` times."""
+def cell(source: str, server: Server | None, seeds: int, seed: int) -> Cell:
+    """`source` on seeds `seed`, `seed + 1`, ... in the simulation (no `server`) or in the loop
+    against `server`: the episodes `evaluate` runs, except that an episode the arm ends with a
+    reflex counts as a failure (the arm recovers at its next command), and one whose
+    connection is lost or never made (libfranka's UDP timeout, or no answer, when this
+    loaded machine starves the client or the server) is run again against a restarted
+    server, up to `RETRIES` times."""
     out = Cell()
-    env = make_env(TASK, env_kwargs)
-    policy = make_policy(source, env)
+    kwargs = DRIVE if server is None else {"robot_ip": server.host}
+    env: gym.Env | None = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", WatchdogWarning)
         try:
             for s in range(seed, seed + seeds):
                 for attempt in range(RETRIES + 1):
                     try:
+                        if env is None:
+                            env = make_env(TASK, kwargs)
+                            policy = make_policy(source, env)
                         out.successes += run_episode(env, policy, s, source=source).success
                     except ReflexError:
                         out.reflexes += 1
                     except HardwareError:
-                        out.faults += 1
-                        env.close()
-                        if attempt == RETRIES:
+                        if server is None or attempt == RETRIES:
                             raise
-                        env = make_env(TASK, env_kwargs)
-                        policy = make_policy(source, env)
+                        out.faults += 1
+                        if env is not None:
+                            env.close()
+                            env = None
+                        server.restart()
                         continue
                     out.episodes += 1
                     break
         finally:
-            env.close()
+            if env is not None:
+                env.close()
     out.watchdogs = sum(issubclass(w.category, WatchdogWarning) for w in caught)
     return out
 
@@ -205,11 +220,10 @@ def main() -> None:
     results: dict[str, dict[str, Cell]] = {p: {} for p in policies}
     for setting in columns:
         server = None if setting == "sim" else Server(setting)
-        kwargs = DRIVE if server is None else {"robot_ip": server.host}
         try:
             for name, source in policies.items():
                 t = time.perf_counter()
-                res = cell(source, kwargs, args.seeds, args.eval_seed)
+                res = cell(source, server, args.seeds, args.eval_seed)
                 results[name][setting] = res
                 print(f"{name}, {setting}: {show(res)} ({time.perf_counter() - t:.0f} s)",
                       flush=True)  # fmt: skip
