@@ -19,7 +19,7 @@ the checkpoints it holds instead of training again.
 robomimic, torch and the franka extra in one environment (robomimic pins its own torch):
 
     pip install robomimic==0.3.0 pylibfranka==0.21.3 panda-python==1.1.1 franky-control==2.0.0
-    nice python benchmarks/sim_to_real.py [--demos 100] [--epochs 30] [--seeds 30] [--out DIR]
+    nice python benchmarks/sim_to_real.py [--demos 50] [--epochs 30] [--seeds 20] [--out DIR]
     nice python benchmarks/sim_to_real.py --policies expert --settings sim,nominal
 """
 
@@ -198,9 +198,9 @@ def show(c: Cell) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--demos", type=int, default=100, help="demonstrations per BC policy")
+    parser.add_argument("--demos", type=int, default=50, help="demonstrations per BC policy")
     parser.add_argument("--epochs", type=int, default=30, help="BC epochs (100 steps each)")
-    parser.add_argument("--seeds", type=int, default=30, help="episodes per cell")
+    parser.add_argument("--seeds", type=int, default=20, help="episodes per cell")
     parser.add_argument("--eval-seed", type=int, default=10_000, help="first evaluation seed")
     parser.add_argument("--workers", type=int, default=1, help="processes recording demos")
     parser.add_argument("--out", type=Path, default=Path("sim_to_real_out"))
