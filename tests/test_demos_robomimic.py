@@ -216,3 +216,71 @@ def test_dataset_states_to_obs_regenerates_observations(
                 assert np.array_equal(g[f"next_obs/{key}"][()], recorded), key
             assert np.array_equal(g["rewards"][()], demo.rewards)
             assert "seed" not in g.attrs  # robomimic's copy drops it: mjkdl's convert keeps it
+
+
+@pytest.fixture(scope="module")
+def checkpoint(files: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A BC checkpoint of 2 short epochs on the low-dim demos, without rollouts."""
+    folder = tmp_path_factory.mktemp("ckpt")
+    cfg = config(files["low_dim"], folder / "bc_low_dim", LOW_DIM, [])
+    c = json.loads(cfg.read_text())
+    c["experiment"]["rollout"]["enabled"] = False
+    c["experiment"]["save"]["every_n_epochs"] = 2
+    cfg.write_text(json.dumps(c))
+    robomimic("train", "--config", str(cfg), cwd=folder)
+    (ckpt,) = (folder / "bc_low_dim" / "bc").glob("*/models/model_epoch_2.pth")
+    return ckpt
+
+
+def test_a_robomimic_checkpoint_acts_as_robomimics_rollout_policy(checkpoint: Path) -> None:
+    """`robomimic:CKPT` is robomimic's own RolloutPolicy on the keys it was trained on."""
+    import gymnasium as gym
+    import robomimic.utils.file_utils as file_utils
+    import torch
+
+    from mjkdl.demos import RobomimicPolicy, make_policy
+
+    env = gym.make(PICK)
+    policy = make_policy(f"robomimic:{checkpoint}", env)
+    assert isinstance(policy, RobomimicPolicy)
+    theirs, _ = file_utils.policy_from_checkpoint(
+        ckpt_path=str(checkpoint), device=torch.device("cpu")
+    )
+    obs, _ = env.reset(seed=3)
+    policy.reset()
+    theirs.start_episode()
+    for _ in range(5):
+        action = policy(obs)
+        expected = theirs(ob={k: obs[k] for k in LOW_DIM})
+        assert action.dtype == np.float32 and action.shape == (7,)
+        np.testing.assert_allclose(action, expected, rtol=0, atol=1e-6)
+        obs = env.step(action)[0]
+    env.close()
+
+
+def test_evaluate_runs_a_robomimic_checkpoint(checkpoint: Path, tmp_path: Path) -> None:
+    """The command line, as with any policy source: per-episode lines and the summary."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    command = [sys.executable, "-m", "mjkdl.demos", "evaluate", PICK, "--policy",
+               f"robomimic:{checkpoint}", "--episodes", "2", "--seed", "7"]  # fmt: skip
+    r = subprocess.run(command, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "seed 7" in r.stdout and "seed 8" in r.stdout, r.stdout
+    assert "(95 % CI" in r.stdout and "/2)" in r.stdout, r.stdout
+
+
+def test_bad_robomimic_sources_are_named(checkpoint: Path, files: dict[str, Path]) -> None:
+    import gymnasium as gym
+
+    from mjkdl.demos import PolicyError, make_policy
+
+    env = gym.make(PICK)
+    with pytest.raises(PolicyError, match=r"robomimic:/no/such\.pth: no such checkpoint; give a"):
+        make_policy("robomimic:/no/such.pth", env)
+    with pytest.raises(PolicyError, match=r"robomimic:.*low_dim\.hdf5: not a robomimic checkpoint"):
+        make_policy(f"robomimic:{files['low_dim']}", env)
+    env.close()
+    reach = gym.make("mjkdl/PandaReach-v0")
+    with pytest.raises(PolicyError, match=r"looks at cube_rel, which this env does not observe"):
+        make_policy(f"robomimic:{checkpoint}", reach)
+    reach.close()

@@ -24,6 +24,7 @@ from .lerobot import ExportError, LeRobotExport, export_lerobot
 from .lerobot_policy import LeRobotPolicy  # registers `lerobot:PATH` policy sources
 from .policy import Policy, PolicyError, PolicySource, make_policy, policy_rate
 from .replay import ReplayResult, ReplayWarning, replay, replay_all
+from .robomimic_policy import RobomimicPolicy  # registers `robomimic:CKPT` policy sources
 from .sb3_policy import SB3Policy  # registers `sb3:PATH.zip` policy sources
 
 __all__ = [
@@ -47,6 +48,7 @@ __all__ = [
     "PolicySource",
     "ReplayResult",
     "ReplayWarning",
+    "RobomimicPolicy",
     "SB3Policy",
     "StopKey",
     "StoredModelWarning",

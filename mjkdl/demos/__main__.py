@@ -25,7 +25,8 @@ def _policy_flags(p: argparse.ArgumentParser) -> None:
         "--policy",
         metavar="MODULE:FN",
         help="MODULE:FN, fn(env) returns a policy(obs) -> action (with an optional reset()); "
-        "lerobot:PATH, a policy lerobot-train saved; or sb3:PATH.zip, a Stable-Baselines3 model",
+        "lerobot:PATH, a policy lerobot-train saved; robomimic:CKPT, a checkpoint robomimic's "
+        "train.py saved; or sb3:PATH.zip, a Stable-Baselines3 model",
     )
 
 
