@@ -112,7 +112,7 @@ def main() -> None:
     try:
         assert server.stderr is not None
         server.stderr.readline()  # it listens
-        loop = gym.make(TASK, robot_ip=host)
+        loop = gym.make(TASK, robot_ip=host, lockstep=True)
         print(f"{TASK}, arm_drive={args.arm_drive!r}: the expert's actions replayed in the loop")
         print(
             "| seed | steps sim/loop | TCP difference median (mm) | max (mm) "

@@ -54,6 +54,10 @@ from .spec import (
 # Franka robot's joint impedance as the arm in the loop runs it (`FrankaImpedanceDrive`).
 ARM_DRIVES = ("servo", "franka_impedance")
 IMPEDANCE_TIMESTEP = 0.001  # s: the robot's control tick, which the impedance drive needs
+# `lockstep=True`: the arm's ticks wait for the env's commands, and a loaded machine's stall of
+# the env's process is a wait, not the end of the motion (the watchdog's), up to just under
+# the simulator's own default command timeout (1 s).
+LOCKSTEP_LINK: dict[str, Any] = {"lockstep": True, "watchdog": 0.9}
 MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
@@ -239,7 +243,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     at that address (`.hardware`, `mjkdl.hw.in_the_loop`), mirrored into the scene at every
     physics step while the rest is simulated; each `reset` brings it home; its estimated
     external torques and wrench are the observations `{arm}_ext_torques`/`{arm}_ext_wrench`.
-    `haptic=True` renders the simulated contacts on it as joint torques instead.
+    `haptic=True` renders the simulated contacts on it as joint torques instead. `lockstep=True`
+    (against `python -m mjkdl.hw.franka_sim --lockstep` only) makes each of the arm's 1 ms
+    ticks wait for the env's command for it (up to 0.9 s), so the same actions give the same
+    motion whatever the machine's load.
 
     `arm_drive="franka_impedance"` (one arm taking position targets) moves the simulated arm
     as a Franka arm in the loop moves: the robot's joint impedance at 1 kHz behind the
@@ -265,6 +272,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         render_shadows: bool = False,
         robot_ip: str | None = None,
         haptic: bool = False,
+        lockstep: bool = False,
         arm_drive: str = "servo",
     ) -> None:
         if not isinstance(spec, TaskSpec):
@@ -312,7 +320,13 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         try:
             self._build(render_camera, render_width, render_height)
             if robot_ip is not None:
-                self.hardware = attach(self.scene, self.robots[arm], robot_ip, haptic=haptic)
+                self.hardware = attach(
+                    self.scene,
+                    self.robots[arm],
+                    robot_ip,
+                    haptic=haptic,
+                    **(LOCKSTEP_LINK if flag(lockstep, "lockstep") else {}),
+                )
             if arm_drive == "franka_impedance":
                 from ..hw.joint_impedance import FrankaImpedanceDrive
 
