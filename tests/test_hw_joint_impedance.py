@@ -72,7 +72,7 @@ def test_the_same_actions_move_the_impedance_driven_panda_as_the_arm_in_the_loop
     actions, tcp_sim, ok_sim = _episode(sim, 0)
     sim.close()
     with franka_sim("--lockstep", "--scene", "empty") as server:
-        loop = gym.make(TASK, robot_ip=server.host)
+        loop = gym.make(TASK, robot_ip=server.host, lockstep=True)
         try:
             _, tcp_loop, ok_loop = _episode(loop, 0, actions)
         finally:

@@ -309,6 +309,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             )
         if arm_drive == "franka_impedance":
             self._check_impedance_drive(robot_ip)
+        self._arm_drive = arm_drive
         if robot_ip is not None:
             from ..hw.in_the_loop import ExternalForces, attach  # the [franka] extra's layer
 
@@ -331,6 +332,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 from ..hw.joint_impedance import FrankaImpedanceDrive
 
                 self.drive = FrankaImpedanceDrive(self.scene, self._effectors[0].robot)
+                self.drive.bind_state(self._drive_state)
+            self._check_tick_latency()
         except BaseException:
             self.close()
             raise
@@ -354,6 +357,27 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 f"{actuation.value!r} (use 'cartesian_velocity' or 'joint_position')"
             )
         spec.scene = dataclasses.replace(spec.scene, timestep=IMPEDANCE_TIMESTEP)
+
+    def _check_tick_latency(self) -> None:
+        """`randomization.action_latency_ticks` delays the impedance drive's commands, by less
+        than a control period (longer ones are whole control steps: `action_latency`)."""
+        spec = self.task_spec.randomization
+        ticks = None if spec is None else spec.action_latency_ticks
+        if ticks is None:
+            return
+        if self.drive is None:
+            raise SpecError(
+                "randomization.action_latency_ticks delays the 1 ms ticks of "
+                "arm_drive='franka_impedance'; this env's arm is driven by its servos "
+                "(arm_drive='servo'): pass arm_drive='franka_impedance', or use action_latency "
+                "(whole control steps)"
+            )
+        if ticks[1] >= self._substeps:
+            raise SpecError(
+                f"randomization.action_latency_ticks {tuple(ticks)}: a control period is "
+                f"{self._substeps} ticks, so at most {self._substeps - 1}; longer latencies are "
+                "whole control steps (action_latency)"
+            )
 
     @staticmethod
     def _check_spec(spec: TaskSpec) -> None:
@@ -479,6 +503,12 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         # MuJoCo's userdata, which mjSTATE_INTEGRATION saves and restores: a restored state
         # steps on exactly as the recorded one did. Sized once the arms' joints are known.
         size = spec.scene.userdata + _COUNTERS + sum(e.state_size for e in self._effectors)
+        self._drive_size = 0
+        if self._arm_drive == "franka_impedance":  # its ramp and rate limiter
+            from ..hw.joint_impedance import STATE_SIZE
+
+            self._drive_size = STATE_SIZE
+        size += self._drive_size
         if spec.randomization is not None:  # its actions on their way
             size += spec.randomization.state_size(len(labels))
         if scene.model.nuserdata != size:
@@ -519,7 +549,16 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         its latency and noise from now on (`mjkdl.demos.restore` sets it with a state)."""
         if self._randomizer is None:
             raise SpecError("this env has no TaskSpec.randomization: it takes no draw")
+        ticks = draw.action_latency_ticks
+        if ticks and (self.drive is None or ticks >= self._substeps):
+            raise SpecError(
+                f"the draw's action_latency_ticks ({ticks}) is beyond this env's "
+                f"randomization.action_latency_ticks "
+                f"{self._randomizer.description.action_latency_ticks}"
+            )
         self._randomizer.use(draw, self.scene.model)
+        if self.drive is not None:
+            self.drive.latency = ticks
 
     def _bind(self) -> spaces.Dict:
         """Observation sources and the render camera on the scene's current model; the
@@ -554,6 +593,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         at = _COUNTERS
         for eff in self._effectors:
             at = eff.bind_state(userdata, at)
+        self._drive_state = userdata[at : at + self._drive_size]
+        if self.drive is not None:
+            self.drive.bind_state(self._drive_state)
+        at += self._drive_size
         self._randomizer_state = userdata[at:]  # the Randomizer's: its actions on their way
         if self._randomizer is not None:
             self._randomizer.bind_state(self._randomizer_state)
@@ -695,6 +738,9 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             eff.robot.sync_commands()
             eff.start_state()
         if self.drive is not None:
+            self.drive.latency = (
+                0 if self._randomizer is None else self._randomizer.draw.action_latency_ticks
+            )
             self.drive.start()
         mujoco.mj_forward(scene.model, scene.data)  # torques under the synced commands
         self._counters.fill(0.0)

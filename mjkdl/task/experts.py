@@ -30,6 +30,9 @@ GRASP_RAISE = 0.004  # m: the TCP over a floor cube's centre at the grasp (finge
 # control period and the rate limiter's 50 ms, so at the servos' 5/s it runs past the grasp
 # height into the table.
 FRANKA_GAIN = 3.0
+# The carry's gain (1/s) on such an arm: at the servos' 10/s, a gain over a control period and
+# the arm's lag is past what stays stable: the carried cube swings over the goal and down.
+FRANKA_LIFT_GAIN = 4.0
 
 
 class Expert(Protocol):
@@ -139,11 +142,14 @@ class PickCubeExpert:
         env: TaskEnv,
         gain: float | None = None,
         hover: float = 0.08,
-        lift_gain: float = 10.0,
+        lift_gain: float | None = None,
     ) -> None:
         self._out = _Cartesian(env)
+        franka = env.drive is not None or env.hardware is not None
         if gain is None:  # 5/s, or FRANKA_GAIN for an arm that moves as a Franka arm does
-            gain = FRANKA_GAIN if env.drive is not None or env.hardware is not None else 5.0
+            gain = FRANKA_GAIN if franka else 5.0
+        if lift_gain is None:
+            lift_gain = FRANKA_LIFT_GAIN if franka else 10.0
         self._gain, self._hover, self._lift_gain = gain, hover, lift_gain
         # The Panda's fingertips reach 21 mm below its TCP: grasping a cube on the floor at
         # its centre would press them into the floor (a real table), so grasp above it.
