@@ -55,9 +55,9 @@ from .spec import (
 ARM_DRIVES = ("servo", "franka_impedance")
 IMPEDANCE_TIMESTEP = 0.001  # s: the robot's control tick, which the impedance drive needs
 # `lockstep=True`: the arm's ticks wait for the env's commands, and a loaded machine's stall of
-# the env's process is a wait, not the end of the motion (the watchdog's), up to just under
-# the simulator's own default command timeout (1 s).
-LOCKSTEP_LINK: dict[str, Any] = {"lockstep": True, "watchdog": 0.9}
+# the env's process is a wait, not the end of the motion (the watchdog's), for up to 5 s (the
+# simulator then needs `--command-timeout` above that: its default waits 1 s).
+LOCKSTEP_LINK: dict[str, Any] = {"lockstep": True, "watchdog": 5.0}
 MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
@@ -245,8 +245,8 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     external torques and wrench are the observations `{arm}_ext_torques`/`{arm}_ext_wrench`.
     `haptic=True` renders the simulated contacts on it as joint torques instead. `lockstep=True`
     (against `python -m mjkdl.hw.franka_sim --lockstep` only) makes each of the arm's 1 ms
-    ticks wait for the env's command for it (up to 0.9 s), so the same actions give the same
-    motion whatever the machine's load.
+    ticks wait for the env's command for it (up to 5 s: serve with `--command-timeout 10`),
+    so the same actions give the same motion whatever the machine's load.
 
     `arm_drive="franka_impedance"` (one arm taking position targets) moves the simulated arm
     as a Franka arm in the loop moves: the robot's joint impedance at 1 kHz behind the

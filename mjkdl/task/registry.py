@@ -339,8 +339,8 @@ SHARED_PARAMETERS: tuple[Parameter, ...] = (
     Parameter(
         "lockstep",
         False,
-        "with robot_ip: the arm is `franka_sim --lockstep`, whose ticks wait for the env's "
-        "commands (runs repeat exactly)",
+        "with robot_ip: the arm is `franka_sim --lockstep --command-timeout 10`, whose ticks "
+        "wait for the env's commands (runs repeat exactly)",
     ),
     Parameter(
         "arm_drive",
