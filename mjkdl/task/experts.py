@@ -260,8 +260,10 @@ class PushExpert:
     SPEED = 0.2
     THERE = 0.015  # metres from the goal at which the push ends
 
-    def __init__(self, env: TaskEnv, gain: float = 5.0) -> None:
+    def __init__(self, env: TaskEnv, gain: float | None = None) -> None:
         self._out = _Cartesian(env)
+        if gain is None:  # 5/s, or FRANKA_GAIN for an arm that moves as a Franka arm does
+            gain = FRANKA_GAIN if env.drive is not None or env.hardware is not None else 5.0
         self._gain = gain
         names = env.observation_space.spaces
         self._goal = "desired_goal" if "desired_goal" in names else "goal_pose"
@@ -283,7 +285,11 @@ class PushExpert:
         along = float(rel @ d[:2])
         across = abs(float(rel[0] * d[1] - rel[1] * d[0]))
         start = cube - d * self.BEHIND
-        if self.pushing and (across > 0.012 or along > -CUBE_HALF):
+        if self.pushing and dist < self.THERE and self.rest is None:
+            # there: done, before anything reads as a slip (an arm that lags its target, as a
+            # Franka arm does, is still moving on when the cube arrives)
+            self.rest = tcp + np.array([0.0, 0.0, 0.08])
+        if self.pushing and self.rest is None and (across > 0.012 or along > -CUBE_HALF):
             self.pushing = False  # slipped past or beside the cube: realign
         if not self.pushing:
             target = np.array([start[0], start[1], self.LOW])
@@ -296,8 +302,6 @@ class PushExpert:
             # the TCP follows the cube as it moves and turns; it stops once the cube is there.
             target = cube - d * (CUBE_HALF + 0.012) + d * min(dist, 0.05)
             target[2] = self.LOW
-            if dist < self.THERE and self.rest is None:
-                self.rest = tcp + np.array([0.0, 0.0, 0.08])
         if self.rest is not None:
             target = self.rest  # back off upwards, clear of the cube
         twist = np.zeros(6)
