@@ -34,6 +34,8 @@ import mujoco
 import numpy as np
 import scenes  # noqa: F401  (points MENAGERIE_ROOT at the shared Menagerie when unset)
 
+from mjkdl.demos.episodes import run_episode
+from mjkdl.demos.policy import make_policy
 from mjkdl.task.experts import expert_for
 from mjkdl.task.registry import TASKS
 
@@ -105,14 +107,7 @@ def cost(seeds: int) -> None:
 
 def success(env: gym.Env, seed: int) -> bool:
     """Whether the expert's whole episode from `seed` ends in success."""
-    expert = expert_for(env)
-    obs, _ = env.reset(seed=seed)
-    expert.reset()
-    done, info = False, {}
-    while not done:
-        obs, _, terminated, truncated, info = env.step(expert(obs))
-        done = terminated or truncated
-    return bool(info["is_success"])
+    return run_episode(env, make_policy("expert", env), seed).success
 
 
 def experts(host: str, seeds: int, drive: str, only: str) -> None:

@@ -11,6 +11,8 @@ from conftest import franka_sim, needs_extra
 
 import mjkdl as mjk
 import mjkdl.task
+from mjkdl.demos.episodes import run_episode
+from mjkdl.demos.policy import make_policy
 from mjkdl.hw.franka_sim.arm import SimulatedArm
 from mjkdl.hw.franka_sim.limits import PANDA
 from mjkdl.hw.franka_sim.scene import franka_scene
@@ -105,14 +107,7 @@ def test_bad_drives_are_refused_by_name() -> None:
 
 def _succeeds(env: gym.Env, seed: int) -> bool:
     """Whether the expert's whole episode from `seed` ends in success."""
-    obs, _ = env.reset(seed=seed)
-    expert = expert_for(env)
-    expert.reset()
-    done, info = False, {}
-    while not done:
-        obs, _, terminated, truncated, info = env.step(expert(obs))
-        done = terminated or truncated
-    return bool(info["is_success"])
+    return run_episode(env, make_policy("expert", env), seed).success
 
 
 @pytest.mark.parametrize("env_id", list(TASKS))
