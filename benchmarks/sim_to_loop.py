@@ -157,8 +157,7 @@ def main() -> None:
         try:
             experts(host, args.seeds, args.arm_drive, args.tasks)
         finally:
-            server.terminate()
-            server.wait(30)
+            stop(server)
         return
     sim = gym.make(TASK, arm_drive=args.arm_drive)
     loop = None
@@ -197,8 +196,17 @@ def main() -> None:
         sim.close()
         if loop is not None:
             loop.close()
-        server.terminate()
+        stop(server)
+
+
+def stop(server: subprocess.Popen) -> None:
+    """End the server, killed if a loaded machine keeps it from ending within 30 s."""
+    server.terminate()
+    try:
         server.wait(30)
+    except subprocess.TimeoutExpired:
+        server.kill()
+        server.wait()
 
 
 if __name__ == "__main__":
