@@ -64,7 +64,8 @@ class ArmLink:
     simulated contacts are not the robot's to stop); None keeps the robot's own. `lockstep`
     (against `python -m mjkdl.hw.franka_sim --lockstep` only: a real arm's tick cannot wait):
     each 1 ms tick of the arm waits for the command of the step it belongs to, so a run
-    depends on the commands alone, not on how the processes' timing falls."""
+    depends on the commands alone, not on how the processes' timing falls. `connect_timeout`:
+    seconds the arm has to answer the connection."""
 
     def __init__(
         self,
@@ -81,6 +82,7 @@ class ArmLink:
         realtime: bool = False,
         collision_thresholds: tuple[float, float] | None = (100.0, 100.0),
         lockstep: bool = False,
+        connect_timeout: float = 20.0,
     ) -> None:
         if robot.n_joints != 7:
             raise SpecError(
@@ -104,6 +106,7 @@ class ArmLink:
             realtime=realtime,
             collision_thresholds=collision_thresholds,
             lockstep=lockstep,
+            connect_timeout=connect_timeout,
         )
         self._torque = np.zeros(7)
         self._target = np.zeros(7)  # the position target sent last

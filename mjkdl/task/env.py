@@ -56,8 +56,10 @@ ARM_DRIVES = ("servo", "franka_impedance")
 IMPEDANCE_TIMESTEP = 0.001  # s: the robot's control tick, which the impedance drive needs
 # `lockstep=True`: the arm's ticks wait for the env's commands, and a loaded machine's stall of
 # the env's process is a wait, not the end of the motion (the watchdog's), for up to 5 s (the
-# simulator then needs `--command-timeout` above that: its default waits 1 s).
-LOCKSTEP_LINK: dict[str, Any] = {"lockstep": True, "watchdog": 5.0}
+# simulator then needs `--command-timeout` above that: its default waits 1 s); the connection
+# waits up to 2 min for the simulator's first answer (its client process starting on a
+# loaded machine).
+LOCKSTEP_LINK: dict[str, Any] = {"lockstep": True, "watchdog": 5.0, "connect_timeout": 120.0}
 MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
