@@ -124,8 +124,9 @@ def test_a_tick_allocates_nothing(model: str, mode: int) -> None:
 
 def test_a_lockstep_tick_waits_for_the_command_of_its_time() -> None:
     """With `lockstep`, a tick whose arm time lies past the last command's `until` waits for
-    the next command and acts on it; one within it goes on at once; without lockstep no tick
-    waits. (A wait that should not be ends at the watchdog, which stops the motion.)"""
+    the next command and acts on it; one within it goes on at once, as do the motion's first
+    ticks (they stand still); without lockstep no tick waits. (A wait that should not be ends
+    at the watchdog, which stops the motion.)"""
     import threading
 
     cmd, state = np.zeros(conn._C_LEN), np.zeros(conn._S_LEN)
@@ -140,6 +141,10 @@ def test_a_lockstep_tick_waits_for_the_command_of_its_time() -> None:
         cmd[conn._C_CMD :] = values
         c[conn._C_SEQ] = c[conn._C_SEQ] + 1.0
 
+    send(HOME, 0.0)  # holds for no tick
+    loop.tick(rs, period)  # the motion's first tick: it stands still, without waiting
+    assert loop.hold and not loop.stopping
+    loop.hold = 0  # past the motion's first ticks
     send(HOME, 0.002)  # holds for the ticks at 0 and 1 ms
     for t in (0.0, 0.001):
         rs.time = _Duration(t)

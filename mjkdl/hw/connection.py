@@ -530,7 +530,10 @@ class _Loop:
             self.late += 1.0
         self.publish(rs, STOPPING if self.stopping else MOVING)
         waited = False
-        if self.lockstep and not self.stopping:
+        # Not during the motion's first ticks, which stand still whatever comes: the robot
+        # sends its first states before it waits for commands, and a tick held up there lets
+        # them pile up unanswered.
+        if self.lockstep and not self.stopping and not self.hold:
             waited = self.await_command(rs.time.to_sec())
             now = time.monotonic()
         if self.take_command() or waited:
