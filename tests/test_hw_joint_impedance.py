@@ -81,8 +81,8 @@ def test_the_same_actions_move_the_impedance_driven_panda_as_the_arm_in_the_loop
         finally:
             loop.close()
     assert ok_sim and ok_loop
-    # success (held 0.5 s) may end the loop's episode a step sooner: its arm does not carry
-    # the cube's weight
+    # success (held 0.5 s) may end the loop's episode a step sooner (its arm does not carry
+    # the cube's weight)
     n = min(len(tcp_loop), len(tcp_sim))
     assert abs(len(tcp_loop) - len(tcp_sim)) <= 1
     apart = np.linalg.norm(tcp_sim[:n] - tcp_loop[:n], axis=1)
