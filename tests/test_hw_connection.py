@@ -120,3 +120,45 @@ def test_a_tick_allocates_nothing(model: str, mode: int) -> None:
     assert max(extra) == 0, f"{sum(1 for e in extra if e)} ticks allocated, up to {max(extra)} B"
     assert growth == 0
     assert finished  # the stop ran to its end (the arm at rest), allocation-free as well
+
+
+def test_a_lockstep_tick_waits_for_the_command_of_its_time() -> None:
+    """With `lockstep`, a tick whose arm time lies past the last command's `until` waits for
+    the next command and acts on it; one within it goes on at once, as do the motion's first
+    ticks (they stand still); without lockstep no tick waits. (A wait that should not be ends
+    at the watchdog, which stops the motion.)"""
+    import threading
+
+    cmd, state = np.zeros(conn._C_LEN), np.zeros(conn._S_LEN)
+    loop = conn._Loop("panda", 2.0, cmd, state, io.StringIO(), os.getpid(), lockstep=True)
+    loop.fr, loop.motion_mode, loop.mode = _Client, conn.POSITION, conn.POSITION
+    rs, period = _State(), _Duration(0.001)
+    c = memoryview(cmd)
+
+    def send(values: np.ndarray, until: float) -> None:
+        c[conn._C_SEQ] = c[conn._C_SEQ] + 1.0
+        c[conn._C_UNTIL] = until
+        cmd[conn._C_CMD :] = values
+        c[conn._C_SEQ] = c[conn._C_SEQ] + 1.0
+
+    send(HOME, 0.0)  # holds for no tick
+    loop.tick(rs, period)  # the motion's first tick: it stands still, without waiting
+    assert loop.hold and not loop.stopping
+    loop.hold = 0  # past the motion's first ticks
+    send(HOME, 0.002)  # holds for the ticks at 0 and 1 ms
+    for t in (0.0, 0.001):
+        rs.time = _Duration(t)
+        loop.tick(rs, period)
+        assert not loop.stopping
+    goal = HOME + 0.1
+    late = threading.Timer(0.2, send, (goal, 0.004))
+    late.start()
+    rs.time = _Duration(0.002)
+    loop.tick(rs, period)  # waits for the command holding past 2 ms
+    late.join()
+    np.testing.assert_array_equal(loop.wanted, goal)
+    assert loop.until == 0.004 and not loop.stopping
+    loop.lockstep = False
+    rs.time = _Duration(0.010)
+    loop.tick(rs, period)
+    assert not loop.stopping

@@ -142,6 +142,58 @@ def test_action_latency_applies_each_action_whole_steps_late() -> None:
         plain.close()
 
 
+def _record_targets(limiter: object, into: list[np.ndarray]) -> None:
+    """Keep a copy of every target the drive hands `limiter.position`."""
+    position = limiter.position  # type: ignore[attr-defined]
+
+    def recorded(q: np.ndarray) -> np.ndarray:
+        into.append(q.copy())
+        return position(q)
+
+    limiter.position = recorded  # type: ignore[attr-defined]
+
+
+def test_action_latency_ticks_applies_each_target_ticks_late_on_the_impedance_drive() -> None:
+    """With `arm_drive="franka_impedance"`, each period's targets reach the rate limiter the
+    drawn number of 1 ms ticks late: the same positions as without latency, that many ticks
+    later (the arm at rest at its start until then); drawn per episode in the range."""
+    kw = {"arm_drive": "franka_impedance", "actuation": "joint_position"}
+    late = gym.make(PICK, randomization={"action_latency_ticks": [7, 7]}, **kw)
+    plain = gym.make(PICK, **kw)
+    try:
+        seen: dict[str, list[np.ndarray]] = {"late": [], "plain": []}
+        for name, env in (("late", late), ("plain", plain)):
+            env.reset(seed=0)
+            _record_targets(env.unwrapped.drive.limiter, seen[name])
+        assert late.unwrapped.drive.latency == 7 and plain.unwrapped.drive.latency == 0
+        start = late.unwrapped.drive.robot.jnt_pos_msr.copy()
+        rng = np.random.default_rng(1)
+        for _ in range(3):
+            action = rng.uniform(-0.2, 0.2, late.action_space.shape)
+            late.step(action)
+            plain.step(action)
+        delayed, on_time = np.array(seen["late"]), np.array(seen["plain"])
+        assert len(delayed) == len(on_time) == 300
+        np.testing.assert_array_equal(delayed[:7], np.tile(start, (7, 1)))
+        np.testing.assert_array_equal(delayed[7:], on_time[:-7])
+    finally:
+        late.close()
+        plain.close()
+    drawn = gym.make(PICK, randomization={"action_latency_ticks": [0, 40]}, **kw)
+    try:
+        ticks = set()
+        for seed in range(6):
+            drawn.reset(seed=seed)
+            latency = drawn.unwrapped.drive.latency
+            assert drawn.unwrapped.randomization_draw.action_latency_ticks == latency
+            ticks.add(latency)
+        assert len(ticks) > 1 and ticks <= set(range(41))
+    finally:
+        drawn.close()
+    with pytest.raises(SpecError, match=r"a control period is 100 ticks, so at most 99"):
+        gym.make(PICK, randomization={"action_latency_ticks": [0, 100]}, **kw)
+
+
 def test_observation_noise_is_what_the_agent_sees_and_not_what_rewards_see() -> None:
     kw = {"hide_observations": ()}
     plain = gym.make(PICK, **kw)
@@ -189,6 +241,16 @@ def test_observation_noise_is_what_the_agent_sees_and_not_what_rewards_see() -> 
             "randomization.observation_noise['cube_pose'] must be a finite standard deviation",
         ),
         ({"action_latency": [3, 1]}, SpecError, "randomization.action_latency must be (low, high)"),
+        (
+            {"action_latency_ticks": [2.5, 4]},
+            SpecError,
+            "randomization.action_latency_ticks must be (low, high) whole 1 ms ticks",
+        ),
+        (
+            {"action_latency_ticks": [0, 5]},
+            SpecError,
+            "randomization.action_latency_ticks delays the 1 ms ticks of arm_drive='franka_imp",
+        ),
         ({"action_noise": "high"}, SpecTypeError, "randomization.action_noise must be a standard"),
         ({"body_masses": [0.5, 1.5]}, UnknownNameError, "close matches: body_mass"),
         ("heavy", SpecTypeError, "randomization must be a Randomization, a dict"),

@@ -728,7 +728,7 @@ def test_the_shared_parameters_are_declared_once_and_documented() -> None:
     from mjkdl.task.registry import SHARED_PARAMETERS, TASKS
 
     shared = [p.name for p in SHARED_PARAMETERS]
-    assert len(shared) == 18 and len(set(shared)) == 18
+    assert len(shared) == 19 and len(set(shared)) == 19
     docs = (Path(__file__).resolve().parents[1] / "docs" / "task.md").read_text()
     rows = [line for line in docs.splitlines() if line.startswith("| `")]
     for name in shared:

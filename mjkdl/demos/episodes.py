@@ -193,13 +193,6 @@ def restore(
     unwrapped = env.unwrapped
     if not isinstance(unwrapped, TaskEnv):
         raise SpecError(f"{type(unwrapped).__name__} is not a TaskEnv: it cannot restore a state")
-    if unwrapped.drive is not None:
-        raise SpecError(
-            "restore: arm_drive='franka_impedance' keeps its command ramp and rate limiter "
-            "between steps outside MuJoCo's state, so a restored state would not step on as "
-            "recorded: replay the episode's actions from its reset (mjkdl.demos.replay), or "
-            "record with arm_drive='servo'"
-        )
     if isinstance(draw, str):
         draw = json.loads(draw) if draw else None
     if draw is not None and not isinstance(draw, Draw):

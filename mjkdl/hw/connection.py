@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import math
 import mmap
 import os
 import select
@@ -44,8 +45,9 @@ _CHILD = (
 )
 
 POSITION, VELOCITY, TORQUE = 0, 1, 2
-# The command block: [seq, mode, stop, acknowledged faults, seq when acknowledged, cmd x7]
-_C_SEQ, _C_MODE, _C_STOP, _C_ACK, _C_ACK_SEQ, _C_CMD = 0, 1, 2, 3, 4, 5
+# The command block: [seq, mode, stop, acknowledged faults, seq when acknowledged, until,
+# cmd x7]; until: the arm time up to which the command holds (what a lockstep loop waits on)
+_C_SEQ, _C_MODE, _C_STOP, _C_ACK, _C_ACK_SEQ, _C_UNTIL, _C_CMD = 0, 1, 2, 3, 4, 5, 6
 _C_LEN = _C_CMD + 7
 # The state block: [seq, time, status, success_rate, ticks, late, q, dq, tau_J, tau_ext,
 # F_ext(6)]; late counts the ticks that came more than one robot cycle after the previous one.
@@ -67,6 +69,8 @@ _HOLD_TICKS = 20
 _REFLEX = 4  # libfranka's RobotMode::kReflex
 _REST_SPEED = 0.01  # rad/s: the arm counts as at rest below this joint speed
 _DAMPING = 10.0  # Nm s/rad: how a stopping torque motion brakes the arm
+_TICK = 1e-3  # s: the robot's control cycle
+_LOCKSTEP_POLL = 5e-5  # s: how often a lockstep tick looks for the command it waits on
 
 
 @dataclass
@@ -100,6 +104,7 @@ class ArmConnection:
         realtime: bool = False,
         collision_thresholds: tuple[float, float] | None = None,
         connect_timeout: float = 20.0,
+        lockstep: bool = False,
     ) -> None:
         if not isinstance(address, str) or not address:
             raise SpecError(f"robot_ip must be a host name or IP address, got {address!r}")
@@ -133,8 +138,9 @@ class ArmConnection:
             )
         self.collision_thresholds = collision_thresholds
         thresholds = json.dumps(collision_thresholds)
+        self.lockstep = bool(lockstep)
         args = [address, model, client, str(self.watchdog), str(int(realtime)), self._path]
-        args.append(thresholds)
+        args += [thresholds, str(int(self.lockstep))]
         self._proc = subprocess.Popen(
             [sys.executable, "-c", _CHILD, *args, str(os.getpid()), str(self._events.child)],
             pass_fds=(self._events.child,),
@@ -198,13 +204,15 @@ class ArmConnection:
 
     # ------------------------------------------------------------------ commands and state
 
-    def send(self, mode: int, command: np.ndarray) -> None:
-        """Publish the command the loop sends from its next tick on (rate-limited)."""
+    def send(self, mode: int, command: np.ndarray, until: float = math.inf) -> None:
+        """Publish the command the loop sends from its next tick on (rate-limited); `until`:
+        the arm time up to which it holds, after which a `lockstep` loop waits for the next."""
         self._check_open()
         c = self._cmd
         seq = c[_C_SEQ] + 1.0
         c[_C_SEQ] = seq  # odd: being written
         c[_C_MODE] = mode
+        c[_C_UNTIL] = until
         c[_C_CMD:] = command
         c[_C_SEQ] = seq + 1.0
 
@@ -329,7 +337,7 @@ def _on_sigint(signum: int, frame: FrameType | None) -> None:
 
 def _control_process(argv: list[str]) -> None:
     """The control loop (the child's main): one motion per command stream, until stopped."""
-    address, model, client, watchdog, realtime, path, thresholds, parent, fd = argv
+    address, model, client, watchdog, realtime, path, thresholds, lockstep, parent, fd = argv
     # Ctrl+C reaches the whole process group: the user's process asks this one to stop (and
     # this one brings the arm to rest first), so SIGINT here is ignored.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -337,7 +345,7 @@ def _control_process(argv: list[str]) -> None:
         shared = mmap.mmap(f.fileno(), 8 * (_C_LEN + _S_LEN))
     cmd, state = _blocks(shared)
     events = os.fdopen(int(fd), "w", buffering=1)
-    loop = _Loop(model, float(watchdog), cmd, state, events, int(parent))
+    loop = _Loop(model, float(watchdog), cmd, state, events, int(parent), lockstep == "1")
     threading.Thread(target=loop.watch_parent, daemon=True).start()
     try:
         fr = importlib.import_module(
@@ -377,8 +385,10 @@ class _Loop:
         state: np.ndarray,
         events: TextIO,
         parent: int,
+        lockstep: bool = False,
     ) -> None:
         self.watchdog = watchdog
+        self.lockstep = lockstep
         self.cmd, self.state = cmd, state
         self._c, self._s = number_view(cmd), number_view(state)
         self._cmd_values = cmd[_C_CMD:]
@@ -395,6 +405,7 @@ class _Loop:
         self.client = "pylibfranka"
         self.robot: Any = None
         self.seen = 0.0  # the command sequence number last acted on
+        self.until = math.inf  # the arm time up to which `wanted` holds
         self.wanted = np.zeros(7)
         self.mode = POSITION
         self.ticks = 0.0
@@ -441,11 +452,11 @@ class _Loop:
         seq = c[_C_SEQ]
         if seq == self.seen or seq % 2.0 != 0.0:
             return False
-        mode = c[_C_MODE]
+        mode, until = c[_C_MODE], c[_C_UNTIL]
         np.copyto(self.wanted, self._cmd_values)
         if c[_C_SEQ] != seq:
             return False
-        self.seen = seq
+        self.seen, self.until = seq, until
         self.mode = POSITION if mode == POSITION else VELOCITY if mode == VELOCITY else TORQUE
         return True
 
@@ -537,7 +548,14 @@ class _Loop:
         if period.to_sec() > 0.0015:  # a cycle (or more) went by without a command of ours
             self.late += 1.0
         self.publish(rs, STOPPING if self.stopping else MOVING)
-        if self.take_command():
+        waited = False
+        # Not during the motion's first ticks, which stand still whatever comes: the robot
+        # sends its first states before it waits for commands, and a tick held up there lets
+        # them pile up unanswered.
+        if self.lockstep and not self.stopping and not self.hold:
+            waited = self.await_command(rs.time.to_sec())
+            now = time.monotonic()
+        if self.take_command() or waited:
             self.last_new = now
             if self.mode != mode:  # a new mode: finish this motion at rest first
                 self.stopping = True
@@ -579,6 +597,21 @@ class _Loop:
         if finished:
             out.motion_finished = True
         return out
+
+    def await_command(self, arm_time: float) -> bool:
+        """Lockstep: hold this tick until the user's command for it is there (one holding
+        past `arm_time`), so that each command acts on the ticks it was sent for whatever the
+        two processes' timing; the watchdog and a stop still end the wait. Whether a new
+        command came meanwhile."""
+        took = False
+        while self.until < arm_time + 0.5 * _TICK and not self.stop_asked():
+            if self.take_command():
+                took = True
+                continue
+            if time.monotonic() - self.last_new > self.watchdog:
+                break
+            time.sleep(_LOCKSTEP_POLL)
+        return took
 
     def _below(self, values: np.ndarray, bound: np.ndarray) -> bool:
         """Whether every |value| is below `bound` (7 values; without a temporary array)."""

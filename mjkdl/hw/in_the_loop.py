@@ -52,6 +52,10 @@ _LOOP_REFLEX = (
     "floor, a table and a cube of its own that push the arm where this scene has nothing)"
 )
 _RESYNC = 0.05  # s: how far the arm may run ahead before the simulation skips to its state
+_MOVE_POLL = 0.01  # s of the arm's clock between two looks at a `move_to` under way
+# s: how long `move_to` holds the arm once within 2 mrad at rest: the rate limiter's last
+# approach (a 50 ms time constant) has then closed all but e^-6 of the gap
+_SETTLE = 0.3
 
 
 class ArmLink:
@@ -59,7 +63,11 @@ class ArmLink:
 
     `collision_thresholds` (torque N·m, force N) are the robot's collision reflexes while
     linked: 100/100 by default, as the Panda environment's hardware in the loop sets them (the
-    simulated contacts are not the robot's to stop); None keeps the robot's own."""
+    simulated contacts are not the robot's to stop); None keeps the robot's own. `lockstep`
+    (against `python -m mjkdl.hw.franka_sim --lockstep` only: a real arm's tick cannot wait):
+    each 1 ms tick of the arm waits for the command of the step it belongs to, so a run
+    depends on the commands alone, not on how the processes' timing falls. `connect_timeout`:
+    seconds the arm has to answer the connection."""
 
     def __init__(
         self,
@@ -75,6 +83,8 @@ class ArmLink:
         watchdog: float = 0.2,
         realtime: bool = False,
         collision_thresholds: tuple[float, float] | None = (100.0, 100.0),
+        lockstep: bool = False,
+        connect_timeout: float = 20.0,
     ) -> None:
         if robot.n_joints != 7:
             raise SpecError(
@@ -97,6 +107,8 @@ class ArmLink:
             watchdog=watchdog,
             realtime=realtime,
             collision_thresholds=collision_thresholds,
+            lockstep=lockstep,
+            connect_timeout=connect_timeout,
         )
         self._torque = np.zeros(7)
         self._target = np.zeros(7)  # the position target sent last
@@ -118,14 +130,15 @@ class ArmLink:
         d.qvel[self._dadr] = s[_S_DQ : _S_DQ + 7]
         d.qfrc_actuator[self._dadr] = s[_S_TAU : _S_TAU + 7]
 
-    def _send(self, share: float) -> None:
+    def _send(self, share: float, until: float) -> None:
+        """This timestep's command, holding up to the arm time `until`."""
         robot, conn = self.robot, self.connection
         if self.haptic:
             d = self.scene.data
             tau = self._torque
             np.multiply(d.qfrc_constraint[self._dadr], self.haptic_gain, out=tau)
             tau -= self.haptic_damping * d.qvel[self._dadr]
-            conn.send(TORQUE, tau)
+            conn.send(TORQUE, tau, until)
             return
         mode = robot.ctrl_mode
         if mode is CtrlMode.POSITION:
@@ -135,16 +148,16 @@ class ArmLink:
             np.subtract(goal, self._target, out=path)
             path *= share
             path += self._target
-            conn.send(POSITION, path)
+            conn.send(POSITION, path, until)
             if share == 1.0:
                 self._target[:] = goal
         elif mode is CtrlMode.VELOCITY:
-            conn.send(VELOCITY, robot.jnt_vel_cmd)
+            conn.send(VELOCITY, robot.jnt_vel_cmd, until)
         elif robot.gravity_compensation:  # the arm compensates gravity itself
-            conn.send(TORQUE, robot.jnt_trq_cmd)
+            conn.send(TORQUE, robot.jnt_trq_cmd, until)
         else:  # a torque that holds gravity (the Robot's TORQUE semantics): less the gravity
             np.subtract(robot.jnt_trq_cmd, robot.gravity_torques(), out=self._torque)
-            conn.send(TORQUE, self._torque)
+            conn.send(TORQUE, self._torque, until)
 
     def step(self, n: int) -> None:
         """`n` timesteps: each sends the command, steps MuJoCo, then mirrors the arm's state
@@ -160,9 +173,10 @@ class ArmLink:
             for k in range(n):
                 conn.check()
                 for j in range(1, ticks):  # this timestep's ticks before its last
-                    self._send((k * ticks + j) / (n * ticks))
-                    conn.wait_until(self._arm_time + j * dt / ticks)
-                self._send((k + 1) / n)
+                    tick = self._arm_time + j * dt / ticks
+                    self._send((k * ticks + j) / (n * ticks), tick)
+                    conn.wait_until(tick)
+                self._send((k + 1) / n, self._arm_time + dt)
                 mujoco.mj_step(model, data)
                 self._arm_time += dt
                 s = conn.wait_until(self._arm_time)
@@ -183,25 +197,30 @@ class ArmLink:
         self._mirror(s)
 
     def move_to(self, q: np.ndarray, timeout: float = 30.0) -> None:
-        """Bring the arm to joint positions `q` (rate-limited) and the simulated arm with it;
-        the robot's commands then hold there (POSITION mode)."""
+        """Bring the arm to joint positions `q` (rate-limited), let it settle there for
+        `_SETTLE` s, and the simulated arm with it; the robot's commands then hold there
+        (POSITION mode). Settled, the arm starts what follows from `q` at rest whatever
+        motion came before (the last approach ends within a few µrad)."""
         robot, conn = self.robot, self.connection
         robot.ctrl_mode = CtrlMode.POSITION
         target = np.asarray(q, dtype=float)
-        conn.send(POSITION, target)
         s = conn.read()
+        conn.send(POSITION, target, s[_S_TIME] + _MOVE_POLL)
         t_end = s[_S_TIME] + timeout
+        settled = np.inf  # the arm time it came within reach, at rest
         while True:
-            s = conn.wait_until(s[_S_TIME] + 0.01)
-            conn.send(POSITION, target)
+            s = conn.wait_until(s[_S_TIME] + _MOVE_POLL)
             err = np.abs(s[_S_Q : _S_Q + 7] - target).max()
-            if err < 2e-3 and np.abs(s[_S_DQ : _S_DQ + 7]).max() < 1e-2:
-                break
+            if settled == np.inf and err < 2e-3 and np.abs(s[_S_DQ : _S_DQ + 7]).max() < 1e-2:
+                settled = s[_S_TIME]
+            if s[_S_TIME] >= settled + _SETTLE - 1e-9:
+                break  # the last command held up to now: a lockstep arm waits for the next
             if s[_S_TIME] > t_end:
                 raise ArmConnectionError(
                     f"the arm at {self.address} did not reach {target.round(3).tolist()} within "
                     f"{timeout} s of its clock (still {err:.4f} rad away); check its mode"
                 )
+            conn.send(POSITION, target, s[_S_TIME] + _MOVE_POLL)
         self._arm_time = float(s[_S_TIME])
         self._target[:] = target
         self._mirror(s)

@@ -25,6 +25,9 @@ TAU_MAX = np.array([87.0] * 4 + [12.0] * 3)
 # libfranka's examples start from this pose ("move to start"); the simulated arm boots in it,
 # and its joint-space inertia there sets the impedance's damping.
 START_Q = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
+# Entries of state `FrankaImpedanceDrive` carries between control periods (`bind_state`).
+STATE_SIZE = 36
+_TICKS = 35  # where in it the rate limiter's start ticks are
 
 
 class JointImpedance:
@@ -63,7 +66,9 @@ class FrankaImpedanceDrive:
     """A simulated 7-joint Franka arm driven as the arm in the loop is: each control period
     the robot's position target (`jnt_pos_cmd`) is reached along the period's 1 ms physics
     steps, rate-limited as the connection limits it, and tracked by `JointImpedance` with
-    gravity compensated. The scene's timestep must be 1 ms, the robot's tick."""
+    gravity compensated. The scene's timestep must be 1 ms, the robot's tick. `latency`: ticks
+    each period's target comes late (a command delayed on its way to the robot): the last
+    period's ramp goes on that long, below one period."""
 
     def __init__(self, scene: Env, robot: Robot, model: str = "panda") -> None:
         if robot.n_joints != 7:
@@ -79,29 +84,54 @@ class FrankaImpedanceDrive:
         self.scene, self.robot = scene, robot
         self.limiter = RateLimiter(limits_for(model))
         self.impedance = JointImpedance(np.diag(robot.mass_matrix(START_Q)))
-        self._target = np.zeros(7)  # the last period's target, where this one's starts
+        self.latency = 0
+        self.bind_state(np.zeros(STATE_SIZE))
         self._goal = np.zeros(7)
         self._path = np.zeros(7)
         self._tau = np.zeros(7)
+
+    def bind_state(self, state: np.ndarray) -> None:
+        """Keep what the drive carries from one control period to the next in `state`
+        (`STATE_SIZE` entries, a view of MuJoCo's userdata in a task env, so that
+        `mjSTATE_INTEGRATION` holds it): the last period's target, where this one's ramp
+        starts, the one before (where the last ramp started, for `latency`), and the rate
+        limiter's position, velocity, acceleration and start ticks."""
+        limiter = self.limiter
+        self._state = state
+        self._target, self._previous = state[0:7], state[7:14]
+        for i, name in enumerate(("q", "dq", "ddq"), start=2):
+            view = state[7 * i : 7 * i + 7]
+            np.copyto(view, getattr(limiter, name))
+            setattr(limiter, name, view)  # the limiter works in place: on userdata now
+        state[_TICKS] = limiter.start_ticks
 
     def start(self) -> None:
         """An episode's start: the arm at rest where it is, the target there."""
         robot = self.robot
         robot.update()
         self._target[:] = robot.jnt_pos_msr
+        self._previous[:] = self._target
         self.limiter.reset(self._target)
+        self._state[_TICKS] = self.limiter.start_ticks
 
     def run(self, n: int) -> None:
         """`n` physics steps that bring the arm to the robot's `jnt_pos_cmd`; the robot is left
         in POSITION mode with that command (what the Cartesian controller integrates)."""
         robot, limiter, impedance = self.robot, self.limiter, self.impedance
         goal, path, target, tau = self._goal, self._path, self._target, self._tau
+        previous, late = self._previous, self.latency
         goal[:] = robot.jnt_pos_cmd
+        limiter.start_ticks = int(self._state[_TICKS])
         robot.ctrl_mode = CtrlMode.TORQUE
         for k in range(n):
-            np.subtract(goal, target, out=path)
-            path *= (k + 1) / n
-            path += target
+            if k >= late:  # this period's ramp, `late` ticks behind
+                np.subtract(goal, target, out=path)
+                path *= (k - late + 1) / n
+                path += target
+            else:  # the last period's, still on its way
+                np.subtract(target, previous, out=path)
+                path *= (n + k - late + 1) / n
+                path += previous
             q_d = limiter.position(path)
             robot.update()
             np.add(
@@ -111,6 +141,8 @@ class FrankaImpedanceDrive:
             )
             robot.jnt_trq_cmd = tau
             self.scene.step(1)
+        previous[:] = target
         target[:] = goal
+        self._state[_TICKS] = limiter.start_ticks
         robot.ctrl_mode = CtrlMode.POSITION
         robot.jnt_pos_cmd = goal

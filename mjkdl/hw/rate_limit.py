@@ -194,7 +194,7 @@ class RateLimiter:
         self.ddq = np.zeros(7)  # last commanded acceleration
         self.tau = np.zeros(7)  # last commanded torque
         self._out = np.zeros(7)
-        self._start = 0  # ticks left at START_SHARE of the limits
+        self.start_ticks = 0  # ticks left at START_SHARE of the limits
         # scratch
         self._lower, self._upper, self._at = np.zeros(7), np.zeros(7), np.zeros(7)
         self._share, self._jm, self._am, self._neg = (np.zeros(7) for _ in range(4))
@@ -211,7 +211,7 @@ class RateLimiter:
         self.dq[:] = 0.0 if dq is None else dq
         self.ddq[:] = 0.0
         self.tau[:] = 0.0 if tau is None else tau
-        self._start = START_TICKS
+        self.start_ticks = START_TICKS
 
     def velocity(self, dq_cmd: np.ndarray, share: float = 1.0) -> np.ndarray:
         """The joint velocities to send for the wanted `dq_cmd` (also advances `q`), at
@@ -223,8 +223,8 @@ class RateLimiter:
         np.multiply(self.dq, _2DT7, out=at)
         np.add(at, self.q, out=at)
         self.limits.bounds_into(at, lower, upper)
-        if self._start:
-            self._start -= 1
+        if self.start_ticks:
+            self.start_ticks -= 1
             share = share * START_SHARE
         jerk_max, acc_max, neg = self._jm, self._am, self._neg
         self._share.fill(share)

@@ -54,6 +54,12 @@ from .spec import (
 # Franka robot's joint impedance as the arm in the loop runs it (`FrankaImpedanceDrive`).
 ARM_DRIVES = ("servo", "franka_impedance")
 IMPEDANCE_TIMESTEP = 0.001  # s: the robot's control tick, which the impedance drive needs
+# `lockstep=True`: the arm's ticks wait for the env's commands, and a loaded machine's stall of
+# the env's process is a wait, not the end of the motion (the watchdog's), for up to 5 s (the
+# simulator then needs `--command-timeout` above that: its default waits 1 s); the connection
+# waits up to 2 min for the simulator's first answer (its client process starting on a
+# loaded machine).
+LOCKSTEP_LINK: dict[str, Any] = {"lockstep": True, "watchdog": 5.0, "connect_timeout": 120.0}
 MAX_VELOCITY = 1e3  # m/s and rad/s: an arm's Cartesian (and default joint) velocity bound
 _MODES = {
     Actuation.JOINT_POSITION: CtrlMode.POSITION,
@@ -239,7 +245,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     at that address (`.hardware`, `mjkdl.hw.in_the_loop`), mirrored into the scene at every
     physics step while the rest is simulated; each `reset` brings it home; its estimated
     external torques and wrench are the observations `{arm}_ext_torques`/`{arm}_ext_wrench`.
-    `haptic=True` renders the simulated contacts on it as joint torques instead.
+    `haptic=True` renders the simulated contacts on it as joint torques instead. `lockstep=True`
+    (against `python -m mjkdl.hw.franka_sim --lockstep` only) makes each of the arm's 1 ms
+    ticks wait for the env's command for it (up to 5 s: serve with `--command-timeout 10`),
+    so the same actions give the same motion whatever the machine's load.
 
     `arm_drive="franka_impedance"` (one arm taking position targets) moves the simulated arm
     as a Franka arm in the loop moves: the robot's joint impedance at 1 kHz behind the
@@ -265,6 +274,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         render_shadows: bool = False,
         robot_ip: str | None = None,
         haptic: bool = False,
+        lockstep: bool = False,
         arm_drive: str = "servo",
     ) -> None:
         if not isinstance(spec, TaskSpec):
@@ -301,6 +311,7 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             )
         if arm_drive == "franka_impedance":
             self._check_impedance_drive(robot_ip)
+        self._arm_drive = arm_drive
         if robot_ip is not None:
             from ..hw.in_the_loop import ExternalForces, attach  # the [franka] extra's layer
 
@@ -312,11 +323,19 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         try:
             self._build(render_camera, render_width, render_height)
             if robot_ip is not None:
-                self.hardware = attach(self.scene, self.robots[arm], robot_ip, haptic=haptic)
+                self.hardware = attach(
+                    self.scene,
+                    self.robots[arm],
+                    robot_ip,
+                    haptic=haptic,
+                    **(LOCKSTEP_LINK if flag(lockstep, "lockstep") else {}),
+                )
             if arm_drive == "franka_impedance":
                 from ..hw.joint_impedance import FrankaImpedanceDrive
 
                 self.drive = FrankaImpedanceDrive(self.scene, self._effectors[0].robot)
+                self.drive.bind_state(self._drive_state)
+            self._check_tick_latency()
         except BaseException:
             self.close()
             raise
@@ -340,6 +359,27 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 f"{actuation.value!r} (use 'cartesian_velocity' or 'joint_position')"
             )
         spec.scene = dataclasses.replace(spec.scene, timestep=IMPEDANCE_TIMESTEP)
+
+    def _check_tick_latency(self) -> None:
+        """`randomization.action_latency_ticks` delays the impedance drive's commands, by less
+        than a control period (longer ones are whole control steps: `action_latency`)."""
+        spec = self.task_spec.randomization
+        ticks = None if spec is None else spec.action_latency_ticks
+        if ticks is None:
+            return
+        if self.drive is None:
+            raise SpecError(
+                "randomization.action_latency_ticks delays the 1 ms ticks of "
+                "arm_drive='franka_impedance'; this env's arm is driven by its servos "
+                "(arm_drive='servo'): pass arm_drive='franka_impedance', or use action_latency "
+                "(whole control steps)"
+            )
+        if ticks[1] >= self._substeps:
+            raise SpecError(
+                f"randomization.action_latency_ticks {tuple(ticks)}: a control period is "
+                f"{self._substeps} ticks, so at most {self._substeps - 1}; longer latencies are "
+                "whole control steps (action_latency)"
+            )
 
     @staticmethod
     def _check_spec(spec: TaskSpec) -> None:
@@ -465,6 +505,12 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         # MuJoCo's userdata, which mjSTATE_INTEGRATION saves and restores: a restored state
         # steps on exactly as the recorded one did. Sized once the arms' joints are known.
         size = spec.scene.userdata + _COUNTERS + sum(e.state_size for e in self._effectors)
+        self._drive_size = 0
+        if self._arm_drive == "franka_impedance":  # its ramp and rate limiter
+            from ..hw.joint_impedance import STATE_SIZE
+
+            self._drive_size = STATE_SIZE
+        size += self._drive_size
         if spec.randomization is not None:  # its actions on their way
             size += spec.randomization.state_size(len(labels))
         if scene.model.nuserdata != size:
@@ -505,7 +551,16 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         its latency and noise from now on (`mjkdl.demos.restore` sets it with a state)."""
         if self._randomizer is None:
             raise SpecError("this env has no TaskSpec.randomization: it takes no draw")
+        ticks = draw.action_latency_ticks
+        if ticks and (self.drive is None or ticks >= self._substeps):
+            raise SpecError(
+                f"the draw's action_latency_ticks ({ticks}) is beyond this env's "
+                f"randomization.action_latency_ticks "
+                f"{self._randomizer.description.action_latency_ticks}"
+            )
         self._randomizer.use(draw, self.scene.model)
+        if self.drive is not None:
+            self.drive.latency = ticks
 
     def _bind(self) -> spaces.Dict:
         """Observation sources and the render camera on the scene's current model; the
@@ -540,6 +595,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
         at = _COUNTERS
         for eff in self._effectors:
             at = eff.bind_state(userdata, at)
+        self._drive_state = userdata[at : at + self._drive_size]
+        if self.drive is not None:
+            self.drive.bind_state(self._drive_state)
+        at += self._drive_size
         self._randomizer_state = userdata[at:]  # the Randomizer's: its actions on their way
         if self._randomizer is not None:
             self._randomizer.bind_state(self._randomizer_state)
@@ -681,6 +740,9 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
             eff.robot.sync_commands()
             eff.start_state()
         if self.drive is not None:
+            self.drive.latency = (
+                0 if self._randomizer is None else self._randomizer.draw.action_latency_ticks
+            )
             self.drive.start()
         mujoco.mj_forward(scene.model, scene.data)  # torques under the synced commands
         self._counters.fill(0.0)

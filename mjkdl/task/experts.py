@@ -30,6 +30,9 @@ GRASP_RAISE = 0.004  # m: the TCP over a floor cube's centre at the grasp (finge
 # control period and the rate limiter's 50 ms, so at the servos' 5/s it runs past the grasp
 # height into the table.
 FRANKA_GAIN = 3.0
+# The carry's gain (1/s) on such an arm: at the servos' 10/s, a gain over a control period and
+# the arm's lag is past what stays stable: the carried cube swings over the goal and down.
+FRANKA_LIFT_GAIN = 4.0
 
 
 class Expert(Protocol):
@@ -139,11 +142,14 @@ class PickCubeExpert:
         env: TaskEnv,
         gain: float | None = None,
         hover: float = 0.08,
-        lift_gain: float = 10.0,
+        lift_gain: float | None = None,
     ) -> None:
         self._out = _Cartesian(env)
+        franka = env.drive is not None or env.hardware is not None
         if gain is None:  # 5/s, or FRANKA_GAIN for an arm that moves as a Franka arm does
-            gain = FRANKA_GAIN if env.drive is not None or env.hardware is not None else 5.0
+            gain = FRANKA_GAIN if franka else 5.0
+        if lift_gain is None:
+            lift_gain = FRANKA_LIFT_GAIN if franka else 10.0
         self._gain, self._hover, self._lift_gain = gain, hover, lift_gain
         # The Panda's fingertips reach 21 mm below its TCP: grasping a cube on the floor at
         # its centre would press them into the floor (a real table), so grasp above it.
@@ -254,8 +260,10 @@ class PushExpert:
     SPEED = 0.2
     THERE = 0.015  # metres from the goal at which the push ends
 
-    def __init__(self, env: TaskEnv, gain: float = 5.0) -> None:
+    def __init__(self, env: TaskEnv, gain: float | None = None) -> None:
         self._out = _Cartesian(env)
+        if gain is None:  # 5/s, or FRANKA_GAIN for an arm that moves as a Franka arm does
+            gain = FRANKA_GAIN if env.drive is not None or env.hardware is not None else 5.0
         self._gain = gain
         names = env.observation_space.spaces
         self._goal = "desired_goal" if "desired_goal" in names else "goal_pose"
@@ -277,7 +285,11 @@ class PushExpert:
         along = float(rel @ d[:2])
         across = abs(float(rel[0] * d[1] - rel[1] * d[0]))
         start = cube - d * self.BEHIND
-        if self.pushing and (across > 0.012 or along > -CUBE_HALF):
+        if self.pushing and dist < self.THERE and self.rest is None:
+            # there: done, before anything reads as a slip (an arm that lags its target, as a
+            # Franka arm does, is still moving on when the cube arrives)
+            self.rest = tcp + np.array([0.0, 0.0, 0.08])
+        if self.pushing and self.rest is None and (across > 0.012 or along > -CUBE_HALF):
             self.pushing = False  # slipped past or beside the cube: realign
         if not self.pushing:
             target = np.array([start[0], start[1], self.LOW])
@@ -290,8 +302,6 @@ class PushExpert:
             # the TCP follows the cube as it moves and turns; it stops once the cube is there.
             target = cube - d * (CUBE_HALF + 0.012) + d * min(dist, 0.05)
             target[2] = self.LOW
-            if dist < self.THERE and self.rest is None:
-                self.rest = tcp + np.array([0.0, 0.0, 0.08])
         if self.rest is not None:
             target = self.rest  # back off upwards, clear of the cube
         twist = np.zeros(6)

@@ -76,6 +76,9 @@ class Randomization:
     of its position and velocity feedback `biasprm[1:3]`: a servo's stiffness and damping, a
     motor's strength, together), `gravity` (m/s², added to each axis). Control:
     `action_latency` (whole control steps the action is applied late, drawn in [low, high]),
+    `action_latency_ticks` (1 ms ticks each control period's target reaches the arm late, as a
+    command delayed on its way to the robot: with `arm_drive="franka_impedance"` only, drawn
+    in [low, high], below one control period),
     `action_noise` (standard deviation added to every action entry, as a fraction of the
     entry's half range: in [-1, 1] units for normalised actions).
     Observation: `observation_noise` (observation key -> standard deviation added to what the
@@ -94,6 +97,7 @@ class Randomization:
     actuator_gain: Uniform | None = None
     gravity: Uniform | None = None
     action_latency: tuple[int, int] | None = None
+    action_latency_ticks: tuple[int, int] | None = None
     action_noise: float = 0.0
     observation_noise: Mapping[str, float] = field(default_factory=dict)
     camera_pos: Uniform | None = None
@@ -121,6 +125,7 @@ class Randomization:
             _ids(model, kind, rng.names, name)
         _uniform(self.gravity, "gravity")
         self._latency()
+        _ticks(self.action_latency_ticks)
         _std(self.action_noise, "randomization.action_noise")
         if not isinstance(self.observation_noise, Mapping):
             raise SpecTypeError(
@@ -141,18 +146,7 @@ class Randomization:
         return 0 if lat is None else (lat[1] + 1) * action_size
 
     def _latency(self) -> tuple[int, int] | None:
-        lat = self.action_latency
-        if lat is not None and (
-            not isinstance(lat, Sequence)
-            or len(lat) != 2
-            or not all(isinstance(v, int) and not isinstance(v, bool) for v in lat)
-            or not 0 <= lat[0] <= lat[1]
-        ):
-            raise SpecError(
-                "randomization.action_latency must be (low, high) whole control steps, "
-                f"0 <= low <= high, got {lat!r}"
-            )
-        return lat
+        return _whole_range(self.action_latency, "action_latency", "whole control steps")
 
     def draw(self, model: mujoco.MjModel, rng: np.random.Generator) -> Draw:
         """One episode's values from `rng` (the env's generator), in field order."""
@@ -170,6 +164,9 @@ class Randomization:
             out.action_latency = int(
                 rng.integers(self.action_latency[0], self.action_latency[1] + 1)
             )
+        if self.action_latency_ticks is not None:
+            low, high = self.action_latency_ticks
+            out.action_latency_ticks = int(rng.integers(low, high + 1))
         out.action_noise = float(self.action_noise)
         out.observation_noise = {k: float(v) for k, v in self.observation_noise.items()}
         out.noise_seed = int(rng.integers(2**63))
@@ -194,11 +191,29 @@ class Randomization:
         for key, v in value.items():
             if key in _ELEMENTS or key == "gravity":
                 kwargs[key] = _uniform_of(v, key)
-            elif key == "action_latency" and isinstance(v, list):
+            elif key in ("action_latency", "action_latency_ticks") and isinstance(v, list):
                 kwargs[key] = tuple(v)
             else:
                 kwargs[key] = v
         return cls(**kwargs)
+
+
+def _whole_range(value: object, name: str, unit: str) -> tuple[int, int] | None:
+    """`value` checked as a (low, high) range of whole numbers of `unit`, 0 <= low <= high."""
+    if value is not None and (
+        not isinstance(value, Sequence)
+        or len(value) != 2
+        or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+        or not 0 <= value[0] <= value[1]
+    ):
+        raise SpecError(
+            f"randomization.{name} must be (low, high) {unit}, 0 <= low <= high, got {value!r}"
+        )
+    return None if value is None else (int(value[0]), int(value[1]))
+
+
+def _ticks(value: object) -> tuple[int, int] | None:
+    return _whole_range(value, "action_latency_ticks", "whole 1 ms ticks")
 
 
 def fields_in_use(description: Randomization) -> list[str]:
@@ -207,7 +222,7 @@ def fields_in_use(description: Randomization) -> list[str]:
     out = []
     for f in fields(description):
         value = getattr(description, f.name)
-        if f.name == "action_latency":
+        if f.name in ("action_latency", "action_latency_ticks"):
             value = value is not None and value[1] > 0
         elif f.name == "observation_noise":
             value = any(std > 0.0 for std in value.values())
@@ -259,9 +274,9 @@ class Sample:
 class Draw:
     """One episode's randomisation: plain numbers, documented per field as in `Randomization`
     (scales, offsets, colours per element id; `gravity` the offset added to the nominal one;
-    `action_latency` in control steps; the noise levels; `noise_seed` the key of the
-    episode's noise, which each step draws afresh from (key, step)). None: the field stays
-    nominal."""
+    `action_latency` in control steps, `action_latency_ticks` in 1 ms ticks; the noise levels;
+    `noise_seed` the key of the episode's noise, which each step draws afresh from (key,
+    step)). None: the field stays nominal."""
 
     body_mass: Sample | None = None
     body_com: Sample | None = None
@@ -278,6 +293,7 @@ class Draw:
     geom_rgba: Sample | None = None
     gravity: list[float] | None = None
     action_latency: int = 0
+    action_latency_ticks: int = 0
     action_noise: float = 0.0
     observation_noise: dict[str, float] = field(default_factory=dict)
     noise_seed: int = 0

@@ -337,6 +337,12 @@ SHARED_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("robot_ip", None, "a Franka arm at this address in the loop (docs/hardware.md)"),
     Parameter("haptic", False, "with robot_ip: the simulated contacts on the arm"),
     Parameter(
+        "lockstep",
+        False,
+        "with robot_ip: the arm is `franka_sim --lockstep --command-timeout 10`, whose ticks "
+        "wait for the env's commands (runs repeat exactly)",
+    ),
+    Parameter(
         "arm_drive",
         "servo",
         '"servo" (Menagerie\'s actuators) or "franka_impedance" (the arm\'s own, docs/hardware.md)',
@@ -422,7 +428,8 @@ class _Registered(TaskEnv):
 
 
 _RENDER = ("render_camera", "render_width", "render_height", "render_shadows")
-_HARDWARE = ("robot_ip", "haptic", "arm_drive")  # TaskEnv's: the arm, simulated or in the loop
+# TaskEnv's: the arm, simulated or in the loop
+_HARDWARE = ("robot_ip", "haptic", "lockstep", "arm_drive")
 
 
 class PandaReachEnv(_Registered, TaskEnv):
