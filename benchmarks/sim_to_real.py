@@ -131,7 +131,8 @@ class Server:
     def __init__(self, reality: str) -> None:
         self.host = f"127.{os.getpid() % 250 + 1}.252.1"
         self._cmd = [sys.executable, "-m", "mjkdl.hw.franka_sim", "--host", self.host]
-        self._cmd += ["--lockstep", "--scene", "empty", "--reality", reality]
+        self._cmd += ["--lockstep", "--scene", "empty", "--command-timeout", "10"]
+        self._cmd += ["--reality", reality]
         self._start()
 
     def _start(self) -> None:
@@ -156,7 +157,8 @@ def cell(source: str, server: Server | None, seeds: int, seed: int) -> Cell:
     loaded machine starves the client or the server) is run again against a restarted
     server, up to `RETRIES` times."""
     out = Cell()
-    kwargs = DRIVE if server is None else {"robot_ip": server.host}
+    # lockstep: each tick of the arm waits for its step's command, so a loop run repeats
+    kwargs = DRIVE if server is None else {"robot_ip": server.host, "lockstep": True}
     env: gym.Env | None = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", WatchdogWarning)
