@@ -291,17 +291,17 @@ class Scene(Closable):
         if (n.__class__ is not int and not isinstance(n, np.integer)) or n < 0:
             raise SpecError(f"step(n): n must be a non-negative integer, got {n!r}")
         try:
-            if self._link is None:
-                mujoco.mj_step(self._model, self._data, n)
-            else:
+            if self._link is not None:
                 self._link.step(n)
+            elif n > MAX_STEPS:  # the binding takes a C int
+                raise SpecError(
+                    f"step(n): n must be at most {MAX_STEPS} (MuJoCo counts steps in a C int), "
+                    f"got {n!r}; step in several calls"
+                )
+            else:
+                mujoco.mj_step(self._model, self._data, n)
         except mujoco.FatalError as err:
             raise self._fatal(err) from None
-        except TypeError:  # the binding takes a C int: n is a checked count, only too large
-            raise SpecError(
-                f"step(n): n must be at most {MAX_STEPS} (MuJoCo counts steps in a C int), "
-                f"got {n!r}; step in several calls"
-            ) from None
         self._poses_stale = True
         if self._faults != _NO_FAULTS:
             self._raise_faults()

@@ -134,6 +134,7 @@ class _ClockArm:
         self.block = np.zeros(_S_LEN)
         self.block[_S_Q : _S_Q + 7] = START
         self.sent: list[tuple[float, np.ndarray]] = []
+        self.until: list[float] = []  # the arm time each command holds up to
 
     def read(self) -> np.ndarray:
         return self.block
@@ -141,10 +142,11 @@ class _ClockArm:
     def check(self) -> None:
         pass
 
-    def send(self, mode: int, command: np.ndarray) -> None:
+    def send(self, mode: int, command: np.ndarray, until: float = np.inf) -> None:
         from mjkdl.hw.connection import _S_TIME
 
         self.sent.append((float(self.block[_S_TIME]), np.array(command)))
+        self.until.append(until)
 
     def wait_until(self, arm_time: float) -> np.ndarray:
         from mjkdl.hw.connection import _S_TIME
@@ -175,6 +177,8 @@ def test_a_position_target_is_interpolated_once_per_arm_tick(
         times = np.array([t for t, _ in conn.sent])
         targets = np.array([c for _, c in conn.sent])
         np.testing.assert_allclose(times, np.arange(10) * 1e-3, atol=1e-12)
+        # each target holds to the end of its own tick (what a lockstep arm waits for)
+        np.testing.assert_allclose(conn.until, np.arange(1, 11) * 1e-3, atol=1e-12)
         share = np.arange(1, 11)[:, None] / 10
         np.testing.assert_allclose(targets, START + share * (goal - START), atol=1e-12)
         conn.sent.clear()
