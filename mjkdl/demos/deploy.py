@@ -35,22 +35,22 @@ EXIT_STOPPED = 130  # ... the user stopped it (the shell's code for Ctrl+C)
 _AT_REST = 0.01  # rad/s: the connection's own "at rest" joint speed
 
 
-class DeploymentStopped(MjkdlError):
+class _RunEnded(MjkdlError):
+    """A run that ended early, with the arm at rest. `episodes`: those that ended before."""
+
+    def __init__(self, message: str, episodes: Sequence[EpisodeResult] = ()) -> None:
+        super().__init__(message)
+        self.episodes = list(episodes)
+
+
+class DeploymentStopped(_RunEnded):
     """The user stopped the run (Enter, Ctrl+C); the arm is at rest. `episodes`: those that
     ended before."""
 
-    def __init__(self, message: str, episodes: Sequence[EpisodeResult] = ()) -> None:
-        super().__init__(message)
-        self.episodes = list(episodes)
 
-
-class DeploymentFault(MjkdlError, RuntimeError):
+class DeploymentFault(_RunEnded, RuntimeError):
     """A fault ended the run (the arm's, its connection's or the policy's: `__cause__`); the
     arm is at rest. `episodes`: those that ended before."""
-
-    def __init__(self, message: str, episodes: Sequence[EpisodeResult] = ()) -> None:
-        super().__init__(message)
-        self.episodes = list(episodes)
 
 
 class StopKey:

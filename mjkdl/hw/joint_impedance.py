@@ -25,9 +25,10 @@ TAU_MAX = np.array([87.0] * 4 + [12.0] * 3)
 # libfranka's examples start from this pose ("move to start"); the simulated arm boots in it,
 # and its joint-space inertia there sets the impedance's damping.
 START_Q = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
-# Entries of state `FrankaImpedanceDrive` carries between control periods (`bind_state`).
-STATE_SIZE = 36
-_TICKS = 35  # where in it the rate limiter's start ticks are
+# What `FrankaImpedanceDrive` carries between control periods (`bind_state`): five 7-vectors
+# (target, previous target, the rate limiter's q, dq, ddq), then the limiter's start ticks.
+_TICKS = 5 * 7
+STATE_SIZE = _TICKS + 1
 
 
 class JointImpedance:
