@@ -290,10 +290,9 @@ def rslrl_run(
     every evaluation, so a run stopped from outside keeps what it measured."""
     import torch
     from rsl_rl.runners import OnPolicyRunner
-    from tensordict import TensorDict
 
     from mjkdl.task.batch import make_batch
-    from mjkdl.task.batch.ppo import RslRlEnv, auto_reset_workers, recipe
+    from mjkdl.task.batch.ppo import RslRlEnv, auto_reset_workers, env_policy, recipe
 
     r = recipe(env_id)
     if not device:
@@ -341,16 +340,9 @@ def rslrl_run(
             runner.learn(num_learning_iterations=part, init_at_random_ep_len=done == 0)
             train_seconds += time.perf_counter() - t
             done += part
-        policy_net = runner.get_inference_policy("cpu")
-
-        def policy(obs: dict[str, np.ndarray], policy_net: Any = policy_net) -> np.ndarray:
-            flat = np.concatenate([np.ravel(v) for v in obs.values()]).astype(np.float32)
-            td = TensorDict({"policy": torch.as_tensor(flat)[None]}, batch_size=[1])
-            with torch.no_grad():
-                return policy_net(td)[0].numpy()
-
         steps = envs * r.num_steps_per_env * done
-        rate = evaluate(env_id, policy, **r.task_kwargs)
+        with env_policy(runner) as policy:  # on the CPU, then back on the runner's device
+            rate = evaluate(env_id, policy, **r.task_kwargs)
         curve.append({"steps": steps, "success": rate, "seconds": train_seconds})
         print(f"  {steps:>9} steps: {rate:.0%} ({train_seconds:.0f} s)", flush=True)
         write(run, {**record, "curve": curve, "train_seconds": train_seconds})

@@ -10,7 +10,13 @@ torch = import_extra("warp-rl", "torch")
 from tensordict import TensorDict  # noqa: E402
 
 from mjkdl.errors import SpecError  # noqa: E402
-from mjkdl.task.batch.ppo import DEFAULT_RECIPE, RslRlEnv, recipe, train  # noqa: E402
+from mjkdl.task.batch.ppo import (  # noqa: E402
+    DEFAULT_RECIPE,
+    RslRlEnv,
+    env_policy,
+    recipe,
+    train,
+)
 
 
 def test_recipe_trains_end_to_end_and_the_policy_acts() -> None:
@@ -31,6 +37,36 @@ def test_recipe_trains_end_to_end_and_the_policy_acts() -> None:
     action = policy(obs)
     assert action.shape == (5, 7)
     assert bool(torch.isfinite(action).all())
+
+
+def test_the_env_policy_acts_on_the_cpu_and_goes_back() -> None:
+    """`env_policy` evaluates on the CPU and puts the runner's policy back on the runner's
+    device and object (on a GPU, `get_inference_policy("cpu")` alone left it on the CPU and
+    the next `learn` failed on mixed devices, seen on an H200). Here the runner's device is
+    the meta device, so that leaving it on the CPU shows."""
+    import gymnasium as gym
+    import numpy as np
+
+    result = train(
+        "mjkdl/PandaReach-v0", device="cpu", num_envs=2, num_steps_per_env=2, iterations=1
+    )
+    runner = result.runner
+    own = runner.alg.get_policy()
+    env = gym.make("mjkdl/PandaReach-v0")
+    obs, _ = env.reset(seed=0)
+    env.close()
+    with env_policy(runner) as act:
+        action = act(obs)
+        flat = np.concatenate([np.ravel(v) for v in obs.values()]).astype(np.float32)
+        with torch.no_grad():
+            expected = own(TensorDict({"policy": torch.as_tensor(flat)[None]}, batch_size=[1]))
+    np.testing.assert_array_equal(action, expected[0].numpy())
+    assert action.shape == env.action_space.shape
+    runner.device = "meta"
+    with env_policy(runner) as act:
+        assert {p.device.type for p in own.parameters()} == {"cpu"}
+    assert runner.alg.get_policy() is own
+    assert {p.device.type for p in own.parameters()} == {"meta"}
 
 
 def test_the_pick_recipe_acts_top_down_on_both_backends() -> None:

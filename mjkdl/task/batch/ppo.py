@@ -12,9 +12,12 @@ from __future__ import annotations
 import copy
 import os
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import torch
 from gymnasium import spaces
 from rsl_rl.env import VecEnv
@@ -179,6 +182,26 @@ class TrainResult:
     runner: OnPolicyRunner
     env_steps: int
     seconds: float
+
+
+@contextmanager
+def env_policy(runner: OnPolicyRunner) -> Iterator[Callable[[dict[str, np.ndarray]], np.ndarray]]:
+    """The runner's policy as a CPU env's policy (observation dict in, action out), evaluated
+    on the CPU; on leaving, the policy goes back to the runner's device, so learning can go
+    on (rsl-rl's `get_inference_policy("cpu")` alone leaves it there, and the next `learn` on
+    a GPU mixes devices)."""
+    net = runner.get_inference_policy("cpu")
+
+    def act(obs: dict[str, np.ndarray]) -> np.ndarray:
+        flat = np.concatenate([np.ravel(v) for v in obs.values()]).astype(np.float32)
+        td = TensorDict({"policy": torch.as_tensor(flat)[None]}, batch_size=[1])
+        with torch.no_grad():
+            return net(td)[0].numpy()
+
+    try:
+        yield act
+    finally:
+        net.to(runner.device)
 
 
 def train(
