@@ -924,34 +924,19 @@ def test_a_constraint_no_configuration_in_the_bounds_meets_fails_saying_so(tmp_p
             planner.plan([2.0, 0.0], start=[-2.0, 0.0], constraint=along_x)
 
 
-LEVEL_ARM = """
-<mujoco model="level_arm">
-  <worldbody>
-    <body name="base">
-      <geom type="cylinder" size="0.05 0.02"/>
-      <body name="l1" pos="0 0 0.05">
-        <joint name="j1" axis="0 0 1"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
-        <body name="l2" pos="0.3 0 0">
-          <joint name="j2" axis="0 1 0"/>
-          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.02" mass="0.5"/>
-          <body name="l3" pos="0.25 0 0">
+# The two-link arm and a third link, 0.15 m long, that pitches and rolls.
+LEVEL_ARM = two_link_arm(
+    tip="""<body name="l3" pos="0.25 0 0">
             <joint name="j3" axis="0 1 0"/>
             <joint name="roll" axis="1 0 0"/>
             <geom type="capsule" fromto="0 0 0 0.15 0 0" size="0.02" mass="0.3"/>
-          </body>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
+          </body>"""
+)
 
 
 def _caged(tmp_path, lid: bool) -> tuple[mjk.Scene, mjk.Robot]:
-    """A four-joint arm (the two-link arm, then a 0.15 m link that pitches and rolls; the TCP
-    at its tip) whose last link reaches into a box open towards the base, 12 cm across inside
-    (the link is 4 cm thick); with `lid`, the box is closed on top."""
+    """`LEVEL_ARM` (the TCP at its last link's tip), that link reaching into a box open towards
+    the base, 12 cm across inside (the link is 4 cm thick); with `lid`, closed on top."""
     path = tmp_path / "level_arm.xml"
     path.write_text(LEVEL_ARM)
     x0, x1, half, t = 0.60, 0.76, 0.06, 0.01
@@ -996,7 +981,7 @@ def test_an_end_boxed_in_along_the_constraint_fails_before_searching(tmp_path) -
     evidence = (
         r"\(a tree of \d+ projected steps from it got \d\d mm away in 30 extensions, \d+ "
         r"stopped by a collision \(\d+ of them for bodies '\w+' and '\w+'\); none of \d{3} random "
-        r"states with the tool on the axis and the TCP \d\d mm away \(projected from within 0\.5 "
+        r"states with the tool on the axis and the TCP \d\d mm away \(projected from within 1 "
         r"rad of the tree's\) is collision-free \(margin 5 mm; \d+ of them for bodies '\w+' and "
         r"'\w+'\): a way out, if any, holds under 0\.\d% of them; paths are projected onto the "
         r"axis; the tolerance is slack for the ends and the timing\)$"

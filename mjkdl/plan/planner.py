@@ -129,14 +129,15 @@ MANIFOLD_SAMPLES = 500
 # joint, projected as a path's states are) grows from the end for BOX_TRIES extensions; once
 # its TCP gets BOX_REACH (m) from the end's, the end is open (in free space the first
 # extension gets there). Else, on spheres around the end's TCP every BOX_GAP beyond the
-# farthest the tree got (up to BOX_REACH), BOX_SAMPLES states within BOX_SPREAD of the tree's
-# are projected onto the constraint with the TCP on the sphere: where none is collision-free
-# (and at least BOX_LANDED landed inside the bounds), every path on the axis out of the
-# sphere crosses a collision: the end is boxed in, and only ends inside can be reached. The
-# test gives up (no verdict) after BOX_SHARE of the timeout: a boxed end's search could only
-# time out.
+# farthest the tree got (up to BOX_REACH), BOX_SAMPLES states within SHELL_SPREAD (rad, any
+# joint) of the tree's are projected onto the constraint with the TCP on the sphere: where
+# none is collision-free (and at least BOX_LANDED landed inside the bounds), every path on
+# the axis out of the sphere crosses a collision: the end is boxed in, and only ends inside
+# can be reached. The test gives up (no verdict) after BOX_SHARE of the timeout: a boxed
+# end's search could only time out.
 BOX_TRIES = 30
 BOX_SPREAD = 0.5
+SHELL_SPREAD = 1.0
 BOX_REACH = 0.1
 BOX_GAP = 0.02
 BOX_SAMPLES = 500
@@ -460,10 +461,10 @@ class MotionPlanner:
         searching: a start or goal in collision or outside the bounds, no collision-free IK
         solution, a start or goal in a pocket of free space (`POCKET_RADIUS`), or with a
         `constraint` a start or goal that breaks it or that no path projected onto it can
-        leave or reach (`APPROACH_SAMPLES`, reason "constraint"); with
-        RRTConnect, after `WALL_CHECKS` validity checks, a joint value that divides the free
-        space between them ("disconnected", see `_wall`); raises `PlanningTimeout` when the
-        search used its time.
+        leave or reach (`APPROACH_SAMPLES`, reason "constraint") or that is boxed in along it
+        (`BOX_REACH`, reason "pocket"); with RRTConnect, after `WALL_CHECKS` validity checks,
+        a joint value that divides the free space between them ("disconnected", see `_wall`);
+        raises `PlanningTimeout` when the search used its time.
         """
         budget = _number(timeout, "timeout", positive=True)
         began = time.perf_counter()
@@ -1436,7 +1437,7 @@ class MotionPlanner:
             radius,
             (
                 f"{tree}; none of {landed} random states with the tool on the axis and the TCP "
-                f"{radius * 1000:.0f} mm away (projected from within {BOX_SPREAD:g} rad of the "
+                f"{radius * 1000:.0f} mm away (projected from within {SHELL_SPREAD:g} rad of the "
                 f"tree's) is collision-free (margin {self._margin * 1000:g} mm; {most(hit)}): a "
                 f"way out, if any, holds under {1 / landed:.1%} of them"
             ),
@@ -1451,7 +1452,7 @@ class MotionPlanner:
         rng: np.random.Generator,
         deadline: float,
     ) -> tuple[int, dict[tuple[str, str], int]] | None:
-        """`_boxed`'s shell: of `BOX_SAMPLES` states within `BOX_SPREAD` of the tree's
+        """`_boxed`'s shell: of `BOX_SAMPLES` states within `SHELL_SPREAD` of the tree's
         `nodes`, projected onto the constraint with the TCP on `sphere` (centre, radius), how
         many landed inside `bounds` (all in collision), and per body pair how many; (0, {}) at
         the first collision-free one; None at `deadline`."""
@@ -1463,7 +1464,7 @@ class MotionPlanner:
             if k % 5 == 0 and time.perf_counter() > deadline:
                 return None
             near = nodes[int(rng.integers(len(nodes)))]
-            seed = near + rng.uniform(-BOX_SPREAD, BOX_SPREAD, self._n)
+            seed = near + rng.uniform(-SHELL_SPREAD, SHELL_SPREAD, self._n)
             result = constraint.project_joints(seed, robot.fk_frame, robot.jacobian, sphere=sphere)
             if result is None or self._outside(result, "", lower, upper) is not None:
                 continue
