@@ -1012,6 +1012,11 @@ def test_an_end_boxed_in_along_the_constraint_fails_before_searching(tmp_path) -
         assert error.value.reason == "pocket"
         assert planner.last_stats["search"] == 0.0
         assert planner.checks - checks < 2000
+        # The spheres' states: the tool on the axis and the TCP on the sphere.
+        centre = arm.fk_frame(inside).translation
+        q = level.project_joints(inside + 0.3, arm.fk_frame, arm.jacobian, sphere=(centre, 0.05))
+        assert level.error(arm.fk_frame(q).rotation) < 1e-4
+        assert np.linalg.norm(arm.fk_frame(q).translation - centre) == pytest.approx(0.05, abs=1e-5)
         # A goal inside the box: the start's sphere holds it, and it plans.
         near = np.array([0.02, 0.0, 0.0, 0.0])
         traj = planner.plan(near, start=inside, constraint=level, timeout=5.0)
