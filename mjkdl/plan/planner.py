@@ -125,21 +125,24 @@ MANIFOLD_SHARE = 0.25
 # PROJECTION_ITERATIONS Jacobians: a tenth of a millisecond to a few on the shared machine).
 MANIFOLD_SAMPLES = 500
 # The boxed-in test of a constrained query's ends (`MotionPlanner._boxed`): a random tree of
-# projected steps (PROJECTION_STEP each toward a random state within BOX_SPREAD rad, any
-# joint, projected as a path's states are) grows from the end for BOX_TRIES extensions; once
-# its TCP gets BOX_REACH (m) from the end's, the end is open (in free space the first
-# extension gets there). Else, on spheres around the end's TCP every BOX_GAP beyond the
-# farthest the tree got (up to BOX_REACH), BOX_SAMPLES states within SHELL_SPREAD (rad, any
-# joint) of the tree's are projected onto the constraint with the TCP on the sphere: where
-# none is collision-free (and at least BOX_LANDED landed inside the bounds), every path on
-# the axis out of the sphere crosses a collision: the end is boxed in, and only ends inside
-# can be reached. The test gives up (no verdict) after BOX_SHARE of the timeout: a boxed
-# end's search could only time out.
-BOX_TRIES = 30
+# projected steps (at most PROJECTION_STEP, any joint, each projected as a path's states are)
+# grows from the end for BOX_TRIES extensions, in turn toward a random state within
+# BOX_SPREAD rad and toward a random TCP position (BOX_STEP m a step); once its TCP gets
+# BOX_REACH (m) from the end's, the end is open (in free space the first extension gets
+# there). Else, on spheres around the end's TCP every BOX_GAP beyond the farthest the tree
+# got (up to BOX_REACH), BOX_SAMPLES states within SHELL_NEAR or SHELL_SPREAD (rad, any
+# joint, in turn) of the tree's are projected onto the constraint with the TCP on the
+# sphere: where none is collision-free (and at least BOX_LANDED landed inside the bounds),
+# every path on the axis out of the sphere crosses a collision: the end is boxed in, and
+# only ends inside can be reached. The test gives up (no verdict) after BOX_SHARE of the
+# timeout: a boxed end's search could only time out.
+BOX_TRIES = 60
 BOX_SPREAD = 0.5
 SHELL_SPREAD = 1.0
+SHELL_NEAR = 0.05
 BOX_REACH = 0.1
 BOX_GAP = 0.02
+BOX_STEP = 0.005
 BOX_SAMPLES = 500
 BOX_LANDED = 100
 BOX_SHARE = 0.5
@@ -1384,17 +1387,38 @@ class MotionPlanner:
         rng = np.random.default_rng([self._seed, zlib.crc32(np.round(q, 9).tobytes()), 1])
         low = np.maximum(root - BOX_SPREAD, lower)
         high = np.minimum(root + BOX_SPREAD, upper)
-        nodes, farthest = [root], 0.0
+        nodes, tcps = [root], [centre]
         stopped: dict[tuple[str, str], int] = {}
-        for _ in range(BOX_TRIES):
-            if time.perf_counter() > deadline:
-                return None
-            target = rng.uniform(low, high)
-            state = min(nodes, key=lambda x: float(np.abs(x - target).max()))
-            count = math.ceil(float(np.abs(target - state).max()) / PROJECTION_STEP)
-            step = (target - state) / max(count, 1)
-            for _ in range(count):
-                result = constraint.project_joints(state + step, fk, jacobian)
+        for k in range(BOX_TRIES):
+            # Every other extension heads for a random TCP position instead of a random
+            # joint state: in a tight pocket, random joint directions soon hit a wall.
+            if k % 2:
+                point = centre + rng.uniform(-2 * BOX_REACH, 2 * BOX_REACH, 3)
+                index = int(np.argmin([float(np.linalg.norm(x - point)) for x in tcps]))
+                target = None
+            else:
+                target = rng.uniform(low, high)
+                index = int(np.argmin([float(np.abs(x - target).max()) for x in nodes]))
+            state, x = nodes[index], tcps[index]
+            for _ in range(int(2 * BOX_SPREAD / PROJECTION_STEP)):
+                if time.perf_counter() > deadline:
+                    return None
+                if target is None:
+                    away = point - x
+                    gap = float(np.linalg.norm(away))
+                    if gap < BOX_STEP:
+                        break
+                    jv = jacobian(state)[:3]
+                    move = jv.T @ np.linalg.solve(jv @ jv.T + 1e-6 * np.eye(3), away)
+                    move *= BOX_STEP / gap
+                    if float(np.abs(move).max()) < 1e-9:
+                        break  # a singular arm: no joint motion moves the TCP that way
+                else:
+                    move = target - state
+                    if float(np.abs(move).max()) < PROJECTION_STEP / 2:
+                        break
+                move *= min(1.0, PROJECTION_STEP / float(np.abs(move).max()))
+                result = constraint.project_joints(state + move, fk, jacobian)
                 if (
                     result is None
                     or float(np.abs(result - state).max()) > 3 * PROJECTION_STEP
@@ -1406,11 +1430,15 @@ class MotionPlanner:
                     pair = self._nearest_pair()
                     stopped[pair] = stopped.get(pair, 0) + 1
                     break
+                x = fk(result).translation
+                if target is None and float(np.linalg.norm(point - x)) >= gap:
+                    break  # no nearer: the arm cannot move the TCP that way
                 nodes.append(result)
+                tcps.append(x)
                 state = result
-                farthest = max(farthest, float(np.linalg.norm(fk(result).translation - centre)))
-                if farthest >= BOX_REACH:
+                if float(np.linalg.norm(x - centre)) >= BOX_REACH:
                     return None
+        farthest = max(float(np.linalg.norm(x - centre)) for x in tcps)
         radius = farthest
         while True:  # shells BOX_GAP apart until one is closed
             radius += BOX_GAP
@@ -1428,8 +1456,9 @@ class MotionPlanner:
             return f"{count} of them for bodies {a!r} and {b!r}"
 
         tree = (
-            f"a tree of {len(nodes) - 1} projected steps from it got {farthest * 1000:.0f} mm "
-            f"away in {BOX_TRIES} extensions, {sum(stopped.values())} stopped by a collision"
+            f"a tree of {len(nodes) - 1} projected steps from it ({BOX_TRIES} extensions, half "
+            f"toward random TCP positions) got {farthest * 1000:.0f} mm away, "
+            f"{sum(stopped.values())} of its extensions stopped by a collision"
             + (f" ({most(stopped)})" if stopped else "")
         )
         return (
@@ -1437,9 +1466,10 @@ class MotionPlanner:
             radius,
             (
                 f"{tree}; none of {landed} random states with the tool on the axis and the TCP "
-                f"{radius * 1000:.0f} mm away (projected from within {SHELL_SPREAD:g} rad of the "
-                f"tree's) is collision-free (margin {self._margin * 1000:g} mm; {most(hit)}): a "
-                f"way out, if any, holds under {1 / landed:.1%} of them"
+                f"{radius * 1000:.0f} mm away (projected from within {SHELL_NEAR:g} or "
+                f"{SHELL_SPREAD:g} rad of the tree's) is collision-free (margin "
+                f"{self._margin * 1000:g} mm; {most(hit)}): a way out, if any, holds under "
+                f"{1 / landed:.1%} of them"
             ),
         )
 
@@ -1464,7 +1494,8 @@ class MotionPlanner:
             if k % 5 == 0 and time.perf_counter() > deadline:
                 return None
             near = nodes[int(rng.integers(len(nodes)))]
-            seed = near + rng.uniform(-SHELL_SPREAD, SHELL_SPREAD, self._n)
+            spread = SHELL_SPREAD if k % 2 else SHELL_NEAR
+            seed = near + rng.uniform(-spread, spread, self._n)
             result = constraint.project_joints(seed, robot.fk_frame, robot.jacobian, sphere=sphere)
             if result is None or self._outside(result, "", lower, upper) is not None:
                 continue
