@@ -1033,3 +1033,41 @@ def test_an_end_boxed_in_along_the_constraint_fails_before_searching(tmp_path) -
             for q in traj.positions_at(np.linspace(0.0, traj.duration, 200))
         ]
         assert max(tilt) <= np.radians(5.0)
+
+
+def test_a_panda_hand_under_a_lip_is_not_called_boxed_in() -> None:
+    """The Panda's hand, tool down, in a box 3 cm wider than it on each end (1.2 cm on each
+    side) with a lip over one end 3 cm above it: kept upright, it gets out by sliding under
+    the lip's edge and rising. A tree of random joint directions alone stayed within 25 mm
+    and the sphere at 45 mm looked closed (a false "boxed in" with this seed); heading for
+    TCP positions too, the tree gets out and the query plans."""
+    from ompl import util as ou
+
+    from mjkdl.plan import OrientationConstraint
+
+    def box(name: str, low: list[float], high: list[float]) -> mjk.SceneObject:
+        size, pos = (np.array(high) - low) / 2, (np.array(high) + low) / 2
+        return mjk.SceneObject(
+            name=name, shape=mjk.Shape.BOX, size=size.tolist(), pos=pos.tolist(), fixed=True
+        )
+
+    # The hand at the start spans x 0.468-0.532, y -0.102-0.106, z 0.29-0.431 (its fingers).
+    x0, x1, y0, y1 = 0.456, 0.544, -0.132, 0.136
+    walls = [
+        box("bottom", [0.36, -0.2, 0.25], [0.64, 0.2, 0.26]),
+        box("wall_xm", [0.36, -0.2, 0.25], [x0, 0.2, 0.39]),
+        box("wall_xp", [x1, -0.2, 0.25], [0.64, 0.2, 0.39]),
+        box("wall_ym", [x0, -0.2, 0.25], [x1, y0, 0.39]),
+        box("wall_yp", [x0, y1, 0.25], [x1, 0.2, 0.39]),
+        box("lip", [0.51, 0.065, 0.461], [x1 + 0.01, y1 + 0.01, 0.471]),
+    ]
+    menagerie("franka_emika_panda")
+    with mjk.Env.build(panda_spec(objects=walls)) as env:
+        robot = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
+        start = robot.ik(pin.SE3(np.array(DOWN), np.array([0.5, 0.0, 0.3])), HOME).q
+        goal = robot.ik(pin.SE3(np.array(DOWN), np.array([0.3, 0.35, 0.35])), HOME).q
+        upright = OrientationConstraint((0.0, 0.0, 1.0), (0.0, 0.0, -1.0), np.radians(5.0))
+        planner = MotionPlanner(robot, seed=3)
+        ou.RNG.setSeed(4)
+        traj = planner.plan(goal, start=start, constraint=upright, timeout=20.0)
+        assert np.abs(traj.positions[-1] - goal).max() < 1e-12
