@@ -248,8 +248,9 @@ def gripper_tool(prefix: str = "g_") -> mjk.ToolFrameSpec:
     return mjk.ToolFrameSpec(tool_body=f"{prefix}base", tcp_site=f"{prefix}pinch")
 
 
-def two_link_arm(actuators: str = "") -> str:
-    """MJCF of a small two-joint arm (bodies base, l1, l2; joints j1, j2) plus `actuators`."""
+def two_link_arm(actuators: str = "", tip: str = "") -> str:
+    """MJCF of a small two-joint arm (bodies base, l1, l2; joints j1, j2) plus `actuators`;
+    `tip`: bodies inside l2 (more links)."""
     return f"""
 <mujoco model="two_link">
   <worldbody>
@@ -261,6 +262,7 @@ def two_link_arm(actuators: str = "") -> str:
         <body name="l2" pos="0.3 0 0">
           <joint name="j2" axis="0 1 0"/>
           <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.02" mass="0.5"/>
+          {tip}
         </body>
       </body>
     </body>

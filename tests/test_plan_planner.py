@@ -922,3 +922,152 @@ def test_a_constraint_no_configuration_in_the_bounds_meets_fails_saying_so(tmp_p
             InfeasibleError, match=r"90\.0° from the world axis \(tolerance 5\.0°\)$"
         ):
             planner.plan([2.0, 0.0], start=[-2.0, 0.0], constraint=along_x)
+
+
+# The two-link arm and a third link, 0.15 m long, that pitches and rolls.
+LEVEL_ARM = two_link_arm(
+    tip="""<body name="l3" pos="0.25 0 0">
+            <joint name="j3" axis="0 1 0"/>
+            <joint name="roll" axis="1 0 0"/>
+            <geom type="capsule" fromto="0 0 0 0.15 0 0" size="0.02" mass="0.3"/>
+          </body>"""
+)
+
+
+def _caged(tmp_path, lid: bool) -> tuple[mjk.Scene, mjk.Robot]:
+    """`LEVEL_ARM` (the TCP at its last link's tip), that link reaching into a box open towards
+    the base, 12 cm across inside (the link is 4 cm thick); with `lid`, closed on top."""
+    path = tmp_path / "level_arm.xml"
+    path.write_text(LEVEL_ARM)
+    x0, x1, half, t = 0.60, 0.76, 0.06, 0.01
+    z0, z1 = 0.05 - half, 0.05 + half
+    walls = {
+        "bottom": ([x0 - t, -half - t, z0 - t], [x1 + t, half + t, z0]),
+        "left": ([x0 - t, half, z0], [x1 + t, half + t, z1]),
+        "right": ([x0 - t, -half - t, z0], [x1 + t, -half, z1]),
+        "end": ([x1, -half, z0], [x1 + t, half, z1]),
+    }
+    if lid:
+        walls["lid"] = ([x0 - t, -half - t, z1], [x1 + t, half + t, z1 + t])
+    boxes = [
+        mjk.SceneObject(
+            name=name,
+            shape=mjk.Shape.BOX,
+            size=((np.array(high) - low) / 2).tolist(),
+            pos=((np.array(high) + low) / 2).tolist(),
+            fixed=True,
+        )
+        for name, (low, high) in walls.items()
+    ]
+    scene = mjk.Scene.build(
+        base_spec(add_floor=False, robots=[mjk.RobotSpec(path=str(path))], objects=boxes)
+    )
+    return scene, scene.create_robot("base", "l3", tool=mjk.ToolFrameSpec(tcp_pos=[0.15, 0, 0]))
+
+
+def test_an_end_boxed_in_along_the_constraint_fails_before_searching(tmp_path) -> None:
+    """The tool kept level (the last link horizontal, its roll 0) in the closed box: every way
+    out along the constraint hits a wall within a few centimetres. The pocket test does not see
+    it (the roll turns freely), nor do the wall tests (at any one joint value much of the
+    space is free); it used to spend the whole timeout (5 s, 110-170k checks). Now the
+    start's tree of projected steps stays inside, and none of 500 states projected onto the
+    constraint with the TCP on a sphere beyond it is collision-free: "boxed in", before any
+    search, in under 2000 checks (the 20 s timeouts only leave the test its half on a loaded
+    machine). A goal inside the box plans; without the lid the tool rises out of it and the
+    query plans."""
+    from mjkdl.plan import OrientationConstraint
+
+    level = OrientationConstraint((0.0, 0.0, 1.0), (0.0, 0.0, 1.0), np.radians(5.0))
+    inside, away = np.zeros(4), np.array([-1.5, 0.3, -0.3, 0.0])
+    evidence = (
+        r"\(a tree of \d+ projected steps from it \(60 extensions, half toward random TCP "
+        r"positions\) got \d\d mm away, \d+ of its extensions stopped by a collision \(\d+ of "
+        r"them for bodies '\w+' and '\w+'\); none of \d{3} random states with the tool on the "
+        r"axis and the TCP \d\d mm away \(projected from within 0\.05 or 1 rad of the tree's\) "
+        r"is collision-free \(margin 5 mm; \d+ of them for bodies '\w+' and '\w+'\): a way "
+        r"out, if any, holds under 0\.\d% of them; paths are projected onto the axis; the "
+        r"tolerance is slack for the ends and the timing\)$"
+    )
+    scene, arm = _caged(tmp_path, lid=True)
+    with scene:
+        planner = MotionPlanner(arm, velocity_limits=[1.0] * 4, acceleration_limits=[5.0] * 4)
+        assert planner.checker.valid(inside) and planner.checker.valid(away)
+        checks = planner.checks
+        with pytest.raises(
+            InfeasibleError,
+            match=r"^the start is boxed in along the constraint: no path on the constraint's "
+            r"axis gets the TCP more than \d\d mm from the start's, and the goal is 950 mm away "
+            + evidence,
+        ) as error:
+            planner.plan(away, start=inside, constraint=level, timeout=20.0)
+        assert error.value.reason == "pocket"
+        assert planner.last_stats["search"] == 0.0  # no search ran
+        assert planner.checks - checks < 2000
+        checks = planner.checks
+        with pytest.raises(
+            InfeasibleError,
+            match=r"^the goal is boxed in along the constraint: no path on the constraint's axis "
+            r"gets the TCP more than \d\d mm from the goal's, and the start is 950 mm away "
+            + evidence,
+        ) as error:
+            planner.plan(inside, start=away, constraint=level, timeout=20.0)
+        assert error.value.reason == "pocket"
+        assert planner.last_stats["search"] == 0.0
+        assert planner.checks - checks < 2000
+        # The spheres' states: the tool on the axis and the TCP on the sphere.
+        centre = arm.fk_frame(inside).translation
+        q = level.project_joints(inside + 0.3, arm.fk_frame, arm.jacobian, sphere=(centre, 0.05))
+        assert level.error(arm.fk_frame(q).rotation) < 1e-4
+        assert np.linalg.norm(arm.fk_frame(q).translation - centre) == pytest.approx(0.05, abs=1e-5)
+        # A goal inside the box: the start's sphere holds it, and it plans.
+        near = np.array([0.02, 0.0, 0.0, 0.0])
+        traj = planner.plan(near, start=inside, constraint=level, timeout=5.0)
+        assert np.abs(traj.positions[-1] - near).max() < 1e-12
+    scene, arm = _caged(tmp_path, lid=False)
+    with scene:
+        planner = MotionPlanner(arm, velocity_limits=[1.0] * 4, acceleration_limits=[5.0] * 4)
+        traj = planner.plan(away, start=inside, constraint=level, timeout=5.0)
+        assert np.abs(traj.positions[-1] - away).max() < 1e-12
+        tilt = [
+            level.error(arm.fk_frame(q).rotation)
+            for q in traj.positions_at(np.linspace(0.0, traj.duration, 200))
+        ]
+        assert max(tilt) <= np.radians(5.0)
+
+
+def test_a_panda_hand_under_a_lip_is_not_called_boxed_in() -> None:
+    """The Panda's hand, tool down, in a box 3 cm wider than it on each end (1.2 cm on each
+    side) with a lip over one end 3 cm above it: kept upright, it gets out by sliding under
+    the lip's edge and rising. A tree of random joint directions alone stayed within 25 mm
+    and the sphere at 45 mm looked closed (a false "boxed in" with this seed); heading for
+    TCP positions too, the tree gets out and the query plans."""
+    from ompl import util as ou
+
+    from mjkdl.plan import OrientationConstraint
+
+    def box(name: str, low: list[float], high: list[float]) -> mjk.SceneObject:
+        size, pos = (np.array(high) - low) / 2, (np.array(high) + low) / 2
+        return mjk.SceneObject(
+            name=name, shape=mjk.Shape.BOX, size=size.tolist(), pos=pos.tolist(), fixed=True
+        )
+
+    # The hand at the start spans x 0.468-0.532, y -0.102-0.106, z 0.29-0.431 (its fingers).
+    x0, x1, y0, y1 = 0.456, 0.544, -0.132, 0.136
+    walls = [
+        box("bottom", [0.36, -0.2, 0.25], [0.64, 0.2, 0.26]),
+        box("wall_xm", [0.36, -0.2, 0.25], [x0, 0.2, 0.39]),
+        box("wall_xp", [x1, -0.2, 0.25], [0.64, 0.2, 0.39]),
+        box("wall_ym", [x0, -0.2, 0.25], [x1, y0, 0.39]),
+        box("wall_yp", [x0, y1, 0.25], [x1, 0.2, 0.39]),
+        box("lip", [0.51, 0.065, 0.461], [x1 + 0.01, y1 + 0.01, 0.471]),
+    ]
+    menagerie("franka_emika_panda")
+    with mjk.Env.build(panda_spec(objects=walls)) as env:
+        robot = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
+        start = robot.ik(pin.SE3(np.array(DOWN), np.array([0.5, 0.0, 0.3])), HOME).q
+        goal = robot.ik(pin.SE3(np.array(DOWN), np.array([0.3, 0.35, 0.35])), HOME).q
+        upright = OrientationConstraint((0.0, 0.0, 1.0), (0.0, 0.0, -1.0), np.radians(5.0))
+        planner = MotionPlanner(robot, seed=3)
+        ou.RNG.setSeed(4)
+        traj = planner.plan(goal, start=start, constraint=upright, timeout=20.0)
+        assert np.abs(traj.positions[-1] - goal).max() < 1e-12

@@ -64,22 +64,35 @@ class OrientationConstraint:
         fk: Callable[[np.ndarray], Any],
         jacobian: Callable[[np.ndarray], np.ndarray],
         hold: int | None = None,
+        sphere: tuple[np.ndarray, float] | None = None,
     ) -> np.ndarray | None:
         """Joint positions near `q` whose tool axis is on the world axis (within
         `PROJECTION_TOLERANCE`): damped Gauss-Newton on the axis alone, the TCP's position
         left free (a 2-D constraint, not a 6-D pose); None when it does not converge.
         `fk(q)` gives the TCP pose, `jacobian(q)` its 6×n world-aligned Jacobian; joint
-        `hold` (an index), if given, is not moved."""
+        `hold` (an index), if given, is not moved; `sphere` (centre, radius in m), if given,
+        puts the TCP that far from the centre too (one more row)."""
         tool, world = np.asarray(self.tool_axis), np.asarray(self.world_axis)
         q = np.array(q, dtype=float)
+        rows = 3 if sphere is None else 4
         for _ in range(PROJECTION_ITERATIONS):
-            axis = fk(q).rotation @ tool
+            pose = fk(q)
+            axis = pose.rotation @ tool
             error = axis - world
+            if sphere is not None:
+                offset = pose.translation - sphere[0]
+                distance = float(np.linalg.norm(offset))
+                if distance < 1e-9:
+                    return None
+                error = np.append(error, distance - sphere[1])
             if float(np.linalg.norm(error)) <= PROJECTION_TOLERANCE:
                 return q
+            jac = jacobian(q)
             # d(axis)/dq = omega × axis, omega the angular rows of the Jacobian.
-            j = -_skew(axis) @ jacobian(q)[3:]
+            j = -_skew(axis) @ jac[3:]
+            if sphere is not None:
+                j = np.vstack([j, (offset / distance) @ jac[:3]])
             if hold is not None:
                 j[:, hold] = 0.0
-            q -= j.T @ np.linalg.solve(j @ j.T + PROJECTION_DAMPING * np.eye(3), error)
+            q -= j.T @ np.linalg.solve(j @ j.T + PROJECTION_DAMPING * np.eye(rows), error)
         return None

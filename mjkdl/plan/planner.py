@@ -124,6 +124,28 @@ MANIFOLD_SHARE = 0.25
 # Configurations a slice of the constraint's wall test projects (each costs up to
 # PROJECTION_ITERATIONS Jacobians: a tenth of a millisecond to a few on the shared machine).
 MANIFOLD_SAMPLES = 500
+# The boxed-in test of a constrained query's ends (`MotionPlanner._boxed`): a random tree of
+# projected steps (at most PROJECTION_STEP, any joint, each projected as a path's states are)
+# grows from the end for BOX_TRIES extensions, in turn toward a random state within
+# BOX_SPREAD rad and toward a random TCP position (BOX_STEP m a step); once its TCP gets
+# BOX_REACH (m) from the end's, the end is open (in free space the first extension gets
+# there). Else, on spheres around the end's TCP every BOX_GAP beyond the farthest the tree
+# got (up to BOX_REACH), BOX_SAMPLES states within SHELL_NEAR or SHELL_SPREAD (rad, any
+# joint, in turn) of the tree's are projected onto the constraint with the TCP on the
+# sphere: where none is collision-free (and at least BOX_LANDED landed inside the bounds),
+# every path on the axis out of the sphere crosses a collision: the end is boxed in, and
+# only ends inside can be reached. The test gives up (no verdict) after BOX_SHARE of the
+# timeout: a boxed end's search could only time out.
+BOX_TRIES = 60
+BOX_SPREAD = 0.5
+SHELL_SPREAD = 1.0
+SHELL_NEAR = 0.05
+BOX_REACH = 0.1
+BOX_GAP = 0.02
+BOX_STEP = 0.005
+BOX_SAMPLES = 500
+BOX_LANDED = 100
+BOX_SHARE = 0.5
 # What the constrained verdicts are about: the projected paths, not every path the tolerance
 # allows (one tilted within it all along, under something the level tool hits, is not searched).
 _ON_AXIS = "paths are projected onto the axis; the tolerance is slack for the ends and the timing"
@@ -442,10 +464,10 @@ class MotionPlanner:
         searching: a start or goal in collision or outside the bounds, no collision-free IK
         solution, a start or goal in a pocket of free space (`POCKET_RADIUS`), or with a
         `constraint` a start or goal that breaks it or that no path projected onto it can
-        leave or reach (`APPROACH_SAMPLES`, reason "constraint"); with
-        RRTConnect, after `WALL_CHECKS` validity checks, a joint value that divides the free
-        space between them ("disconnected", see `_wall`); raises `PlanningTimeout` when the
-        search used its time.
+        leave or reach (`APPROACH_SAMPLES`, reason "constraint") or that is boxed in along it
+        (`BOX_REACH`, reason "pocket"); with RRTConnect, after `WALL_CHECKS` validity checks,
+        a joint value that divides the free space between them ("disconnected", see `_wall`);
+        raises `PlanningTimeout` when the search used its time.
         """
         budget = _number(timeout, "timeout", positive=True)
         began = time.perf_counter()
@@ -469,7 +491,8 @@ class MotionPlanner:
             q_from, q0 = self._jiggled_start(start, lower, upper, jiggle)
             goals = self._goals(goal, q0, lower, upper, tolerance, pose_tolerance)
             if constraint is not None:
-                goals = self._constraint_ends(q0, goals, constraint, lower, upper)
+                deadline = began + BOX_SHARE * budget
+                goals = self._constraint_ends(q0, goals, constraint, lower, upper, deadline)
                 self._cone = constraint
             self.last_stats["ends"] = time.perf_counter() - began
             straight = True
@@ -1262,10 +1285,13 @@ class MotionPlanner:
         constraint: OrientationConstraint,
         lower: np.ndarray,
         upper: np.ndarray,
+        deadline: float,
     ) -> np.ndarray:
         """The goals a path kept on `constraint` can reach from `q0`; InfeasibleError
         ("constraint") when the start or a goal breaks it, when no path can leave the start
-        along it, or when none can reach any goal (`_approach`)."""
+        along it, or when none can reach any goal (`_approach`); ("pocket") when the start,
+        or every goal, is boxed in along it with the other end outside (`_boxed`, given up at
+        `deadline`, a `perf_counter` time)."""
         fk = self._robot.fk_frame
         for q, what in ((q0, "the start"), *((g, "the goal") for g in goals)):
             error = constraint.error(fk(q).rotation)
@@ -1292,7 +1318,42 @@ class MotionPlanner:
                 f"path's last projected step would fail ({_ON_AXIS})",
                 "constraint",
             )
-        return np.array(kept)
+        boxed = self._boxed(q0, constraint, lower, upper, deadline)
+        if boxed is not None:
+            centre, radius, evidence = boxed
+            away = [float(np.linalg.norm(fk(g).translation - centre)) for g in kept]
+            inside = [g for g, d in zip(kept, away, strict=True) if d <= radius]
+            if not inside:
+                what = "the goal is" if len(kept) == 1 else f"the nearest of {len(kept)} goals is"
+                raise InfeasibleError(
+                    f"the start is boxed in along the constraint: no path on the constraint's "
+                    f"axis gets the TCP more than {radius * 1000:.0f} mm from the start's, and "
+                    f"{what} {min(away) * 1000:.0f} mm away ({evidence}; {_ON_AXIS})",
+                    "pocket",
+                )
+            return np.array(inside)
+        open_goals, first = [], None
+        for g in kept:
+            boxed = self._boxed(g, constraint, lower, upper, deadline)
+            if boxed is None:
+                open_goals.append(g)
+                continue
+            centre, radius, evidence = boxed
+            d = float(np.linalg.norm(fk(q0).translation - centre))
+            if d <= radius:
+                open_goals.append(g)
+            elif first is None:
+                first = (radius, evidence, d)
+        if not open_goals and first is not None:
+            radius, evidence, d = first
+            what = "the goal is" if len(kept) == 1 else f"each of the {len(kept)} goals is"
+            raise InfeasibleError(
+                f"{what} boxed in along the constraint: no path on the constraint's axis gets "
+                f"the TCP more than {radius * 1000:.0f} mm from the goal's, and the start is "
+                f"{d * 1000:.0f} mm away ({evidence}; {_ON_AXIS})",
+                "pocket",
+            )
+        return np.array(open_goals)
 
     def _first_reach(self, q: np.ndarray, constraint: OrientationConstraint) -> float:
         """How far (rad, any joint) a path's first projected state may be from its start `q`:
@@ -1302,6 +1363,154 @@ class MotionPlanner:
         on_axis = constraint.project_joints(q, robot.fk_frame, robot.jacobian)
         off = 0.0 if on_axis is None else float(np.abs(on_axis - q).max())
         return 3 * PROJECTION_STEP + off
+
+    def _boxed(
+        self,
+        q: np.ndarray,
+        constraint: OrientationConstraint,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        deadline: float,
+    ) -> tuple[np.ndarray, float, str] | None:
+        """None when a path kept on `constraint` gets the TCP `BOX_REACH` (m) from `q`'s, or
+        when that cannot be told by `deadline`; else the centre and radius (m) of a sphere
+        around `q`'s TCP (on the axis) that no such path leaves, and the evidence (counts,
+        the pairs in collision): a tree of projected steps stayed inside it, and none of the
+        states sampled on it with the tool on the axis is collision-free. Seeded by the
+        planner's seed and `q`."""
+        robot = self._robot
+        fk, jacobian = robot.fk_frame, robot.jacobian
+        root = constraint.project_joints(q, fk, jacobian)
+        if root is None or not self._checker.valid(root):
+            return None
+        centre = fk(root).translation
+        rng = np.random.default_rng([self._seed, zlib.crc32(np.round(q, 9).tobytes()), 1])
+        low = np.maximum(root - BOX_SPREAD, lower)
+        high = np.minimum(root + BOX_SPREAD, upper)
+        nodes, tcps = [root], [centre]
+        stopped: dict[tuple[str, str], int] = {}
+        for k in range(BOX_TRIES):
+            # Every other extension heads for a random TCP position instead of a random
+            # joint state: in a tight pocket, random joint directions soon hit a wall.
+            if k % 2:
+                point = centre + rng.uniform(-2 * BOX_REACH, 2 * BOX_REACH, 3)
+                index = int(np.argmin([float(np.linalg.norm(x - point)) for x in tcps]))
+                target = None
+            else:
+                target = rng.uniform(low, high)
+                index = int(np.argmin([float(np.abs(x - target).max()) for x in nodes]))
+            state, x = nodes[index], tcps[index]
+            for _ in range(int(2 * BOX_SPREAD / PROJECTION_STEP)):
+                if time.perf_counter() > deadline:
+                    return None
+                if target is None:
+                    away = point - x
+                    gap = float(np.linalg.norm(away))
+                    if gap < BOX_STEP:
+                        break
+                    jv = jacobian(state)[:3]
+                    move = jv.T @ np.linalg.solve(jv @ jv.T + 1e-6 * np.eye(3), away)
+                    move *= BOX_STEP / gap
+                    if float(np.abs(move).max()) < 1e-9:
+                        break  # a singular arm: no joint motion moves the TCP that way
+                else:
+                    move = target - state
+                    if float(np.abs(move).max()) < PROJECTION_STEP / 2:
+                        break
+                move *= min(1.0, PROJECTION_STEP / float(np.abs(move).max()))
+                result = constraint.project_joints(state + move, fk, jacobian)
+                if (
+                    result is None
+                    or float(np.abs(result - state).max()) > 3 * PROJECTION_STEP
+                    or self._outside(result, "", lower, upper) is not None
+                ):
+                    break
+                self.checks += 1
+                if not self._checker.valid(result):
+                    pair = self._nearest_pair()
+                    stopped[pair] = stopped.get(pair, 0) + 1
+                    break
+                x = fk(result).translation
+                if target is None and float(np.linalg.norm(point - x)) >= gap:
+                    break  # no nearer: the arm cannot move the TCP that way
+                nodes.append(result)
+                tcps.append(x)
+                state = result
+                if float(np.linalg.norm(x - centre)) >= BOX_REACH:
+                    return None
+        farthest = max(float(np.linalg.norm(x - centre)) for x in tcps)
+        radius = farthest
+        while True:  # shells BOX_GAP apart until one is closed
+            radius += BOX_GAP
+            if radius > BOX_REACH:
+                return None
+            shell = self._shell(nodes, (centre, radius), constraint, (lower, upper), rng, deadline)
+            if shell is None:
+                return None
+            landed, hit = shell
+            if landed >= BOX_LANDED:
+                break
+
+        def most(pairs: dict[tuple[str, str], int]) -> str:
+            (a, b), count = max(pairs.items(), key=lambda item: item[1])
+            return f"{count} of them for bodies {a!r} and {b!r}"
+
+        tree = (
+            f"a tree of {len(nodes) - 1} projected steps from it ({BOX_TRIES} extensions, half "
+            f"toward random TCP positions) got {farthest * 1000:.0f} mm away, "
+            f"{sum(stopped.values())} of its extensions stopped by a collision"
+            + (f" ({most(stopped)})" if stopped else "")
+        )
+        return (
+            centre,
+            radius,
+            (
+                f"{tree}; none of {landed} random states with the tool on the axis and the TCP "
+                f"{radius * 1000:.0f} mm away (projected from within {SHELL_NEAR:g} or "
+                f"{SHELL_SPREAD:g} rad of the tree's) is collision-free (margin "
+                f"{self._margin * 1000:g} mm; {most(hit)}): a way out, if any, holds under "
+                f"{1 / landed:.1%} of them"
+            ),
+        )
+
+    def _shell(
+        self,
+        nodes: list[np.ndarray],
+        sphere: tuple[np.ndarray, float],
+        constraint: OrientationConstraint,
+        bounds: tuple[np.ndarray, np.ndarray],
+        rng: np.random.Generator,
+        deadline: float,
+    ) -> tuple[int, dict[tuple[str, str], int]] | None:
+        """`_boxed`'s shell: of `BOX_SAMPLES` states within `SHELL_SPREAD` of the tree's
+        `nodes`, projected onto the constraint with the TCP on `sphere` (centre, radius), how
+        many landed inside `bounds` (all in collision), and per body pair how many; (0, {}) at
+        the first collision-free one; None at `deadline`."""
+        robot = self._robot
+        lower, upper = bounds
+        hit: dict[tuple[str, str], int] = {}
+        landed = 0
+        for k in range(BOX_SAMPLES):
+            if k % 5 == 0 and time.perf_counter() > deadline:
+                return None
+            near = nodes[int(rng.integers(len(nodes)))]
+            spread = SHELL_SPREAD if k % 2 else SHELL_NEAR
+            seed = near + rng.uniform(-spread, spread, self._n)
+            result = constraint.project_joints(seed, robot.fk_frame, robot.jacobian, sphere=sphere)
+            if result is None or self._outside(result, "", lower, upper) is not None:
+                continue
+            landed += 1
+            self.checks += 1
+            if self._checker.valid(result):
+                return 0, {}
+            pair = self._nearest_pair()
+            hit[pair] = hit.get(pair, 0) + 1
+        return landed, hit
+
+    def _nearest_pair(self) -> tuple[str, str]:
+        """The bodies of the pair the least clear in the checker's last check."""
+        nearest = self._checker.nearest()
+        return ("", "") if nearest is None else self._checker.pair_names(*nearest[:2])[:2]
 
     def _approach(
         self,
