@@ -275,6 +275,9 @@ class RateLimiter:
         while j < 7:
             jerk, acc_max, ratio, approach_acc, lower, upper, shrink = self._joints[j]
             q, dq, ddq = qv[j], dqv[j], ddqv[j]
+            # the jerk and acceleration bounds (and their negatives) at the start, then after
+            first = (jerk * started, acc_max * started, -(jerk * started), -(acc_max * started))
+            then = (jerk * share, acc_max * share, -(jerk * share), -(acc_max * share))
             k, i = 0, j
             while k < n:
                 wanted = cmd[i]
@@ -300,11 +303,10 @@ class RateLimiter:
                 # bound by ~1e-3.
                 if shrink is not None:
                     lower, upper = _joint_velocity_bounds(dq * (2.0 * DT) + q, shrink)
-                s = started if k < start else share
-                jerk_max, a_max = jerk * s, acc_max * s
+                jerk_max, a_max, jerk_min, a_min = first if k < start else then
                 acc = ((wanted - dq) * _INV_DT - ddq) * _INV_DT  # the jerk first
-                if acc < -jerk_max:
-                    acc = -jerk_max
+                if acc < jerk_min:
+                    acc = jerk_min
                 if acc > jerk_max:
                     acc = jerk_max
                 acc = acc * DT + ddq  # then the acceleration it gives
@@ -314,8 +316,8 @@ class RateLimiter:
                 if hi > a_max:
                     hi = a_max
                 lo = (lower - dq) * ratio
-                if lo < -a_max:
-                    lo = -a_max
+                if lo < a_min:
+                    lo = a_min
                 if acc < lo:
                     acc = lo
                 if acc > hi:  # (lo <= hi: clip)
