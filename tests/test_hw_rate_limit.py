@@ -125,3 +125,39 @@ def test_bad_commands_and_models_are_refused_by_name() -> None:
 def test_the_limits_are_described_in_one_line() -> None:
     text = LIMITS["fr3"].describe()
     assert "fr3 limits" in text and "jerk [5000" in text and "torque rate 1000 Nm/s" in text
+
+
+@pytest.mark.parametrize("model", ["panda", "fr3"])
+def test_many_ticks_at_once_are_the_ticks_one_by_one_to_the_bit(model: str) -> None:
+    # `positions` (a task env's control period) against `position` tick by tick (the
+    # connection's loop): the same numbers, start ticks included, and the same state after.
+    rng = np.random.default_rng(3)
+    q0 = np.array([0.0, 0.3, 0.0, -1.57, 0.0, 1.57, 0.785])
+    one, many = RateLimiter(LIMITS[model]), RateLimiter(LIMITS[model])
+    one.reset(q0)
+    many.reset(q0)
+    for _ in range(4):  # from the start, then further periods that change direction
+        targets = q0 + np.linspace(0.0, 1.0, 100)[:, None] * rng.uniform(-1.0, 1.0, 7)
+        q_out, dq_out = np.zeros((100, 7)), np.zeros((100, 7))
+        many.positions(targets, q_out, dq_out)
+        for k in range(100):
+            np.testing.assert_array_equal(one.position(targets[k]), q_out[k])
+            np.testing.assert_array_equal(one.dq, dq_out[k])
+        for name in ("q", "dq", "ddq"):
+            np.testing.assert_array_equal(getattr(one, name), getattr(many, name))
+        assert one.start_ticks == many.start_ticks == 0
+
+
+def test_many_ticks_refuse_bad_arrays_by_name() -> None:
+    limiter = RateLimiter(LIMITS["panda"])
+    limiter.reset(np.zeros(7))
+    out = np.zeros((3, 7))
+    bad = np.zeros((3, 7))
+    bad[1, 2] = np.nan
+    with pytest.raises(MjkdlError, match="the position commands hold NaN or Inf"):
+        limiter.positions(bad, out, out.copy())
+    with pytest.raises(ValueError, match=r"C-contiguous n x 7 arrays, got shapes \(3, 6\)"):
+        limiter.positions(np.zeros((3, 6)), out, out.copy())
+    with pytest.raises(ValueError, match="C-contiguous"):
+        limiter.positions(np.zeros((3, 7)), np.zeros((7, 3)).T, out)
+    np.testing.assert_array_equal(limiter.q, 0.0)  # nothing ran

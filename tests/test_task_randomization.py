@@ -143,14 +143,14 @@ def test_action_latency_applies_each_action_whole_steps_late() -> None:
 
 
 def _record_targets(limiter: object, into: list[np.ndarray]) -> None:
-    """Keep a copy of every target the drive hands `limiter.position`."""
-    position = limiter.position  # type: ignore[attr-defined]
+    """Keep a copy of every tick's target the drive hands `limiter.positions`."""
+    positions = limiter.positions  # type: ignore[attr-defined]
 
-    def recorded(q: np.ndarray) -> np.ndarray:
-        into.append(q.copy())
-        return position(q)
+    def recorded(q: np.ndarray, q_out: np.ndarray, dq_out: np.ndarray) -> None:
+        into.extend(q.copy())
+        positions(q, q_out, dq_out)
 
-    limiter.position = recorded  # type: ignore[attr-defined]
+    limiter.positions = recorded  # type: ignore[attr-defined]
 
 
 def test_action_latency_ticks_applies_each_target_ticks_late_on_the_impedance_drive() -> None:

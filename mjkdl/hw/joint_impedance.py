@@ -38,28 +38,41 @@ class JointImpedance:
     compensates it on its own. `stiffness` (N·m/rad) is the robot's setting, changeable."""
 
     def __init__(self, mass_diag: np.ndarray, tau_max: np.ndarray = TAU_MAX) -> None:
-        self.stiffness = JOINT_STIFFNESS.copy()
         self._mass = np.array(mass_diag, dtype=float)
         self._tau_max = np.array(tau_max, dtype=float)
+        self._tau_min = -self._tau_max
+        self.stiffness = JOINT_STIFFNESS.copy()
         self._out = np.zeros(7)
         self._damp = np.zeros(7)
         self._rate = np.zeros(7)
 
-    def torque(
-        self, q_d: np.ndarray, dq_d: np.ndarray, q: np.ndarray, dq: np.ndarray
-    ) -> np.ndarray:
-        """The joint torques for the setpoint (`q_d`, `dq_d`) at the state (`q`, `dq`); an
-        array owned here, overwritten by the next call."""
-        out, damp, rate = self._out, self._damp, self._rate
+    def damping(self) -> np.ndarray:
+        """D = 2 sqrt(K m) at the current `stiffness`; an array owned here."""
+        damp = self._damp
         np.multiply(self.stiffness, self._mass, out=damp)
         np.sqrt(damp, out=damp)
         damp *= 2.0
+        return damp
+
+    def torque(
+        self,
+        q_d: np.ndarray,
+        dq_d: np.ndarray,
+        q: np.ndarray,
+        dq: np.ndarray,
+        damping: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """The joint torques for the setpoint (`q_d`, `dq_d`) at the state (`q`, `dq`); an
+        array owned here, overwritten by the next call. `damping`: `damping()`'s result when
+        the stiffness has not changed since (a loop of many ticks), else it is computed."""
+        out, rate = self._out, self._rate
         np.subtract(dq_d, dq, out=rate)
-        rate *= damp
+        rate *= self.damping() if damping is None else damping
         np.subtract(q_d, q, out=out)
         out *= self.stiffness
         out += rate
-        np.clip(out, -self._tau_max, self._tau_max, out=out)
+        np.maximum(out, self._tau_min, out=out)
+        np.minimum(out, self._tau_max, out=out)
         return out
 
 
@@ -88,8 +101,10 @@ class FrankaImpedanceDrive:
         self.latency = 0
         self.bind_state(np.zeros(STATE_SIZE))
         self._goal = np.zeros(7)
-        self._path = np.zeros(7)
         self._tau = np.zeros(7)
+        self._ticks: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._late = 0
+        self._shares = (np.zeros((0, 1)), np.zeros((0, 1)))
 
     def bind_state(self, state: np.ndarray) -> None:
         """Keep what the drive carries from one control period to the next in `state`
@@ -100,10 +115,10 @@ class FrankaImpedanceDrive:
         limiter = self.limiter
         self._state = state
         self._target, self._previous = state[0:7], state[7:14]
-        for i, name in enumerate(("q", "dq", "ddq"), start=2):
-            view = state[7 * i : 7 * i + 7]
-            np.copyto(view, getattr(limiter, name))
-            setattr(limiter, name, view)  # the limiter works in place: on userdata now
+        views = [state[7 * i : 7 * i + 7] for i in (2, 3, 4)]
+        for view, now in zip(views, (limiter.q, limiter.dq, limiter.ddq), strict=True):
+            np.copyto(view, now)
+        limiter.bind(*views)  # the limiter works in place: on userdata now
         state[_TICKS] = limiter.start_ticks
 
     def start(self) -> None:
@@ -115,34 +130,49 @@ class FrankaImpedanceDrive:
         self.limiter.reset(self._target)
         self._state[_TICKS] = self.limiter.start_ticks
 
+    def _ramp(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The n ticks' targets of this period, from the last period's target to this one's
+        (`latency` ticks late: the last period's ramp first), and room for the rate limiter's
+        positions and velocities."""
+        if self._ticks is None or len(self._ticks[0]) != n or self._late != self.latency:
+            late = self._late = self.latency
+            k = np.arange(n)
+            # the share of the way each tick is at: this period's ramp, the last one's
+            this = ((k - late + 1) / n)[:, None]
+            last = ((n + k - late + 1) / n)[:, None]
+            self._shares = (this[late:], last[:late])
+            self._ticks = (np.zeros((n, 7)), np.zeros((n, 7)), np.zeros((n, 7)))
+        path = self._ticks[0]
+        this, last = self._shares
+        late = self._late
+        np.subtract(self._goal, self._target, out=self._tau)
+        np.multiply(self._tau, this, out=path[late:])
+        path[late:] += self._target
+        np.subtract(self._target, self._previous, out=self._tau)
+        np.multiply(self._tau, last, out=path[:late])
+        path[:late] += self._previous
+        return self._ticks
+
     def run(self, n: int) -> None:
         """`n` physics steps that bring the arm to the robot's `jnt_pos_cmd`; the robot is left
         in POSITION mode with that command (what the Cartesian controller integrates)."""
-        robot, limiter, impedance = self.robot, self.limiter, self.impedance
-        goal, path, target, tau = self._goal, self._path, self._target, self._tau
-        previous, late = self._previous, self.latency
+        robot, limiter, impedance, tau = self.robot, self.limiter, self.impedance, self._tau
+        goal, target = self._goal, self._target
         goal[:] = robot.jnt_pos_cmd
         limiter.start_ticks = int(self._state[_TICKS])
+        # The limiter's ticks depend on the commands only, not on the arm: all of them first.
+        path, q_d, dq_d = self._ramp(n)
+        limiter.positions(path, q_d, dq_d)
         robot.ctrl_mode = CtrlMode.TORQUE
+        step, update, gravity = self.scene.step, robot.update, robot.gravity_torques
+        q, dq = robot.jnt_pos_msr, robot.jnt_vel_msr  # refreshed in place by update()
+        damping, torque = impedance.damping(), impedance.torque
         for k in range(n):
-            if k >= late:  # this period's ramp, `late` ticks behind
-                np.subtract(goal, target, out=path)
-                path *= (k - late + 1) / n
-                path += target
-            else:  # the last period's, still on its way
-                np.subtract(target, previous, out=path)
-                path *= (n + k - late + 1) / n
-                path += previous
-            q_d = limiter.position(path)
-            robot.update()
-            np.add(
-                impedance.torque(q_d, limiter.dq, robot.jnt_pos_msr, robot.jnt_vel_msr),
-                robot.gravity_torques(),
-                out=tau,
-            )
+            update()
+            np.add(torque(q_d[k], dq_d[k], q, dq, damping), gravity(), out=tau)
             robot.jnt_trq_cmd = tau
-            self.scene.step(1)
-        previous[:] = target
+            step(1)
+        self._previous[:] = target
         target[:] = goal
         self._state[_TICKS] = limiter.start_ticks
         robot.ctrl_mode = CtrlMode.POSITION
