@@ -10,16 +10,18 @@ the task env (no randomisation); "nominal", `TaskEnv(robot_ip=...)` against `pyt
 mjkdl.hw.franka_sim --lockstep --scene empty`; "panda-gaz2019", the same server with
 `--reality panda-gaz2019` (the Panda's identified joint friction), the "real" arm. Each cell:
 `--seeds` episodes on seeds from `--eval-seed` (apart from the demonstrations' seeds 0, 1,
-...), success at the episode's end with its 95 % Wilson interval. BC: robomimic's default BC
-config (an MLP, here of `LAYERS`), `--epochs` epochs of 100 gradient steps of batch 100, on
-the low-dimensional observations `OBS_KEYS`, from `--demos` successful demonstrations.
+...), success at the episode's end with its 95 % Wilson interval. BC (`--algo`): robomimic's BC
+(an MLP of `LAYERS`) or BC-RNN (an LSTM, `RNN_HORIZON`, `RNN_HIDDEN`), with the settings of
+robomimic's paper configs for machine-generated low-dimensional data (no GMM; BC's learning
+rate 1e-3), `--epochs` epochs of 100 gradient steps of batch 100 on one torch thread, on the
+low-dimensional observations `OBS_KEYS`, from `--demos` successful demonstrations.
 Everything goes to `--out` (demonstrations, robomimic's runs and logs); `--reuse` evaluates
-the checkpoints it holds instead of training again.
+the checkpoints it holds instead of training again, or trains on the demonstrations it holds.
 
 robomimic, torch and the franka extra in one environment (robomimic pins its own torch):
 
     pip install robomimic==0.3.0 pylibfranka==0.21.3 panda-python==1.1.1 franky-control==2.0.0
-    nice python benchmarks/sim_to_real.py [--demos 50] [--epochs 30] [--seeds 20] [--out DIR]
+    nice python benchmarks/sim_to_real.py [--demos 200] [--epochs 200] [--seeds 40] [--out DIR]
     nice python benchmarks/sim_to_real.py --policies expert --settings sim,nominal
 """
 
@@ -34,7 +36,7 @@ import subprocess
 import sys
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import gymnasium as gym
@@ -46,7 +48,8 @@ from mjkdl.hw.faults import HardwareError, ReflexError, WatchdogWarning
 
 TASK = "mjkdl/PandaPickCube-v0"
 DRIVE = {"arm_drive": "franka_impedance"}
-OBS_KEYS = ["panda_tcp_pos", "panda_tcp_quat", "panda_gripper", "cube_rel"]
+# cube_pose: its orientation, which the expert turns the hand to
+OBS_KEYS = ["panda_tcp_pos", "panda_tcp_quat", "panda_gripper", "cube_rel", "cube_pose"]
 # What varies per training episode in (c): the arm's and the cube's masses (the controller's
 # model stays nominal), joint damping (standing in for the joint friction the simulation
 # lacks), armature, contact friction, and noise on the actions and on what the policy sees.
@@ -59,14 +62,23 @@ RANDOMIZATION = {
     "observation_noise": {"panda_tcp_pos": 0.001, "cube_rel": 0.002},
 }
 POLICIES = ("expert", "bc", "bc-rand")  # (a), (b), (c)
+ALGOS = ("bc", "bc-rnn")  # robomimic's BC (an MLP) or BC-RNN (an LSTM)
 SETTINGS = ("sim", "nominal", "panda-gaz2019")  # the simulation, then the loop's realities
 RETRIES = 2
+# robomimic's train.py sets torch to 2 threads; on a shared 2-core machine they spin-wait for
+# each other (one run here: 37x the CPU time of 1 thread per gradient step), so it runs on one.
+ONE_THREAD = (
+    "import sys, torch; torch.set_num_threads(1); torch.set_num_threads = lambda n: None; "
+    "from mjkdl.demos.robomimic import main; main(sys.argv[1:])"
+)
 LAYERS = [256, 256]  # the MLP's hidden layers (robomimic's default: 1024, 1024)
+RNN_HORIZON, RNN_HIDDEN = 10, 400  # BC-RNN: robomimic's paper configs (an LSTM of 2 layers)
 
 
 @dataclass
 class Cell:
-    """One policy in one setting: successes of episodes; reflexes (counted as failures), lost
+    """One policy in one setting: successes of episodes, the seeds that failed (to pair the
+    settings' failures: a lockstep loop repeats); reflexes (counted as failures), lost
     connections (run again) and stops of the arm's watchdog on the way."""
 
     successes: int = 0
@@ -74,6 +86,7 @@ class Cell:
     reflexes: int = 0
     faults: int = 0
     watchdogs: int = 0
+    failed: list[int] = field(default_factory=list)
 
     @property
     def rate(self) -> float:
@@ -93,8 +106,10 @@ def record(out: Path, demos: int, randomized: bool, workers: int) -> int:
     return seed
 
 
-def train(data: Path, folder: Path, epochs: int) -> Path:
-    """robomimic's BC on `data` (its train.py, through `mjkdl.demos.robomimic`): the last
+def train(data: Path, folder: Path, epochs: int, algo: str) -> Path:
+    """robomimic's BC (`algo` "bc") or BC-RNN ("bc-rnn") on `data` (its train.py, through
+    `mjkdl.demos.robomimic`), with the settings robomimic's paper configs give
+    machine-generated low-dimensional data (`scripts/generate_paper_configs.py`): the last
     epoch's checkpoint."""
     from robomimic.config import config_factory
 
@@ -106,6 +121,15 @@ def train(data: Path, folder: Path, epochs: int) -> Path:
         c.train.batch_size = 100
         c.train.cuda = False
         c.algo.actor_layer_dims = LAYERS
+        # machine-generated data: one mode, no GMM; BC's learning rate 1e-3
+        c.algo.gmm.enabled = False
+        c.algo.optim_params.policy.learning_rate.initial = 1e-3
+        if algo == "bc-rnn":
+            c.train.seq_length = c.algo.rnn.horizon = RNN_HORIZON
+            c.algo.rnn.enabled = True
+            c.algo.rnn.hidden_dim = RNN_HIDDEN
+            c.algo.actor_layer_dims = []  # the LSTM's output straight to the action
+            c.algo.optim_params.policy.learning_rate.initial = 1e-4
         c.experiment.name = "bc"
         c.experiment.epoch_every_n_steps = 100
         c.experiment.rollout.enabled = False  # evaluated below, in each setting
@@ -118,7 +142,7 @@ def train(data: Path, folder: Path, epochs: int) -> Path:
     cfg.write_text(json.dumps(c, indent=2))
     log = folder.with_suffix(".log")
     with log.open("w") as f:
-        cmd = [sys.executable, "-m", "mjkdl.demos.robomimic", "train", "--config", str(cfg)]
+        cmd = [sys.executable, "-c", ONE_THREAD, "train", "--config", str(cfg)]
         subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, check=True)
     (ckpt,) = folder.glob(f"bc/*/models/model_epoch_{epochs}.pth")
     return ckpt
@@ -169,9 +193,13 @@ def cell(source: str, server: Server | None, seeds: int, seed: int) -> Cell:
                         if env is None:
                             env = make_env(TASK, kwargs)
                             policy = make_policy(source, env)
-                        out.successes += run_episode(env, policy, s, source=source).success
+                        success = run_episode(env, policy, s, source=source).success
+                        out.successes += success
+                        if not success:
+                            out.failed.append(s)
                     except ReflexError:
                         out.reflexes += 1
+                        out.failed.append(s)
                     except HardwareError:
                         if server is None or attempt == RETRIES:
                             raise
@@ -200,8 +228,9 @@ def show(c: Cell) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--demos", type=int, default=50, help="demonstrations per BC policy")
-    parser.add_argument("--epochs", type=int, default=30, help="BC epochs (100 steps each)")
+    parser.add_argument("--demos", type=int, default=200, help="demonstrations per BC policy")
+    parser.add_argument("--epochs", type=int, default=200, help="BC epochs (100 steps each)")
+    parser.add_argument("--algo", choices=ALGOS, default="bc", help="robomimic's BC or BC-RNN")
     parser.add_argument("--seeds", type=int, default=20, help="episodes per cell")
     parser.add_argument("--eval-seed", type=int, default=10_000, help="first evaluation seed")
     parser.add_argument("--workers", type=int, default=1, help="processes recording demos")
@@ -227,14 +256,14 @@ def main() -> None:
                 t = time.perf_counter()
                 res = cell(source, server, args.seeds, args.eval_seed)
                 results[name][setting] = res
-                print(f"{name}, {setting}: {show(res)} ({time.perf_counter() - t:.0f} s)",
-                      flush=True)  # fmt: skip
+                print(f"{name}, {setting}: {show(res)} ({time.perf_counter() - t:.0f} s), "
+                      f"failed: seeds {res.failed}", flush=True)  # fmt: skip
         finally:
             if server is not None:
                 server.close()
     print()
-    print(f"{TASK}, {args.demos} demos, {args.epochs} BC epochs, {args.seeds} seeds per cell "
-          f"from {args.eval_seed}; {platform.node()}, {os.cpu_count()} cores; "
+    print(f"{TASK}, {args.demos} demos, {args.algo}, {args.epochs} epochs, {args.seeds} seeds "
+          f"per cell from {args.eval_seed}; {platform.node()}, {os.cpu_count()} cores; "
           f"{(time.perf_counter() - start) / 60:.1f} min")  # fmt: skip
     print(f"| policy | {' | '.join(columns)} |")
     print("|---|" + "---|" * len(columns))
@@ -247,21 +276,25 @@ def main() -> None:
 
 
 def bc_policy(name: str, args: argparse.Namespace) -> Path:
-    """The checkpoint of BC policy `name` ("bc", "bc-rand"): recorded and trained here, or
-    with `--reuse` the one `--out` holds."""
+    """The checkpoint of BC policy `name` ("bc", "bc-rand") of `--algo`: recorded and trained
+    here, or with `--reuse` the one `--out` holds (or trained on the demonstrations it
+    holds)."""
     randomized = name == "bc-rand"
     data = args.out / f"demos_{name}.hdf5"
-    folder = args.out / name
+    folder = args.out / f"{name}-{args.algo}"
     done = sorted(folder.glob(f"bc/*/models/model_epoch_{args.epochs}.pth"))
     if args.reuse and done:
         print(f"{name}: {done[-1]} (--reuse)", flush=True)
         return done[-1]
     t = time.perf_counter()
-    tried = record(data, args.demos, randomized, args.workers)
-    t_rec = time.perf_counter() - t
-    ckpt = train(data, folder, args.epochs)
-    print(f"{name}: {args.demos} demos of {tried} expert episodes in {t_rec:.0f} s, trained in "
-          f"{time.perf_counter() - t - t_rec:.0f} s: {ckpt}", flush=True)  # fmt: skip
+    if args.reuse and data.is_file():
+        got = f"{data} (--reuse)"
+    else:
+        got = f"{args.demos} demos of {record(data, args.demos, randomized, args.workers)} "
+        got += f"expert episodes in {time.perf_counter() - t:.0f} s"
+    t = time.perf_counter()
+    ckpt = train(data, folder, args.epochs, args.algo)
+    print(f"{name}: {got}, trained in {time.perf_counter() - t:.0f} s: {ckpt}", flush=True)
     return ckpt
 
 
