@@ -405,13 +405,28 @@ def test_a_goal_in_a_pocket_of_free_space_is_infeasible_without_searching(tmp_pa
         with pytest.raises(
             InfeasibleError,
             match=r"the goal is in a pocket of free space: no collision-free motion from it "
-            r"gets more than 0.25 rad away \(100 tries\)",
+            r"gets more than 0.25 rad away \(a random tree of 1000 validity checks, half its "
+            r"extensions toward random TCP positions\); the start cannot get in$",
         ) as error:
             planner.plan([0.0, 0.0], timeout=30.0)
         assert error.value.reason == "pocket"
-        # Found by the pocket test's few hundred checks, not by the search's timeout.
+        # Found by the pocket test's 1000 checks, not by the search's timeout.
         assert planner.checks < 2000
         assert planner.last_stats["search"] == 0.0
+        # The same pocket as the start: how far its tree got, and how big it grew.
+        with pytest.raises(
+            InfeasibleError,
+            match=r"^the start is in a pocket of free space: no collision-free motion from it "
+            r"gets more than 0\.0\d\d rad away \(a random tree of 1000 validity checks, half "
+            r"its extensions toward random TCP positions: \d{3} free states\), and no goal lies "
+            r"inside$",
+        ) as error:
+            planner.plan([np.pi / 2, 0.0], start=[0.0, 0.0], timeout=30.0)
+        assert error.value.reason == "pocket"
+        # The tree is seeded by the planner's seed and the state: asked again, the same tree.
+        with pytest.raises(InfeasibleError) as again:
+            planner.plan([np.pi / 2, 0.0], start=[0.0, 0.0], timeout=30.0)
+        assert str(again.value) == str(error.value)
         # Out of the cage, the same arm plans (the pocket test lets open goals through).
         traj = planner.plan([-np.pi / 2, 0.3])
         assert np.abs(traj.positions[-1] - [-np.pi / 2, 0.3]).max() < 1e-12
@@ -1035,15 +1050,10 @@ def test_an_end_boxed_in_along_the_constraint_fails_before_searching(tmp_path) -
         assert max(tilt) <= np.radians(5.0)
 
 
-def test_a_panda_hand_under_a_lip_is_not_called_boxed_in() -> None:
-    """The Panda's hand, tool down, in a box 3 cm wider than it on each end (1.2 cm on each
-    side) with a lip over one end 3 cm above it: kept upright, it gets out by sliding under
-    the lip's edge and rising. A tree of random joint directions alone stayed within 25 mm
-    and the sphere at 45 mm looked closed (a false "boxed in" with this seed); heading for
-    TCP positions too, the tree gets out and the query plans."""
-    from ompl import util as ou
-
-    from mjkdl.plan import OrientationConstraint
+def _lip_walls() -> list[mjk.SceneObject]:
+    """A box around the Panda's hand (tool down, its TCP at (0.5, 0, 0.3)) 3 cm wider than it
+    on each end (1.2 cm on each side), with a lip over one end 3 cm above it: the hand gets
+    out by sliding under the lip's edge and rising."""
 
     def box(name: str, low: list[float], high: list[float]) -> mjk.SceneObject:
         size, pos = (np.array(high) - low) / 2, (np.array(high) + low) / 2
@@ -1053,7 +1063,7 @@ def test_a_panda_hand_under_a_lip_is_not_called_boxed_in() -> None:
 
     # The hand at the start spans x 0.468-0.532, y -0.102-0.106, z 0.29-0.431 (its fingers).
     x0, x1, y0, y1 = 0.456, 0.544, -0.132, 0.136
-    walls = [
+    return [
         box("bottom", [0.36, -0.2, 0.25], [0.64, 0.2, 0.26]),
         box("wall_xm", [0.36, -0.2, 0.25], [x0, 0.2, 0.39]),
         box("wall_xp", [x1, -0.2, 0.25], [0.64, 0.2, 0.39]),
@@ -1061,13 +1071,46 @@ def test_a_panda_hand_under_a_lip_is_not_called_boxed_in() -> None:
         box("wall_yp", [x0, y1, 0.25], [x1, 0.2, 0.39]),
         box("lip", [0.51, 0.065, 0.461], [x1 + 0.01, y1 + 0.01, 0.471]),
     ]
+
+
+def _lip_query(robot: mjk.Robot) -> tuple[np.ndarray, np.ndarray]:
+    """The start in `_lip_walls`' box and a goal outside it."""
+    start = robot.ik(pin.SE3(np.array(DOWN), np.array([0.5, 0.0, 0.3])), HOME).q
+    goal = robot.ik(pin.SE3(np.array(DOWN), np.array([0.3, 0.35, 0.35])), HOME).q
+    return start, goal
+
+
+def test_a_panda_hand_under_a_lip_is_not_called_boxed_in() -> None:
+    """Kept upright, the hand in `_lip_walls`' box gets out by sliding under the lip's edge
+    and rising. A tree of random joint directions alone stayed within 25 mm and the sphere
+    at 45 mm looked closed (a false "boxed in" with this seed); heading for TCP positions
+    too, the tree gets out and the query plans."""
+    from ompl import util as ou
+
+    from mjkdl.plan import OrientationConstraint
+
     menagerie("franka_emika_panda")
-    with mjk.Env.build(panda_spec(objects=walls)) as env:
+    with mjk.Env.build(panda_spec(objects=_lip_walls())) as env:
         robot = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
-        start = robot.ik(pin.SE3(np.array(DOWN), np.array([0.5, 0.0, 0.3])), HOME).q
-        goal = robot.ik(pin.SE3(np.array(DOWN), np.array([0.3, 0.35, 0.35])), HOME).q
+        start, goal = _lip_query(robot)
         upright = OrientationConstraint((0.0, 0.0, 1.0), (0.0, 0.0, -1.0), np.radians(5.0))
         planner = MotionPlanner(robot, seed=3)
         ou.RNG.setSeed(4)
         traj = planner.plan(goal, start=start, constraint=upright, timeout=20.0)
         assert np.abs(traj.positions[-1] - goal).max() < 1e-12
+
+
+def test_a_panda_hand_under_a_lip_is_not_called_a_pocket() -> None:
+    """Unconstrained, the hand in `_lip_walls`' box: 100 straight random rays from the start
+    stayed within 0.099 rad with planner seed 0 (a false "pocket": other seeds planned). The
+    pocket test's tree, heading for TCP positions too (the tool held), gets out with every
+    seed, and each plans."""
+    menagerie("franka_emika_panda")
+    with mjk.Env.build(panda_spec(objects=_lip_walls())) as env:
+        robot = env.create_robot("link0", "hand", tool=mjk.ToolFrameSpec(tcp_pos=PANDA_TCP))
+        start, goal = _lip_query(robot)
+        for seed in range(6):
+            planner = MotionPlanner(robot, seed=seed)
+            traj = planner.plan(goal, start=start, timeout=20.0)
+            assert np.abs(traj.positions[-1] - goal).max() < 1e-12, seed
+            assert np.abs(traj.positions[0] - start).max() < 1e-12, seed
