@@ -12,6 +12,7 @@ from tensordict import TensorDict  # noqa: E402
 from mjkdl.errors import SpecError  # noqa: E402
 from mjkdl.task.batch.ppo import (  # noqa: E402
     DEFAULT_RECIPE,
+    PICK_CPU,
     RslRlEnv,
     env_policy,
     recipe,
@@ -91,10 +92,35 @@ def test_the_pick_recipe_acts_top_down_on_both_backends() -> None:
         env.close()
 
 
+def test_the_pick_cube_cpu_recipe_runs_a_few_updates() -> None:
+    """PickCube's CPU recipe (`PICK_CPU`): top-down actions and the shaped reward, on the
+    batch and in the CPU env that evaluates it; its PPO settings reach rsl-rl."""
+    cpu = recipe("mjkdl/PandaPickCube-v0").on("cpu")
+    assert cpu == PICK_CPU and cpu.num_envs == 128 and cpu.num_steps_per_env == 24
+    assert cpu.task_kwargs == {"cartesian_axes": "vx,vy,vz,wz", "reward_type": "shaped"}
+    result = train(
+        "mjkdl/PandaPickCube-v0",
+        device="cpu",
+        num_envs=4,
+        num_steps_per_env=4,
+        iterations=2,
+        time_limit=0.3,
+    )
+    assert result.env_steps == 32
+    alg = result.runner.alg
+    assert (alg.gamma, alg.lam) == (0.8, 0.9)
+    policy = result.runner.get_inference_policy("cpu")
+    action = policy(TensorDict({"policy": torch.zeros(3, 40)}, batch_size=[3]))
+    assert action.shape == (3, 5)
+
+
 def test_recipes_and_unbounded_episodes() -> None:
     pick = recipe("mjkdl/PandaPickCube-v0")
-    assert pick.num_envs == 4096 == pick.worlds("cuda:0")
-    assert pick.worlds("cpu") == 64  # no recipe runs a GPU's thousands of worlds on a CPU
+    assert pick.num_envs == 4096 == pick.worlds("cuda:0") and pick.on("cuda:0") is pick
+    # No recipe runs a GPU's thousands of worlds on a CPU.
+    assert pick.worlds("cpu") == 128
+    place = recipe("mjkdl/PandaPickAndPlace-v0")
+    assert place.worlds("cpu") == 64 and place.on("cpu").config == place.config
     assert recipe("mjkdl/SomeNewTask-v0").iterations == DEFAULT_RECIPE.iterations
     from mjkdl.task import make_batch, registry
 

@@ -78,6 +78,19 @@ def test_lift_reward_stages() -> None:
     assert r(obs([0, 0, 0.07], [0, 0, 0.07])) == pytest.approx(0.25)
 
 
+def test_shaped_lift_reward_pulls_from_afar_and_pays_the_last_centimetres() -> None:
+    """PickCube's `reward_type="shaped"`: the reach stage the mean of a 0.5 m and a 5 cm
+    term; the other stages and the success as the dense reward's."""
+    r = LiftReward("tcp_pos", "cube_pose", "cube_contacts", 0.02, 0.05, 0.5, near_scale=0.05)
+    far = r(obs([0, 0, 0.52], [0, 0, 0.02]))
+    assert far == pytest.approx(0.125 * (1 - math.tanh(1.0)) + 0.125 * (1 - math.tanh(10)))
+    # 2 cm off: the near term pays 0.125 * (1 - tanh(0.4)) of it.
+    near = r(obs([0, 0, 0.04], [0, 0, 0.02]))
+    assert near == pytest.approx(0.125 * (2 - math.tanh(0.04) - math.tanh(0.4)))
+    assert r(obs([0, 0, 0.02], [0, 0, 0.02], (1, 1))) == pytest.approx(0.5)
+    assert r(obs([0, 0, 0.07], [0, 0, 0.07], (1, 1))) == 1.0
+
+
 def test_held_needs_the_height_and_every_contact() -> None:
     held = Held("cube_pose", "cube_contacts", rest_z=0.02, lift=0.05)
     assert held(obs([0, 0, 0], [0, 0, 0.0701], (1, 1)))
@@ -175,6 +188,16 @@ NAN = float("nan")
             lambda: LiftReward("t", "o", "c", 0.0, 0.1, reach_scale=0),
             mjk.SpecError,
             "LiftReward.reach_scale must be positive, got 0",
+        ),
+        (
+            lambda: LiftReward("t", "o", "c", 0.0, 0.1, near_scale=-0.05),
+            mjk.SpecError,
+            "LiftReward.near_scale must be >= 0 (0: off), got -0.05",
+        ),
+        (
+            lambda: LiftReward("t", "o", "c", 0.0, 0.1, near_scale="0.05"),
+            mjk.SpecTypeError,
+            "LiftReward.near_scale must be a number, got '0.05'",
         ),
         (
             lambda: LiftReward(5, "o", "c", 0.0, 0.1),
@@ -298,6 +321,7 @@ def test_every_rule_evaluates_batches_as_it_evaluates_one_world() -> None:
         ReachReward("tcp_pos", "cube_pose", 0.02, 0.1),
         Lifted("cube_pose", 0.02, 0.05),
         Held("cube_pose", "cube_contacts", 0.02, 0.05),
+        LiftReward("tcp_pos", "cube_pose", "cube_contacts", 0.02, 0.05, 0.5, 0.05),
         LiftReward("tcp_pos", "cube_pose", "cube_contacts", 0.02, 0.05),
         placed,
         Placed("cube_pose", "goal_pose", 0.03),
@@ -318,20 +342,46 @@ def test_every_rule_evaluates_batches_as_it_evaluates_one_world() -> None:
     assert not batchable(SparseReward(lambda o: True))
 
 
-def test_pick_cube_pays_a_gradient_from_the_first_step() -> None:
+@pytest.mark.parametrize(
+    ("reward_type", "low", "high", "least"),
+    [("dense", 0.014, 0.018, 0.01), ("shaped", 0.027, 0.030, 0.025)],
+)
+def test_pick_cube_pays_a_gradient_from_the_first_step(reward_type, low, high, least) -> None:
     """PickCube's hand starts about 0.5 m from the cube: its first step pays a median 0.016
-    over 20 seeds (a reach scale of 0.3 m), where a 0.1 m scale paid 1.8e-5."""
+    over 20 seeds with the dense reward (a reach scale of 0.3 m; 0.1 m paid 1.8e-5), 0.029
+    with the shaped one (0.5 m and 5 cm)."""
     import gymnasium as gym
     from conftest import menagerie
 
     import mjkdl.task  # noqa: F401  (registers the tasks)
 
     menagerie("franka_emika_panda")
-    env = gym.make("mjkdl/PandaPickCube-v0")
+    env = gym.make("mjkdl/PandaPickCube-v0", reward_type=reward_type)
     rewards = []
     for seed in range(20):
         env.reset(seed=seed)
         rewards.append(env.step(np.zeros(7, np.float32))[1])
     env.close()
-    assert 0.014 < float(np.median(rewards)) < 0.018, np.median(rewards)
-    assert min(rewards) > 0.01
+    assert low < float(np.median(rewards)) < high, np.median(rewards)
+    assert min(rewards) > least
+
+
+def test_shaped_reward_is_pick_cubes_only() -> None:
+    import gymnasium as gym
+    from conftest import menagerie
+
+    import mjkdl.task  # noqa: F401  (registers the tasks)
+
+    menagerie("franka_emika_panda")
+    for task, cls in [("Push", "PandaPushEnv"), ("PickCubeGoal", "PandaPickCubeGoalEnv")]:
+        with pytest.raises(mjk.SpecError) as err:
+            gym.make(f"mjkdl/Panda{task}-v0", reward_type="shaped")
+        assert str(err.value) == (
+            f"{cls}: reward_type must be one of ['dense', 'sparse'], got 'shaped' ('shaped' "
+            "is PandaPickCube-v0's only)"
+        )
+    with pytest.raises(mjk.SpecError) as err:
+        gym.make("mjkdl/PandaPickCube-v0", reward_type="staged")
+    assert str(err.value) == (
+        "PandaPickCubeEnv: reward_type must be one of ['dense', 'sparse', 'shaped'], got 'staged'"
+    )

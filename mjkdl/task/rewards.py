@@ -276,6 +276,10 @@ class LiftReward:
     `reach_scale` 0.3 m gives a learner a gradient from where PickCube's episodes start, the
     hand about 0.5 m from the cube: the first step pays 0.016 there (median over 20 seeds),
     where 0.1 m paid 1.8e-5 (tanh saturates beyond three scales).
+
+    With `near_scale` (PickCube's `reward_type="shaped"`) the reach stage is the mean of two
+    such terms, `1 - tanh(d / reach_scale)` pulling from afar and `1 - tanh(d / near_scale)`
+    paying the last centimetres, where a grasp needs the fingers around the cube.
     """
 
     tcp: str
@@ -284,6 +288,8 @@ class LiftReward:
     rest_z: float
     lift: float
     reach_scale: float = 0.3
+    near_scale: float = 0.0
+    """0: one reach term; else the scale in metres of the second, near one."""
 
     def __post_init__(self) -> None:
         text(self.tcp, "LiftReward.tcp")
@@ -292,6 +298,8 @@ class LiftReward:
         real(self.rest_z, "LiftReward.rest_z")
         positive(self.lift, "LiftReward.lift")
         positive(self.reach_scale, "LiftReward.reach_scale")
+        if real(self.near_scale, "LiftReward.near_scale") < 0:
+            raise SpecError(f"LiftReward.near_scale must be >= 0 (0: off), got {self.near_scale!r}")
 
     def _positions(self) -> dict[str, str]:
         return {"LiftReward.tcp": self.tcp, "LiftReward.obj": self.obj}
@@ -301,7 +309,10 @@ class LiftReward:
         gained = (_xyz(obs, self.obj)[..., 2] - self.rest_z) / self.lift
         grasped = _grasped(obs, self.contacts)
         xp = array_module(gained)
-        reach = 0.25 * (1.0 - xp.tanh(distances(obs, self.tcp, self.obj) / self.reach_scale))
+        d = distances(obs, self.tcp, self.obj)
+        reach = 0.25 * (1.0 - xp.tanh(d / self.reach_scale))
+        if self.near_scale:
+            reach = 0.5 * reach + 0.125 * (1.0 - xp.tanh(d / self.near_scale))
         staged = xp.where(grasped, reach + (0.25 + 0.25 * gained.clip(min=0.0)), reach)
         return xp.where(grasped & (gained >= 1.0), 1.0, staged)
 
