@@ -16,7 +16,7 @@ import imageio_ffmpeg
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from conftest import EXTRAS, ROOT, menagerie
+from conftest import EXTRAS, ROOT, franka_sim, menagerie, needs_extra
 from demo_envs import CAMERA
 from test_demos_hdf5 import PICK, REACH, cli
 
@@ -362,6 +362,60 @@ def test_evaluate_runs_a_lerobot_policy(trained: tuple[Path, Path]) -> None:
     assert r.returncode == 2 and "takes an observation.state of 28 numbers; cube_pose give 7" in (
         r.stderr
     )
+
+
+@NO_LEROBOT
+def test_a_lerobot_checkpoint_drives_the_arm_in_the_loop(trained: tuple[Path, Path]) -> None:
+    """`evaluate --policy lerobot:... --robot-ip` as a Franka user runs it, against the
+    lockstep simulated arm: whole episodes at the policy's rate, the arm left at rest."""
+    needs_extra("franka")
+    from mjkdl.hw.connection import ArmConnection
+
+    _, model = trained
+    kwargs = json.dumps({**CAMERA, "max_episode_steps": 5, "lockstep": True})
+    with franka_sim("--lockstep", "--scene", "empty", "--command-timeout", "10") as server:
+        r = cli("evaluate", PICK, "--policy", f"lerobot:{model}", "--episodes", "2",
+                "--env-kwargs", kwargs, "--robot-ip", server.host)  # fmt: skip
+        assert r.returncode == 0, r.stderr[-3000:]
+        lines = [ln for ln in r.stdout.splitlines() if ln.startswith(("seed ", "success: "))]
+        assert [ln.split(": ")[0] for ln in lines] == ["seed 0", "seed 1", "success"]
+        assert lines[0].endswith("length=5") and lines[1].endswith("length=5")
+        conn = ArmConnection(server.host, "panda")
+        try:
+            state = conn.state()
+        finally:
+            conn.close()
+        assert np.abs(state.dq).max() < 0.01
+
+
+@NO_LEROBOT
+def test_the_state_keys_come_from_the_policys_dataset(
+    trained: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """Its dataset's feature names choose the state (the loop's env has more proprioception);
+    keys this env lacks are named."""
+    import shutil
+
+    from mjkdl.demos import make_env
+    from mjkdl.demos.lerobot_policy import LeRobotPolicy, PolicyError
+
+    root, model = trained
+    env = make_env(PICK, {**CAMERA, "max_episode_steps": 7})
+    try:
+        assert LeRobotPolicy(model, env)._state[:2] == ["panda_gripper", "panda_joint_pos"]
+        copy, meta = tmp_path / "model", tmp_path / "ds" / "meta"
+        shutil.copytree(model, copy)
+        meta.mkdir(parents=True)
+        info = json.loads((root / "meta" / "info.json").read_text())
+        info["features"]["observation.state"]["names"][0] = "panda_grip_force"
+        (meta / "info.json").write_text(json.dumps(info))
+        train = json.loads((copy / "train_config.json").read_text())
+        train["dataset"]["root"] = str(meta.parent)
+        (copy / "train_config.json").write_text(json.dumps(train))
+        with pytest.raises(PolicyError, match=r"trained on observations \['panda_grip_force'\]"):
+            LeRobotPolicy(copy, env)
+    finally:
+        env.close()
 
 
 @NO_LEROBOT

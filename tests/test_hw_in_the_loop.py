@@ -84,6 +84,7 @@ def test_haptic_mode_renders_simulated_contacts_as_joint_torques(franka_server: 
     try:
         robot = env.create_robot("link0", "hand")
         link = attach(env, robot, franka_server, haptic=True)
+        link.move_to(START)  # an earlier test may have left the module's arm elsewhere
         env.step(5)
         dofs = [env.model.joint(n).dofadr[0] for n in robot.joint_names]
         push = env.data.qfrc_constraint[dofs[0]]
@@ -184,5 +185,44 @@ def test_a_position_target_is_interpolated_once_per_arm_tick(
         conn.sent.clear()
         env.step(1)  # held at the goal
         np.testing.assert_allclose([c for _, c in conn.sent], [goal, goal], atol=1e-12)
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("mode", [mjk.CtrlMode.POSITION, mjk.CtrlMode.TORQUE])
+def test_between_mirrors_the_simulated_arm_coasts_on_the_measured_course(
+    monkeypatch: pytest.MonkeyPatch, mode: mjk.CtrlMode
+) -> None:
+    """Within a step the simulated arm's actuators only cancel its bias forces: it does not
+    lunge toward the command (the arm's to follow), which slid a held cube in the fingers."""
+    import mjkdl.hw.in_the_loop as loop
+
+    monkeypatch.setattr(loop, "ArmConnection", _ClockArm)
+    env = mjk.Env.build(panda_spec())
+    try:
+        robot = env.create_robot("link0", "hand", robot_ip="clock")
+        robot.ctrl_mode = mode
+        if mode is mjk.CtrlMode.POSITION:
+            robot.jnt_pos_cmd = START + 0.3  # the arm, held at START by the fake, lags far
+        else:
+            robot.jnt_trq_cmd = np.full(7, 5.0)
+        env.step(3)
+        dofs = [env.model.joint(n).dofadr[0] for n in robot.joint_names]
+        mujoco.mj_forward(env.model, env.data)  # the controls the last step ran with
+        assert np.abs(env.data.qacc[dofs]).max() < 1e-3  # rad/s², the bias a step old
+        assert np.abs(env.data.actuator_force[: len(dofs)]).max() > 1.0  # gravity held
+    finally:
+        env.close()
+
+
+def test_robot_ip_names_an_arm_joint_it_cannot_mirror(monkeypatch: pytest.MonkeyPatch) -> None:
+    import mjkdl.hw.in_the_loop as loop
+
+    monkeypatch.setattr(loop, "ArmConnection", _ClockArm)
+    env = mjk.Env.build(panda_spec())
+    try:
+        env.model.actuator_trnid[3, 0] = env.model.joint("joint1").id  # joint4's, moved
+        with pytest.raises(mjk.SpecError, match="joint 'joint1' has 2 actuators"):
+            env.create_robot("link0", "hand", robot_ip="clock")
     finally:
         env.close()

@@ -125,11 +125,13 @@ def test_every_expert_succeeds_on_the_impedance_drive(env_id: str) -> None:
 
 
 def test_the_stack_expert_succeeds_in_the_loop() -> None:
-    """The hardest task's expert on its own observations against the lockstep server."""
+    """The hardest task's expert on its own observations against the lockstep server. Seed 13
+    failed while the simulated arm was left to its servos between mirrors: it lunged toward the
+    command within each step, and the carried cube slid out of the fingers over the base."""
     needs_extra("franka")
     with franka_sim("--lockstep", "--scene", "empty", "--command-timeout", "10") as server:
         loop = gym.make("mjkdl/PandaStack-v0", robot_ip=server.host, lockstep=True)
         try:
-            assert _succeeds(loop, 1)
+            assert [_succeeds(loop, seed) for seed in (1, 13)] == [True, True]
         finally:
             loop.close()

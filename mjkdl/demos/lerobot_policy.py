@@ -2,8 +2,9 @@
 lerobot:PATH` (PATH: a `pretrained_model` folder that `lerobot-train` saved).
 
 The observation reaches the policy as the export wrote it (`mjkdl.demos.lerobot`):
-`observation.state` the same keys in the same order (the robot's proprioception unless
-`state_keys` names others), `observation.images.<camera>` each `<camera>_rgb` frame as a
+`observation.state` the same keys in the same order (those its dataset's `meta/info.json`
+names, where it is on this machine; else the robot's proprioception, or what `state_keys`
+names), `observation.images.<camera>` each `<camera>_rgb` frame as a
 channel-first float image in [0, 1], what LeRobot's loader gives for a video frame. The policy's
 own saved pre- and post-processors (normalisation) run around it, as in `lerobot-eval`.
 
@@ -64,7 +65,16 @@ class LeRobotPolicy:
         features = config.input_features
         obs, _ = env.reset()
         every, cams = observation_keys(obs, leading=0)
-        if state_keys is None:
+        exported = _exported_state_keys(folder) if state_keys is None else None
+        if exported is not None:  # the dataset's own keys: an env in the loop has more
+            missing = [k for k in exported if k not in every]
+            if missing:
+                raise PolicyError(
+                    f"lerobot:{path} was trained on observations {missing} that this env "
+                    f"does not give (it gives {', '.join(every)})"
+                )
+            self._state = exported
+        elif state_keys is None:
             spec = getattr(env.unwrapped, "task_spec", None)
             arms = [f"{a.name}_" for a in getattr(spec, "arms", [])]
             self._state = proprioception(every, arms)
@@ -134,28 +144,57 @@ def chunk_execution(config: Any) -> str:
     return f"chunk-wise: {steps} actions of each chunk of {chunk}, then a new chunk"
 
 
-def lerobot_fps(source: str) -> float | None:
-    """The fps of the dataset the policy at `lerobot:PATH` was trained on (the
-    `train_config.json` lerobot-train saved beside it: its env's fps, or its dataset's
-    `meta/info.json`); None where neither is there."""
-    folder = Path(source.removeprefix(PREFIX))
+def _training(folder: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(the `train_config.json` lerobot-train saved beside the policy, its dataset's
+    `meta/info.json`), each {} where it is not there."""
     try:
         train = json.loads((folder / "train_config.json").read_text())
     except (OSError, ValueError):
-        return None
-    env = train.get("env") or {}
-    if env.get("fps"):
-        return float(env["fps"])
+        return {}, {}
     dataset = train.get("dataset") or {}
     root = dataset.get("root")
     if root is None and dataset.get("repo_id"):
         home = os.environ.get("HF_LEROBOT_HOME", "~/.cache/huggingface/lerobot")
         root = Path(home).expanduser() / dataset["repo_id"]
     if root is None:
-        return None
+        return train, {}
     try:
-        return float(json.loads((Path(root) / "meta" / "info.json").read_text())["fps"])
-    except (OSError, ValueError, KeyError, TypeError):
+        info = json.loads((Path(root) / "meta" / "info.json").read_text())
+    except (OSError, ValueError):
+        return train, {}
+    return train, info if isinstance(info, dict) else {}
+
+
+def _exported_state_keys(folder: Path) -> list[str] | None:
+    """The observation keys, in order, of the `observation.state` the policy was trained on
+    (its dataset's feature names, `key` or `key.i`); None where the dataset is not here."""
+    _, info = _training(folder)
+    try:
+        names = info["features"]["observation.state"]["names"]
+    except (KeyError, TypeError):
+        return None
+    if not isinstance(names, list):
+        return None
+    keys: list[str] = []
+    for name in map(str, names):
+        key, _, index = name.rpartition(".")
+        key = key if key and index.isdigit() else name
+        if key not in keys:
+            keys.append(key)
+    return keys
+
+
+def lerobot_fps(source: str) -> float | None:
+    """The fps of the dataset the policy at `lerobot:PATH` was trained on (the
+    `train_config.json` lerobot-train saved beside it: its env's fps, or its dataset's
+    `meta/info.json`); None where neither is there."""
+    train, info = _training(Path(source.removeprefix(PREFIX)))
+    env = train.get("env") or {}
+    if env.get("fps"):
+        return float(env["fps"])
+    try:
+        return float(info["fps"])
+    except (KeyError, TypeError, ValueError):
         return None
 
 

@@ -6,7 +6,9 @@ on every `scene.step()` sends the robot's command port for its mode to the arm (
 see `connection`), waits for the arm's clock to advance by the scene's timestep, and writes the
 measured joint positions and velocities into the simulated arm before and after MuJoCo's step:
 the simulated arm follows the real one exactly, its contacts push the simulated objects, and
-`robot.jnt_trq_msr` reads the arm's measured joint torques. The arm's clock is the master:
+`robot.jnt_trq_msr` reads the arm's measured joint torques. Within a step its actuators only
+cancel its bias forces, so it goes on at the measured velocity (the command is the arm's to
+follow) and what it holds moves with it. The arm's clock is the master:
 against a real arm a step takes its timestep of wall-clock time; where the arm runs ahead
 (a slow loop), the simulation mirrors its latest state. In POSITION mode a `step(n)` leads
 the arm from the last target to the new `jnt_pos_cmd` along its n timesteps (a policy's
@@ -51,11 +53,44 @@ _LOOP_REFLEX = (
     "`python -m mjkdl.hw.franka_sim`, serve `--scene empty` (its default `--scene pick` has a "
     "floor, a table and a cube of its own that push the arm where this scene has nothing)"
 )
+_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
 _RESYNC = 0.05  # s: how far the arm may run ahead before the simulation skips to its state
 _MOVE_POLL = 0.01  # s of the arm's clock between two looks at a `move_to` under way
 # s: how long `move_to` holds the arm once within 2 mrad at rest: the rate limiter's last
 # approach (a 50 ms time constant) has then closed all but e^-6 of the gap
 _SETTLE = 0.3
+
+
+def _arm_actuators(model: mujoco.MjModel, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The actuator of each arm joint (ids, gears, in joint order): one each, on the joint,
+    with a fixed gain and an affine or no bias (what `ArmLink._coast` sets)."""
+    ids = np.zeros(len(joints), dtype=int)
+    for k, joint in enumerate(joints):
+        mine = [
+            a
+            for a in range(model.nu)
+            if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+            and model.actuator_trnid[a, 0] == joint
+        ]
+        name = model.joint(joint).name
+        if len(mine) != 1:
+            raise SpecError(
+                f"robot_ip: the arm's joint {name!r} has {len(mine)} actuators; the simulated "
+                "arm mirrors the arm through one actuator per joint"
+            )
+        a = mine[0]
+        if (
+            model.actuator_dyntype[a] != mujoco.mjtDyn.mjDYN_NONE
+            or model.actuator_gaintype[a] != mujoco.mjtGain.mjGAIN_FIXED
+            or model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_MUSCLE
+        ):
+            raise SpecError(
+                f"robot_ip: the actuator {model.actuator(a).name!r} of joint {name!r} must be "
+                "a motor or an affine servo (no dynamics, a fixed gain) for the simulated arm "
+                "to mirror the arm"
+            )
+        ids[k] = a
+    return ids, model.actuator_gear[ids, 0].copy()
 
 
 class ArmLink:
@@ -97,6 +132,9 @@ class ArmLink:
         joints = [m.joint(name) for name in robot.joint_names]
         self._qadr = np.array([int(j.qposadr[0]) for j in joints])
         self._dadr = np.array([int(j.dofadr[0]) for j in joints])
+        self._coast_ids, self._coast_gear = _arm_actuators(m, [int(j.id) for j in joints])
+        self._coast_f, self._coast_b, self._coast_affine = np.zeros(7), np.zeros(7), np.zeros(7)
+        self._coast_type = np.zeros(7, dtype=m.actuator_biastype.dtype)
         self.scene, self.robot = scene, robot
         self.haptic = bool(haptic)
         self.haptic_gain, self.haptic_damping = float(haptic_gain), float(haptic_damping)
@@ -129,6 +167,30 @@ class ArmLink:
         d.qpos[self._qadr] = s[_S_Q : _S_Q + 7]
         d.qvel[self._dadr] = s[_S_DQ : _S_DQ + 7]
         d.qfrc_actuator[self._dadr] = s[_S_TAU : _S_TAU + 7]
+
+    def _coast(self) -> None:
+        """Set the simulated arm's actuators to cancel its bias forces (gravity and Coriolis,
+        MuJoCo's of the last step) over the coming step: the arm goes on at the measured
+        velocity, and a held object moves with the hand as it does on the arm. Left to the
+        robot's servos, the arm would lunge toward the command within each step and be pulled
+        back by the next mirror, sliding a grasped cube in the fingers."""
+        m, d, ids, gear = self.scene.model, self.scene.data, self._coast_ids, self._coast_gear
+        force, term, affine = self._coast_f, self._coast_b, self._coast_affine
+        np.subtract(d.qfrc_bias[self._dadr], d.qfrc_gravcomp[self._dadr], out=force)
+        force /= gear
+        # an affine actuator's force is gain * ctrl + b0 + b1 * gear * q + b2 * gear * dq
+        np.take(m.actuator_biastype, ids, out=self._coast_type)
+        np.equal(self._coast_type, _AFFINE, out=affine)
+        for col, state in enumerate((None, d.qpos[self._qadr], d.qvel[self._dadr])):
+            np.take(m.actuator_biasprm[:, col], ids, out=term)
+            if state is not None:
+                term *= gear
+                term *= state
+            term *= affine
+            force -= term
+        np.take(m.actuator_gainprm[:, 0], ids, out=term)
+        force /= term
+        d.ctrl[ids] = force
 
     def _send(self, share: float, until: float) -> None:
         """This timestep's command, holding up to the arm time `until`."""
@@ -177,6 +239,7 @@ class ArmLink:
                     self._send((k * ticks + j) / (n * ticks), tick)
                     conn.wait_until(tick)
                 self._send((k + 1) / n, self._arm_time + dt)
+                self._coast()
                 mujoco.mj_step(model, data)
                 self._arm_time += dt
                 s = conn.wait_until(self._arm_time)
