@@ -133,7 +133,8 @@ class ArmLink:
         self._qadr = np.array([int(j.qposadr[0]) for j in joints])
         self._dadr = np.array([int(j.dofadr[0]) for j in joints])
         self._coast_ids, self._coast_gear = _arm_actuators(m, [int(j.id) for j in joints])
-        self._coast_f, self._coast_b, self._coast_affine = np.zeros(7), np.zeros(7), np.zeros(7)
+        self._coast_f, self._coast_b, self._coast_s = np.zeros(7), np.zeros(7), np.zeros(7)
+        self._coast_affine = np.zeros(7)
         self._coast_type = np.zeros(7, dtype=m.actuator_biastype.dtype)
         self.scene, self.robot = scene, robot
         self.haptic = bool(haptic)
@@ -175,19 +176,24 @@ class ArmLink:
         robot's servos, the arm would lunge toward the command within each step and be pulled
         back by the next mirror, sliding a grasped cube in the fingers."""
         m, d, ids, gear = self.scene.model, self.scene.data, self._coast_ids, self._coast_gear
-        force, term, affine = self._coast_f, self._coast_b, self._coast_affine
-        np.subtract(d.qfrc_bias[self._dadr], d.qfrc_gravcomp[self._dadr], out=force)
+        force, term, state, affine = self._coast_f, self._coast_b, self._coast_s, self._coast_affine
+        np.take(d.qfrc_bias, self._dadr, out=force)
+        np.take(d.qfrc_gravcomp, self._dadr, out=term)
+        force -= term
         force /= gear
         # an affine actuator's force is gain * ctrl + b0 + b1 * gear * q + b2 * gear * dq
         np.take(m.actuator_biastype, ids, out=self._coast_type)
         np.equal(self._coast_type, _AFFINE, out=affine)
-        for col, state in enumerate((None, d.qpos[self._qadr], d.qvel[self._dadr])):
+        for col, source, at in ((1, d.qpos, self._qadr), (2, d.qvel, self._dadr)):
+            np.take(source, at, out=state)
             np.take(m.actuator_biasprm[:, col], ids, out=term)
-            if state is not None:
-                term *= gear
-                term *= state
+            term *= gear
+            term *= state
             term *= affine
             force -= term
+        np.take(m.actuator_biasprm[:, 0], ids, out=term)
+        term *= affine
+        force -= term
         np.take(m.actuator_gainprm[:, 0], ids, out=term)
         force /= term
         d.ctrl[ids] = force
