@@ -22,6 +22,7 @@ import numpy as np
 from . import urdf
 from .errors import BuildError, ModelFileError, SpecError, unknown_name
 from .gripper_drive import apply_drives
+from .impedance_drive import apply_impedance_drives
 from .spec import (
     AttachKind,
     AttachmentSpec,
@@ -122,8 +123,7 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
     _add_environment(s, floor=bool(spec.add_floor), skybox=bool(spec.add_skybox))
     for i, obj in enumerate(spec.objects):
         _add_object(s, obj, f"objects[{i}] ({obj.name!r})")
-    for i, robot in enumerate(spec.robots):
-        _add_robot(s, robot, f"robots[{i}]")
+    roots = [_add_robot(s, robot, f"robots[{i}]") for i, robot in enumerate(spec.robots)]
     for i, cam in enumerate(spec.cameras):
         _add_camera(s, cam, f"cameras[{i}] ({cam.name!r})")
     _apply_physics(s, spec.physics)
@@ -132,8 +132,15 @@ def build_mjspec(spec: SceneSpec) -> mujoco.MjSpec:
         for i, robot in enumerate(spec.robots)
         for j, drive in enumerate(robot.grippers)
     ]
-    if drives:  # the transmissions are read from a first compile (MjSpec cannot list them)
-        apply_drives(s, compile_mjspec(s), drives)
+    impedances = [
+        (robot.prefix, robot.impedance, f"robots[{i}].impedance", roots[i])
+        for i, robot in enumerate(spec.robots)
+        if robot.impedance is not None
+    ]
+    if drives or impedances:  # transmissions (MjSpec cannot list them), masses: compiled
+        model = compile_mjspec(s)
+        apply_drives(s, model, drives)
+        apply_impedance_drives(s, model, impedances)
     return s
 
 
@@ -362,7 +369,8 @@ def _add_mjcf_object(
 # ----------------------------------------------------------------------------- robots
 
 
-def _add_robot(s: mujoco.MjSpec, robot: RobotSpec, field: str) -> None:
+def _add_robot(s: mujoco.MjSpec, robot: RobotSpec, field: str) -> list[str]:
+    """Add `robot` to `s`; the names of its root bodies there."""
     if robot.floating and robot.attach_to is not None:
         raise SpecError(f"{field}: a floating robot stands in the world; leave attach_to unset")
     child = load_model_file(robot.path, f"{field}.path", robot.srdf, robot.floating)
@@ -372,10 +380,12 @@ def _add_robot(s: mujoco.MjSpec, robot: RobotSpec, field: str) -> None:
     _offset(child, robot.pos, robot.euler, field)
     mount = _mount(s, robot.attach_to, f"{field}.attach_to", within="the scene")
     _attach(s, child, prefix=robot.prefix, what=f"{field}.path ({robot.path})", **mount)
+    roots = [robot.prefix + name for name in roots]
     for name in roots:
-        root = s.body(robot.prefix + name)
+        root = s.body(name)
         if root is not None:
             _exclude_welded_parent_contacts(s, root)
+    return [name for name in roots if s.body(name) is not None]
 
 
 def _add_attachment(robot: mujoco.MjSpec, att: AttachmentSpec, field: str) -> None:

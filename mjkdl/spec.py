@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from math import pi
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -132,6 +133,42 @@ class GripperDrive:
 
 
 @dataclass
+class JointImpedanceDrive:
+    """An arm whose joints track position setpoints through a joint impedance, as a Franka
+    robot's own controller does, instead of its model's servos. Applied when the scene is
+    built: each of `actuators` becomes tau = K (ctrl - q) - D dq on its joint, within
+    ±`torque_limit`, with D = 2 sqrt(K m), critical damping of the joint's own inertia m (the
+    mass matrix's diagonal, armature included) at `damping_pose`; and the robot's weight is
+    cancelled by MuJoCo (`gravcomp` on its bodies, through its joints' actuators, so measured
+    joint torques include it), as the arm compensates its own gravity. A setpoint velocity
+    dq_d enters as ctrl = q_d + (D / K) dq_d. The defaults are the Franka robot's:
+    `JointImpedanceDrive.franka()`.
+    """
+
+    actuators: list[str] = field(default_factory=list)
+    """The arm's actuators, without the robot's prefix, each on one hinge or slide joint
+    (no activation dynamics). Required."""
+    stiffness: list[float] = field(default_factory=list)
+    """K per actuator, N·m/rad (N/m on a slide joint)."""
+    torque_limit: list[float] = field(default_factory=list)
+    """The torque each joint may exert, N·m (N on a slide joint), on top of gravity."""
+    damping_pose: list[float] = field(default_factory=list)
+    """The actuated joints' positions at which their inertia sets the damping."""
+
+    @classmethod
+    def franka(cls) -> JointImpedanceDrive:
+        """Menagerie's Panda (`actuator1`..`actuator7`) with the Franka robot's default joint
+        stiffness, its joint torque limits (the Panda's and the FR3's) and damping set in
+        libfranka's start pose."""
+        return cls(
+            actuators=[f"actuator{i}" for i in range(1, 8)],
+            stiffness=[3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0],
+            torque_limit=[87.0] * 4 + [12.0] * 3,
+            damping_pose=[0.0, -pi / 4, 0.0, -3 * pi / 4, 0.0, pi / 2, pi / 4],
+        )
+
+
+@dataclass
 class RobotSpec:
     """A robot from an MJCF or URDF file, in the world at `pos`/`euler` or on `attach_to`.
 
@@ -160,6 +197,9 @@ class RobotSpec:
     grippers: list[GripperDrive] = field(default_factory=list)
     """Grippers of the robot (or its attachments) that grasp with a set force
     (`GripperDrive.franka_hand()` for the Panda's hand); empty keeps the models' servos."""
+    impedance: JointImpedanceDrive | None = None
+    """The arm's joints driven by a joint impedance with gravity compensated
+    (`JointImpedanceDrive.franka()` for the Panda); None keeps the model's servos."""
 
 
 @dataclass

@@ -25,6 +25,7 @@ from .spec import (
     Condim,
     ForceTorqueSensorSpec,
     GripperDrive,
+    JointImpedanceDrive,
     PhysicsOptions,
     RobotSpec,
     SceneObject,
@@ -376,6 +377,26 @@ def _check_robot(robot: RobotSpec, field: str) -> None:
                 raise SpecError(
                     f"{where}.{name} must be positive ({unit}), got {getattr(drive, name)!r}"
                 )
+    if robot.impedance is not None:
+        _check_impedance(robot.impedance, f"{field}.impedance")
+
+
+def _check_impedance(drive: object, field: str) -> None:
+    """A `JointImpedanceDrive`: named actuators, once each, and a value of each per actuator."""
+    if not isinstance(drive, JointImpedanceDrive):
+        raise SpecTypeError(f"{field} must be a JointImpedanceDrive, got {drive!r}")
+    if not isinstance(drive.actuators, list):
+        raise SpecTypeError(f"{field}.actuators must be a list of names, got {drive.actuators!r}")
+    if not drive.actuators:
+        raise SpecError(f"{field}.actuators is empty: name the arm's actuators")
+    names = [text(a, f"{field}.actuators[{i}]") for i, a in enumerate(drive.actuators)]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise SpecError(f"{field}.actuators[{i}]: {name!r} is named twice")
+    n = len(names)
+    vector(drive.stiffness, n, f"{field}.stiffness", positive=True)
+    vector(drive.torque_limit, n, f"{field}.torque_limit", positive=True)
+    vector(drive.damping_pose, n, f"{field}.damping_pose")
 
 
 def check_tool(tool: object, field: str = "tool") -> None:

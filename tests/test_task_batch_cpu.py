@@ -277,6 +277,23 @@ def test_bad_engine_threads_and_warp_only_fields() -> None:
         make_batch("mjkdl/PandaReach-v0", 1, device="cpu", njmax=64)
 
 
+def test_the_impedance_drive_is_refused_by_name() -> None:
+    """Its ramp and rate limiter run on one env: the batch would drive the actuators without
+    them, silently another arm."""
+    with pytest.raises(SpecError, match="make_batch: arm_drive='franka_impedance' runs on one"):
+        make_batch("mjkdl/PandaPickCube-v0", 2, device="cpu", arm_drive="franka_impedance")
+
+
+def test_mass_draws_on_bodies_that_gravcomp_holds_are_refused() -> None:
+    """The CPU env keeps their compensation nominal per draw (`body_gravcomp`), which the
+    engines do not carry per world."""
+    drive = gym.make(PICK, arm_drive="franka_impedance", randomization={"body_mass": [0.8, 1.2]})
+    spec = drive.unwrapped.task_spec  # the Panda with its impedance (gravcomp) built in
+    drive.close()
+    with pytest.raises(UnsupportedFeatureError, match=r"randomization\.body_mass: .*gravcomp"):
+        make_batch(spec, 1, device="cpu")
+
+
 def test_cameras_are_refused_with_the_engine_that_renders_them() -> None:
     spec = registry.panda_reach_spec()
     spec.sensors = [*spec.sensors, CameraSensor("front", 32, 32)]

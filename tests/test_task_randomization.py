@@ -153,6 +153,26 @@ def _record_targets(limiter: object, into: list[np.ndarray]) -> None:
     limiter.positions = recorded  # type: ignore[attr-defined]
 
 
+def test_a_drawn_mass_leaves_the_arms_compensation_nominal() -> None:
+    """On the impedance drive MuJoCo's gravcomp cancels the arm's weight as the robot does,
+    from its nominal model: a drawn link mass pulls on the arm by what it adds."""
+    kw = {"arm_drive": "franka_impedance"}
+    nominal = gym.make(PICK, **kw)
+    drawn = gym.make(PICK, randomization={"body_mass": [0.8, 1.2]}, **kw)
+    try:
+        nominal.reset(seed=0)
+        m0, m = nominal.unwrapped.scene.model, drawn.unwrapped.scene.model
+        arm = [m.body(f"link{i}").id for i in range(1, 8)]
+        for seed in (0, 1):  # drawn, then undone and drawn again
+            drawn.reset(seed=seed)
+            assert np.abs(m.body_mass[arm] / m0.body_mass[arm] - 1.0).max() > 0.05
+            cancelled = m.body_mass[arm] * m.body_gravcomp[arm]
+            np.testing.assert_allclose(cancelled, m0.body_mass[arm], rtol=1e-12)
+    finally:
+        nominal.close()
+        drawn.close()
+
+
 def test_action_latency_ticks_applies_each_target_ticks_late_on_the_impedance_drive() -> None:
     """With `arm_drive="franka_impedance"`, each period's targets reach the rate limiter the
     drawn number of 1 ms ticks late: the same positions as without latency, that many ticks

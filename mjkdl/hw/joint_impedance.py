@@ -1,6 +1,11 @@
-"""The Franka robot's joint-impedance control, one implementation for the simulated arm behind
-the protocol (`mjkdl.hw.franka_sim`) and for a task env's Franka arm
+"""The Franka robot's joint-impedance control, one law for the simulated arm behind the
+protocol (`mjkdl.hw.franka_sim`) and for a task env's Franka arm
 (`arm_drive="franka_impedance"`), so that the same commands give the same motion in both.
+
+The law's gains, damping rule and torque limits are `JointImpedanceDrive.franka()`'s. The
+server's arm evaluates it tick by tick (`JointImpedance.torque`: it switches controllers and
+reports the torques); a task env's arm has it built into its actuators (`RobotSpec.impedance`),
+where MuJoCo evaluates it, its weight cancelled by MuJoCo's `gravcomp`.
 
 The chain a position command takes to an arm in the loop: the control period's target is
 reached along its 1 ms ticks (`ArmLink`), each tick's position goes through the connection's
@@ -10,21 +15,24 @@ rate limiter (`RateLimiter.position`), and the robot tracks it with its joint im
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from ..errors import SpecError
+from ..impedance_drive import critical_damping
 from ..robot import Robot
 from ..scene import Env
-from ..spec import CtrlMode
+from ..spec import JointImpedanceDrive
 from .rate_limit import DT, RateLimiter, limits_for
 
+FRANKA = JointImpedanceDrive.franka()
 # The robot's defaults (Franka's documentation; libfranka's examples set the same).
-JOINT_STIFFNESS = np.array([3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0])
+JOINT_STIFFNESS = np.array(FRANKA.stiffness)
 # The arms' joint torque limits (N·m), the same for the Panda and the FR3.
-TAU_MAX = np.array([87.0] * 4 + [12.0] * 3)
+TAU_MAX = np.array(FRANKA.torque_limit)
 # libfranka's examples start from this pose ("move to start"); the simulated arm boots in it,
 # and its joint-space inertia there sets the impedance's damping.
-START_Q = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
+START_Q = np.array(FRANKA.damping_pose)
 # What `FrankaImpedanceDrive` carries between control periods (`bind_state`): five 7-vectors
 # (target, previous target, the rate limiter's q, dq, ddq), then the limiter's start ticks.
 _TICKS = 5 * 7
@@ -48,11 +56,7 @@ class JointImpedance:
 
     def damping(self) -> np.ndarray:
         """D = 2 sqrt(K m) at the current `stiffness`; an array owned here."""
-        damp = self._damp
-        np.multiply(self.stiffness, self._mass, out=damp)
-        np.sqrt(damp, out=damp)
-        damp *= 2.0
-        return damp
+        return critical_damping(self.stiffness, self._mass, out=self._damp)
 
     def torque(
         self,
@@ -79,10 +83,11 @@ class JointImpedance:
 class FrankaImpedanceDrive:
     """A simulated 7-joint Franka arm driven as the arm in the loop is: each control period
     the robot's position target (`jnt_pos_cmd`) is reached along the period's 1 ms physics
-    steps, rate-limited as the connection limits it, and tracked by `JointImpedance` with
-    gravity compensated. The scene's timestep must be 1 ms, the robot's tick. `latency`: ticks
-    each period's target comes late (a command delayed on its way to the robot): the last
-    period's ramp goes on that long, below one period."""
+    steps, rate-limited as the connection limits it, and tracked by the joint impedance its
+    actuators carry (the scene built with `RobotSpec(impedance=JointImpedanceDrive.franka())`),
+    gravity cancelled by MuJoCo. The scene's timestep must be 1 ms, the robot's tick.
+    `latency`: ticks each period's target comes late (a command delayed on its way to the
+    robot): the last period's ramp goes on that long, below one period."""
 
     def __init__(self, scene: Env, robot: Robot, model: str = "panda") -> None:
         if robot.n_joints != 7:
@@ -96,12 +101,17 @@ class FrankaImpedanceDrive:
                 f"timestep is {scene.timestep():g} s, it must be {DT:g} s"
             )
         self.scene, self.robot = scene, robot
+        self._ids = robot.actuator_ids
+        _check_impedance(scene, robot, self._ids)
+        lo = int(self._ids[0])
+        contiguous = np.array_equal(self._ids, np.arange(lo, lo + 7))
+        self._span = slice(lo, lo + 7) if contiguous else None
         self.limiter = RateLimiter(limits_for(model))
-        self.impedance = JointImpedance(np.diag(robot.mass_matrix(START_Q)))
         self.latency = 0
         self.bind_state(np.zeros(STATE_SIZE))
         self._goal = np.zeros(7)
-        self._tau = np.zeros(7)
+        self._scratch = np.zeros(7)
+        self._ratio = np.zeros(7)
         self._ticks: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._late = 0
         self._shares = (np.zeros((0, 1)), np.zeros((0, 1)))
@@ -145,35 +155,69 @@ class FrankaImpedanceDrive:
         path = self._ticks[0]
         this, last = self._shares
         late = self._late
-        np.subtract(self._goal, self._target, out=self._tau)
-        np.multiply(self._tau, this, out=path[late:])
+        np.subtract(self._goal, self._target, out=self._scratch)
+        np.multiply(self._scratch, this, out=path[late:])
         path[late:] += self._target
-        np.subtract(self._target, self._previous, out=self._tau)
-        np.multiply(self._tau, last, out=path[:late])
+        np.subtract(self._target, self._previous, out=self._scratch)
+        np.multiply(self._scratch, last, out=path[:late])
         path[:late] += self._previous
         return self._ticks
 
     def run(self, n: int) -> None:
         """`n` physics steps that bring the arm to the robot's `jnt_pos_cmd`; the robot is left
         in POSITION mode with that command (what the Cartesian controller integrates)."""
-        robot, limiter, impedance, tau = self.robot, self.limiter, self.impedance, self._tau
-        goal, target = self._goal, self._target
+        robot, limiter, scene = self.robot, self.limiter, self.scene
+        goal, target, ratio = self._goal, self._target, self._ratio
         goal[:] = robot.jnt_pos_cmd
         limiter.start_ticks = int(self._state[_TICKS])
         # The limiter's ticks depend on the commands only, not on the arm: all of them first.
         path, q_d, dq_d = self._ramp(n)
         limiter.positions(path, q_d, dq_d)
-        robot.ctrl_mode = CtrlMode.TORQUE
-        step, update, gravity = self.scene.step, robot.update, robot.gravity_torques
-        q, dq = robot.jnt_pos_msr, robot.jnt_vel_msr  # refreshed in place by update()
-        damping, torque = impedance.damping(), impedance.torque
-        for k in range(n):
-            update()
-            np.add(torque(q_d[k], dq_d[k], q, dq, damping), gravity(), out=tau)
-            robot.jnt_trq_cmd = tau
-            step(1)
+        # Each tick's setpoint q_d + (D / K) dq_d, at the gains the actuators hold now (an
+        # episode's draw scales K and D together): the ramp's rows are free for them.
+        bias = scene.model.actuator_biasprm
+        np.take(bias[:, 2], self._ids, out=ratio)
+        np.take(bias[:, 1], self._ids, out=self._scratch)
+        ratio /= self._scratch
+        np.multiply(dq_d, ratio, out=path)
+        path += q_d
+        robot.update()  # the robot's pending command goes out; the setpoints replace it
+        ctrl, step = scene.data.ctrl, scene.step
+        if self._span is not None:
+            ctrl = ctrl[self._span]
+            for k in range(n):
+                ctrl[:] = path[k]
+                step(1)
+        else:
+            ids = self._ids
+            for k in range(n):
+                np.put(ctrl, ids, path[k])
+                step(1)
         self._previous[:] = target
         target[:] = goal
         self._state[_TICKS] = limiter.start_ticks
-        robot.ctrl_mode = CtrlMode.POSITION
         robot.jnt_pos_cmd = goal
+
+
+def _check_impedance(scene: Env, robot: Robot, ids: np.ndarray) -> None:
+    """The arm's actuators are a joint impedance (gear 1, torque-limited) and MuJoCo
+    cancels its weight through them: what `RobotSpec.impedance` builds."""
+    m = scene.model
+    joints = [m.joint(name).id for name in robot.joint_names]
+    fixed, affine = int(mujoco.mjtGain.mjGAIN_FIXED), int(mujoco.mjtBias.mjBIAS_AFFINE)
+    odd = [
+        m.actuator(a).name
+        for a, j in zip(ids, joints, strict=True)
+        if int(m.actuator_gaintype[a]) != fixed
+        or int(m.actuator_biastype[a]) != affine
+        or m.actuator_gear[a, 0] != 1.0
+        or m.actuator_biasprm[a, 1] != -m.actuator_gainprm[a, 0]
+        or not m.actuator_forcelimited[a]
+        or not m.jnt_actgravcomp[j]
+    ]
+    if odd:
+        raise SpecError(
+            f"arm_drive: the arm's actuators {odd} are not a joint impedance with gravity "
+            "compensated; build the scene with "
+            "RobotSpec(impedance=JointImpedanceDrive.franka())"
+        )

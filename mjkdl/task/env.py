@@ -21,7 +21,7 @@ from ..names import model_id
 from ..record import check_offscreen_size, offscreen_renderer
 from ..robot import Robot
 from ..scene import MAX_STEPS, Env
-from ..spec import CtrlMode, SceneSpec
+from ..spec import CtrlMode, JointImpedanceDrive, SceneSpec
 from ..validate import flag, real, real_array, text, vector
 from ._check import integer, names
 from .randomization import Draw, Randomizer
@@ -251,9 +251,10 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
     so the same actions give the same motion whatever the machine's load.
 
     `arm_drive="franka_impedance"` (one arm taking position targets) moves the simulated arm
-    as a Franka arm in the loop moves: the robot's joint impedance at 1 kHz behind the
-    connection's rate limiter (`mjkdl.hw.joint_impedance.FrankaImpedanceDrive`, `.drive`),
-    on a 1 ms physics timestep; the default `"servo"` keeps the model's own actuators.
+    as a Franka arm in the loop moves: the robot's joint impedance, built into the arm's
+    actuators (`JointImpedanceDrive.franka()`), at 1 kHz behind the connection's rate limiter
+    (`mjkdl.hw.joint_impedance.FrankaImpedanceDrive`, `.drive`), on a 1 ms physics timestep;
+    the default `"servo"` keeps the model's own actuators.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012
@@ -358,7 +359,20 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                 f"arm_drive='franka_impedance' tracks position targets; the arm's actuation is "
                 f"{actuation.value!r} (use 'cartesian_velocity' or 'joint_position')"
             )
-        spec.scene = dataclasses.replace(spec.scene, timestep=IMPEDANCE_TIMESTEP)
+        prefix = spec.arms[0].prefix
+        robots = spec.scene.robots
+        arm = [i for i, robot in enumerate(robots) if robot.prefix == prefix]
+        if len(arm) != 1:
+            raise SpecError(
+                f"arm_drive='franka_impedance': the scene has {len(arm)} robots with the arm's "
+                f"prefix {prefix!r}; it needs one"
+            )
+        robots = list(robots)
+        if robots[arm[0]].impedance is None:  # the robot's own law, built into its actuators
+            robots[arm[0]] = dataclasses.replace(
+                robots[arm[0]], impedance=JointImpedanceDrive.franka()
+            )
+        spec.scene = dataclasses.replace(spec.scene, timestep=IMPEDANCE_TIMESTEP, robots=robots)
 
     def _check_tick_latency(self) -> None:
         """`randomization.action_latency_ticks` delays the impedance drive's commands, by less

@@ -70,7 +70,9 @@ _KINDS = {
 class Randomization:
     """What varies from episode to episode, and how much (None: stays nominal).
 
-    Physics: `body_mass` (scale of mass and inertia), `body_com` (m, each axis),
+    Physics: `body_mass` (scale of mass and inertia; what MuJoCo's `gravcomp` cancels of a
+    body stays its nominal weight, as a robot compensates its own from its nominal model),
+    `body_com` (m, each axis),
     `geom_friction` (scale of the sliding friction), `joint_damping`, `joint_armature`,
     `joint_frictionloss` (scales), `actuator_gain` (scale of an actuator's gain `gainprm[0]` and
     of its position and velocity feedback `biasprm[1:3]`: a servo's stiffness and damping, a
@@ -342,6 +344,10 @@ def apply(draw: Draw, model: mujoco.MjModel, scratch: mujoco.MjData) -> Saved:
         ids, v = list(draw.body_mass.ids), draw.body_mass.values
         write("body_mass", ids, model.body_mass[ids] * v[:, 0])
         write("body_inertia", ids, model.body_inertia[ids] * v)
+        held = [k for k, b in enumerate(ids) if model.body_gravcomp[b] > 0]
+        if held:  # a robot cancels its weight from its nominal model (`RobotSpec.impedance`)
+            bodies = [ids[k] for k in held]
+            write("body_gravcomp", bodies, model.body_gravcomp[bodies] / v[held, 0])
     if draw.body_com is not None:
         ids = list(draw.body_com.ids)
         write("body_ipos", ids, model.body_ipos[ids] + draw.body_com.values)

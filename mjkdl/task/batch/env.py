@@ -161,6 +161,22 @@ def make_batch(
             horizon = registered.max_episode_steps
     else:
         raise SpecTypeError(f"make_batch takes a task id or a TaskSpec, got {task!r}")
+    if host.drive is not None:
+        host.close()
+        raise SpecError(
+            "make_batch: arm_drive='franka_impedance' runs on one env (its ramp and rate "
+            "limiter step in Python at each 1 ms tick); the batched engines drive the model's "
+            "actuators: leave arm_drive at 'servo'"
+        )
+    description = host.task_spec.randomization
+    drawn = description is not None and "body_mass" in fields_in_use(description)
+    if drawn and (host.scene.model.body_gravcomp > 0).any():
+        host.close()
+        raise UnsupportedFeatureError(
+            "TaskSpec.randomization.body_mass: the scene has bodies whose weight MuJoCo's "
+            "gravcomp cancels (RobotSpec.impedance); only the CPU env (TaskEnv) keeps it "
+            "nominal per draw"
+        )
     try:
         if reset_workers:
             check_picklable(maker)
