@@ -105,7 +105,8 @@ class FrankaImpedanceDrive:
         _check_impedance(scene, robot, self._ids)
         lo = int(self._ids[0])
         contiguous = np.array_equal(self._ids, np.arange(lo, lo + 7))
-        self._span = slice(lo, lo + 7) if contiguous else None
+        # the arm's controls: a slice (a plain copy per tick) where they are contiguous
+        self._controls: slice | np.ndarray = slice(lo, lo + 7) if contiguous else self._ids
         self.limiter = RateLimiter(limits_for(model))
         self.latency = 0
         self.bind_state(np.zeros(STATE_SIZE))
@@ -182,17 +183,10 @@ class FrankaImpedanceDrive:
         np.multiply(dq_d, ratio, out=path)
         path += q_d
         robot.update()  # the robot's pending command goes out; the setpoints replace it
-        ctrl, step = scene.data.ctrl, scene.step
-        if self._span is not None:
-            ctrl = ctrl[self._span]
-            for k in range(n):
-                ctrl[:] = path[k]
-                step(1)
-        else:
-            ids = self._ids
-            for k in range(n):
-                np.put(ctrl, ids, path[k])
-                step(1)
+        ctrl, controls, step = scene.data.ctrl, self._controls, scene.step
+        for k in range(n):
+            ctrl[controls] = path[k]
+            step(1)
         self._previous[:] = target
         target[:] = goal
         self._state[_TICKS] = limiter.start_ticks
