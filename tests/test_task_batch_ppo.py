@@ -12,7 +12,7 @@ from tensordict import TensorDict  # noqa: E402
 from mjkdl.errors import SpecError  # noqa: E402
 from mjkdl.task.batch.ppo import (  # noqa: E402
     DEFAULT_RECIPE,
-    PICK_CPU,
+    OBJECT_CPU,
     RslRlEnv,
     env_policy,
     recipe,
@@ -93,11 +93,13 @@ def test_the_pick_recipe_acts_top_down_on_both_backends() -> None:
 
 
 def test_the_pick_cube_cpu_recipe_runs_a_few_updates() -> None:
-    """PickCube's CPU recipe (`PICK_CPU`): top-down actions and the shaped reward, on the
-    batch and in the CPU env that evaluates it; its PPO settings reach rsl-rl."""
+    """The object tasks' CPU recipe (`OBJECT_CPU`): translation and the gripper, the shaped
+    reward, on the batch and in the CPU env that evaluates it; its PPO settings reach rsl-rl."""
+    for task in ("PickCube", "Push", "PickAndPlace"):
+        assert recipe(f"mjkdl/Panda{task}-v0").on("cpu") == OBJECT_CPU
     cpu = recipe("mjkdl/PandaPickCube-v0").on("cpu")
-    assert cpu == PICK_CPU and cpu.num_envs == 128 and cpu.num_steps_per_env == 24
-    assert cpu.task_kwargs == {"cartesian_axes": "vx,vy,vz,wz", "reward_type": "shaped"}
+    assert cpu.num_envs == 128 and cpu.num_steps_per_env == 24
+    assert cpu.task_kwargs == {"cartesian_axes": "vx,vy,vz", "reward_type": "shaped"}
     result = train(
         "mjkdl/PandaPickCube-v0",
         device="cpu",
@@ -111,7 +113,7 @@ def test_the_pick_cube_cpu_recipe_runs_a_few_updates() -> None:
     assert (alg.gamma, alg.lam) == (0.8, 0.9)
     policy = result.runner.get_inference_policy("cpu")
     action = policy(TensorDict({"policy": torch.zeros(3, 40)}, batch_size=[3]))
-    assert action.shape == (3, 5)
+    assert action.shape == (3, 4)
 
 
 def test_recipes_and_unbounded_episodes() -> None:
@@ -119,8 +121,8 @@ def test_recipes_and_unbounded_episodes() -> None:
     assert pick.num_envs == 4096 == pick.worlds("cuda:0") and pick.on("cuda:0") is pick
     # No recipe runs a GPU's thousands of worlds on a CPU.
     assert pick.worlds("cpu") == 128
-    place = recipe("mjkdl/PandaPickAndPlace-v0")
-    assert place.worlds("cpu") == 64 and place.on("cpu").config == place.config
+    reach = recipe("mjkdl/PandaReach-v0")
+    assert reach.worlds("cpu") == 64 and reach.on("cpu").config == reach.config
     assert recipe("mjkdl/SomeNewTask-v0").iterations == DEFAULT_RECIPE.iterations
     from mjkdl.task import make_batch, registry
 

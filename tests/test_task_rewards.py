@@ -200,6 +200,11 @@ NAN = float("nan")
             "LiftReward.near_scale must be a number, got '0.05'",
         ),
         (
+            lambda: PlaceReward("t", "o", "g", bool, near_scale=-0.05),
+            mjk.SpecError,
+            "PlaceReward.near_scale must be >= 0 (0: off), got -0.05",
+        ),
+        (
             lambda: LiftReward(5, "o", "c", 0.0, 0.1),
             mjk.SpecTypeError,
             "LiftReward.tcp must be a string, got 5",
@@ -279,6 +284,18 @@ def test_place_reward_stages_and_pays_success_most() -> None:
     # Just outside the goal, grasped and at the cube: below 1.
     edge = {**obs([0.449, 0, 0.02], [0.449, 0.0, 0.02], (1, 1)), **goal}
     assert r(edge) < 1.0
+
+
+def test_shaped_place_reward_pulls_from_afar() -> None:
+    """`reward_type="shaped"` on Push, PickAndPlace and Stack: the reach term the mean of a
+    0.5 m and a 5 cm one, the grasp and goal stages as the dense reward's."""
+    success = Placed("cube_pose", "goal_pose", 0.05)
+    r = PlaceReward("tcp_pos", "cube_pose", "goal_pose", success, "", 0.5, near_scale=0.05)
+    goal = {"goal_pose": np.array([0.5, 0.0, 0.02])}
+    far = {**obs([0, 0, 0.52], [0.0, 0.0, 0.02]), **goal}
+    reach = 0.5 * (1 - math.tanh(1.0)) + 0.5 * (1 - math.tanh(10.0))
+    assert r(far) == pytest.approx(0.25 * reach + 0.5 * (1 - math.tanh(2.0)))
+    assert place_reward(0.5, 0.5, False, 0.5, 0.25, 0.05) == pytest.approx(r(far))
 
 
 def test_place_reward_formula_takes_batches() -> None:
@@ -366,19 +383,42 @@ def test_pick_cube_pays_a_gradient_from_the_first_step(reward_type, low, high, l
     assert min(rewards) > least
 
 
-def test_shaped_reward_is_pick_cubes_only() -> None:
+def test_place_tasks_shaped_reward_pays_the_reach_from_the_first_step() -> None:
+    """Push's and PickAndPlace's hand starts about 0.5 m from the cube, where the dense
+    reach term (0.1 m) pays nothing: the shaped one adds a median 0.029 to the first step."""
     import gymnasium as gym
     from conftest import menagerie
 
     import mjkdl.task  # noqa: F401  (registers the tasks)
 
     menagerie("franka_emika_panda")
-    for task, cls in [("Push", "PandaPushEnv"), ("PickCubeGoal", "PandaPickCubeGoalEnv")]:
+    for task in ("Push", "PickAndPlace"):
+        gained = []
+        for kind in ("dense", "shaped"):
+            env = gym.make(f"mjkdl/Panda{task}-v0", reward_type=kind)
+            first = []
+            for seed in range(10):
+                env.reset(seed=seed)
+                first.append(env.step(np.zeros(env.action_space.shape, np.float32))[1])
+            env.close()
+            gained.append(np.array(first))
+        extra = gained[1] - gained[0]
+        assert 0.027 < float(np.median(extra)) < 0.030, (task, np.median(extra))
+
+
+def test_shaped_reward_is_the_object_tasks_only() -> None:
+    import gymnasium as gym
+    from conftest import menagerie
+
+    import mjkdl.task  # noqa: F401  (registers the tasks)
+
+    menagerie("franka_emika_panda")
+    for task, cls in [("Reach", "PandaReachEnv"), ("PickCubeGoal", "PandaPickCubeGoalEnv")]:
         with pytest.raises(mjk.SpecError) as err:
             gym.make(f"mjkdl/Panda{task}-v0", reward_type="shaped")
         assert str(err.value) == (
             f"{cls}: reward_type must be one of ['dense', 'sparse'], got 'shaped' ('shaped' "
-            "is PandaPickCube-v0's only)"
+            "is offered by PandaPickAndPlaceEnv, PandaPickCubeEnv, PandaPushEnv, PandaStackEnv)"
         )
     with pytest.raises(mjk.SpecError) as err:
         gym.make("mjkdl/PandaPickCube-v0", reward_type="staged")

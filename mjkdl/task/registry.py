@@ -66,10 +66,11 @@ HOLD = 0.5  # seconds a lift must be held before the episode ends
 # and the clock (up to 10 s) swamp a network's inputs next to positions in metres, and SB3's
 # PPO with its defaults learns Reach only without them (docs/task.md, Learning).
 HIDDEN = ("panda_joint_torques", "time")
-# PickCube's `reward_type="shaped"`: `LiftReward`'s reach stage as the mean of a 0.5 m term,
-# felt from where episodes start (the first step pays a median 0.029 over 20 seeds, the dense
-# reward's 0.3 m alone 0.016), and a 5 cm one, steep where the fingers close around the cube.
-SHAPED_PICK = {"reach_scale": 0.5, "near_scale": 0.05}
+# `reward_type="shaped"` (PickCube, Push, PickAndPlace, Stack): the dense reward's reach stage
+# as the mean of a 0.5 m term, felt from where episodes start (PickCube's first step pays a
+# median 0.029 over 20 seeds, its dense reward's 0.3 m alone 0.016), and a 5 cm one, steep
+# where the fingers close around the cube.
+SHAPED_REACH = {"reach_scale": 0.5, "near_scale": 0.05}
 MAX_EPISODE_STEPS = 100  # Gymnasium's TimeLimit: 10 s at the default 0.1 s control period
 REACH_GOAL_LOW = (0.3, -0.3, 0.1)
 REACH_GOAL_HIGH = (0.7, 0.3, 0.5)
@@ -327,7 +328,7 @@ SHARED_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("control_timestep", 0.1, "seconds per step", before_own=True),
     Parameter("actuation", "cartesian_velocity", "the arm's part of the action", before_own=True),
     Parameter("cartesian_axes", CARTESIAN_AXES, "the twist entries acted on", before_own=True),
-    Parameter("reward_type", "dense", '"dense", "sparse", or PickCube\'s "shaped"'),
+    Parameter("reward_type", "dense", '"dense", "sparse", or "shaped" (the object tasks)'),
     Parameter("terminate_on_success", False, "end the episode once success holds"),
     Parameter("camera_names", (), "scene cameras added as `{name}_rgb` observations"),
     Parameter("camera_size", (128, 128), "(height, width) of those images"),
@@ -415,11 +416,12 @@ class _Registered(TaskEnv):
         kinds = [*REWARD_TYPES, "shaped"] if shaped else list(REWARD_TYPES)
         kind = p["reward_type"]
         if kind not in kinds:
-            only = " ('shaped' is PandaPickCube-v0's only)" if kind == "shaped" else ""
+            offered = sorted(c.__name__ for c in _Registered.__subclasses__() if c._shaped)
+            only = f" ('shaped' is offered by {', '.join(offered)})" if kind == "shaped" else ""
             raise SpecError(
                 f"{type(self).__name__}: reward_type must be one of {kinds}, got {kind!r}{only}"
             )
-        if kind == "shaped" and isinstance(spec.reward, LiftReward):
+        if kind == "shaped" and isinstance(spec.reward, (LiftReward, PlaceReward)):
             spec.reward = replace(spec.reward, **(self._shaped or {}))
         elif goal is None and kind == "sparse":
             spec.reward = SparseReward(spec.success)
@@ -480,12 +482,12 @@ class PandaPickCubeEnv(_Registered, TaskEnv):
     Success: the cube at least 5 cm above its resting height while both fingers touch it;
     the episode ends once that has held for 0.5 s (`terminate_on_success`, True here).
     `reward_type`: "dense" (`LiftReward`: reach, grasp, lift, hold), "shaped" (the same
-    stages, the reach stage pulling from afar and paying the last centimetres: `SHAPED_PICK`)
+    stages, the reach stage pulling from afar and paying the last centimetres: `SHAPED_REACH`)
     or "sparse".
     """
 
     _defaults: ClassVar[Mapping[str, Any]] = {"terminate_on_success": True}
-    _shaped = SHAPED_PICK
+    _shaped = SHAPED_REACH
 
     def __init__(
         self,
@@ -557,9 +559,12 @@ class PandaPushEnv(_Registered, TaskEnv):
     """`mjkdl/PandaPush-v0`: push the cube along the floor to a goal on the floor.
 
     Success: the cube's centre within `success_distance` (5 cm, panda-gym's) of the goal.
-    `reward_type`: "dense" (`PlaceReward`: reach the cube, bring it to the goal) or
-    "sparse". The gripper stays in the action; the expert keeps it closed.
+    `reward_type`: "dense" (`PlaceReward`: reach the cube, bring it to the goal), "shaped"
+    (the reach stage as PickCube's: `SHAPED_REACH`) or "sparse". The gripper stays in the
+    action; the expert keeps it closed.
     """
+
+    _shaped = SHAPED_REACH
 
     def __init__(
         self,
@@ -581,8 +586,11 @@ class PandaPickAndPlaceEnv(_Registered, TaskEnv):
     """`mjkdl/PandaPickAndPlace-v0`: pick the cube up and bring it to a target in the air.
 
     Success: the cube's centre within `success_distance` (3 cm) of the target marker.
-    `reward_type`: "dense" (`PlaceReward`: reach, grasp, bring to the target) or "sparse".
+    `reward_type`: "dense" (`PlaceReward`: reach, grasp, bring to the target), "shaped"
+    (`SHAPED_REACH`) or "sparse".
     """
+
+    _shaped = SHAPED_REACH
 
     def __init__(
         self,
@@ -605,8 +613,10 @@ class PandaStackEnv(_Registered, TaskEnv):
 
     Success: the blue cube's centre within `success_distance` (2 cm) of the point a cube's
     height above where the red cube was placed (`target_pose`), no finger touching it.
-    `reward_type`: "dense" (`PlaceReward`) or "sparse".
+    `reward_type`: "dense" (`PlaceReward`), "shaped" (`SHAPED_REACH`) or "sparse".
     """
+
+    _shaped = SHAPED_REACH
 
     def __init__(
         self,

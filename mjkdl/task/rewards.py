@@ -392,7 +392,8 @@ class Placed:
 class PlaceReward:
     """Staged dense reward in [0, 1] for bringing an object to a goal (push, pick and place,
     stack): `place_reward` of the TCP-object and object-goal distances and, with `contacts`,
-    whether the fingers hold the object. A success step (`success`) pays 1."""
+    whether the fingers hold the object. A success step (`success`) pays 1. With
+    `near_scale` (`reward_type="shaped"`) the reach stage is two terms, as `LiftReward`'s."""
 
     tcp: str
     obj: str
@@ -401,6 +402,8 @@ class PlaceReward:
     contacts: str = ""
     reach_scale: float = 0.1
     goal_scale: float = 0.25
+    near_scale: float = 0.0
+    """0: one reach term; else the scale in metres of the second, near one."""
 
     def __post_init__(self) -> None:
         text(self.tcp, "PlaceReward.tcp")
@@ -412,6 +415,10 @@ class PlaceReward:
             raise SpecTypeError(f"PlaceReward.contacts must be a string, got {self.contacts!r}")
         positive(self.reach_scale, "PlaceReward.reach_scale")
         positive(self.goal_scale, "PlaceReward.goal_scale")
+        if real(self.near_scale, "PlaceReward.near_scale") < 0:
+            raise SpecError(
+                f"PlaceReward.near_scale must be >= 0 (0: off), got {self.near_scale!r}"
+            )
 
     def _positions(self) -> dict[str, str]:
         return {
@@ -429,6 +436,7 @@ class PlaceReward:
             grasped,
             self.reach_scale,
             self.goal_scale,
+            self.near_scale,
         )
         return array_module(staged).where(_outcome(self.success, obs), 1.0, staged)
 
@@ -438,14 +446,23 @@ class PlaceReward:
 
 
 def place_reward(
-    d_reach: Any, d_goal: Any, grasped: Any, reach_scale: float, goal_scale: float
+    d_reach: Any,
+    d_goal: Any,
+    grasped: Any,
+    reach_scale: float,
+    goal_scale: float,
+    near_scale: float = 0.0,
 ) -> Any:
     """`PlaceReward`'s formula before success, for numbers or arrays with a leading batch
     axis (NumPy or torch): `0.25 * (1 - tanh(d_reach / reach_scale)) + 0.25 * grasped
-    + 0.5 * (1 - tanh(d_goal / goal_scale))`, below 1 whenever `d_goal > 0`."""
+    + 0.5 * (1 - tanh(d_goal / goal_scale))`, below 1 whenever `d_goal > 0`; with
+    `near_scale` the reach term is the mean of `1 - tanh(d_reach / reach_scale)` and
+    `1 - tanh(d_reach / near_scale)`."""
     xp = array_module(d_reach)
     if xp is np:
         d_reach, d_goal, grasped = np.asarray(d_reach), np.asarray(d_goal), np.asarray(grasped)
     reach = 1.0 - xp.tanh(d_reach / reach_scale)
+    if near_scale:
+        reach = 0.5 * reach + 0.5 * (1.0 - xp.tanh(d_reach / near_scale))
     goal = 1.0 - xp.tanh(d_goal / goal_scale)
     return 0.25 * reach + 0.25 * grasped + 0.5 * goal
