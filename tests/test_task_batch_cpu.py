@@ -154,6 +154,26 @@ def test_cartesian_episodes_match_within_rounding(task_id: str) -> None:
         env.close()
 
 
+@pytest.mark.parametrize("task", ["PickCube", "Push", "PickAndPlace", "Stack"])
+def test_shaped_rewards_and_translation_actions_match_the_cpu_env(task: str) -> None:
+    """The CPU recipe's task parameters (`OBJECT_CPU`): the shaped reward evaluated in torch
+    on the batch pays what the CPU env pays, the 4-entry action moving both alike."""
+    kwargs = {"cartesian_axes": "vx,vy,vz", "reward_type": "shaped", "time_limit": 0.5}
+    task_id = f"mjkdl/Panda{task}-v0"
+    batch = make_batch(task_id, WORLDS, device="cpu", **kwargs)
+    env = gym.make(task_id, **kwargs).unwrapped
+    try:
+        assert len(batch.action_labels) == 4
+        actions = _actions(4, 2)
+        ref_q, ref_r = _cpu_states(env, actions)
+        q, r, _ = _batch_states(batch, actions)
+        assert np.abs(q - ref_q).max() < CARTESIAN_TOL
+        assert np.abs(r - ref_r).max() < REWARD_TOL
+    finally:
+        batch.close()
+        env.close()
+
+
 def test_any_thread_count_gives_the_same_states() -> None:
     actions = _actions(8, 2)
     runs = []
