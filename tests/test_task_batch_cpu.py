@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -139,39 +141,34 @@ def test_each_world_draws_the_cpu_envs_randomization_for_its_seed_bit_for_bit() 
         env.close()
 
 
-@pytest.mark.parametrize("task_id", sorted(registry.TASKS))
-def test_cartesian_episodes_match_within_rounding(task_id: str) -> None:
-    batch = make_batch(task_id, WORLDS, device="cpu", time_limit=0.5)
-    env = gym.make(task_id, time_limit=0.5).unwrapped
+def _assert_cartesian_episodes_match(task_id: str, seed: int, **kwargs: Any) -> int:
+    """The batch's states and rewards against the CPU env's over `_actions(..., seed)`, both
+    made with `kwargs` and a 0.5 s time limit; returns the action's length."""
+    batch = make_batch(task_id, WORLDS, device="cpu", time_limit=0.5, **kwargs)
+    env = gym.make(task_id, time_limit=0.5, **kwargs).unwrapped
     try:
-        actions = _actions(len(batch.action_labels), 1)
+        actions = _actions(len(batch.action_labels), seed)
         ref_q, ref_r = _cpu_states(env, actions)
         q, r, _ = _batch_states(batch, actions)
         assert np.abs(q - ref_q).max() < CARTESIAN_TOL
         assert np.abs(r - ref_r).max() < REWARD_TOL
+        return len(batch.action_labels)
     finally:
         batch.close()
         env.close()
+
+
+@pytest.mark.parametrize("task_id", sorted(registry.TASKS))
+def test_cartesian_episodes_match_within_rounding(task_id: str) -> None:
+    _assert_cartesian_episodes_match(task_id, 1)
 
 
 @pytest.mark.parametrize("task", ["PickCube", "Push", "PickAndPlace", "Stack"])
 def test_shaped_rewards_and_translation_actions_match_the_cpu_env(task: str) -> None:
     """The CPU recipe's task parameters (`OBJECT_CPU`): the shaped reward evaluated in torch
     on the batch pays what the CPU env pays, the 4-entry action moving both alike."""
-    kwargs = {"cartesian_axes": "vx,vy,vz", "reward_type": "shaped", "time_limit": 0.5}
-    task_id = f"mjkdl/Panda{task}-v0"
-    batch = make_batch(task_id, WORLDS, device="cpu", **kwargs)
-    env = gym.make(task_id, **kwargs).unwrapped
-    try:
-        assert len(batch.action_labels) == 4
-        actions = _actions(4, 2)
-        ref_q, ref_r = _cpu_states(env, actions)
-        q, r, _ = _batch_states(batch, actions)
-        assert np.abs(q - ref_q).max() < CARTESIAN_TOL
-        assert np.abs(r - ref_r).max() < REWARD_TOL
-    finally:
-        batch.close()
-        env.close()
+    kwargs = {"cartesian_axes": "vx,vy,vz", "reward_type": "shaped"}
+    assert _assert_cartesian_episodes_match(f"mjkdl/Panda{task}-v0", 2, **kwargs) == 4
 
 
 def test_any_thread_count_gives_the_same_states() -> None:
