@@ -88,6 +88,11 @@ def write(run: str, record: dict[str, Any]) -> None:
     (RESULTS[0] / f"{run}.json").write_text(json.dumps(record, indent=1))
 
 
+def result_name(record: dict[str, Any]) -> str:
+    """A run's file name: its name, with "-cuda" for a run on a GPU (a CPU run keeps its own)."""
+    return record["run"] + ("-cuda" if record.get("device", "cpu").startswith("cuda") else "")
+
+
 def save(run: str, record: dict[str, Any]) -> None:
     write(run, record)
     last = record["curve"][-1]
@@ -353,7 +358,7 @@ def rslrl_run(
             rate = evaluate(env_id, policy, **r.task_kwargs)
         curve.append({"steps": steps, "success": rate, "seconds": train_seconds})
         print(f"  {steps:>9} steps: {rate:.0%} ({train_seconds:.0f} s)", flush=True)
-        write(run, {**record, "curve": curve, "train_seconds": train_seconds})
+        write(result_name(record), {**record, "curve": curve, "train_seconds": train_seconds})
     batch.close()
     return {
         **record,
@@ -381,7 +386,8 @@ def plot() -> None:
     for ax, run in zip(axes[0], runs, strict=True):
         steps = [c["steps"] for c in run["curve"]]
         ax.plot(steps, [100 * c["success"] for c in run["curve"]], marker="o")
-        ax.set_title(f"{run['run']} ({run['env_id'].split('/')[1]})", fontsize=9)
+        where = ", GPU" if run.get("device", "cpu").startswith("cuda") else ""
+        ax.set_title(f"{run['run']} ({run['env_id'].split('/')[1]}{where})", fontsize=9)
         ax.set_xlabel(run.get("x_label", "environment steps"))
         ax.set_ylabel("success, 20 held-out seeds (%)")
         ax.set_ylim(-5, 105)
@@ -456,7 +462,7 @@ def main() -> None:
             args.chunks,
             args.minutes,
         )
-        save(args.run, record)
+        save(result_name(record), record)
     elif args.run == "bc-pick":
         bc_pick(args.demos, args.epochs, args.noise)
     else:

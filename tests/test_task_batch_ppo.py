@@ -70,23 +70,30 @@ def test_the_env_policy_acts_on_the_cpu_and_goes_back() -> None:
     assert {p.device.type for p in own.parameters()} == {"meta"}
 
 
-def test_the_pick_recipe_acts_top_down_on_both_backends() -> None:
-    """The object tasks' recipes act top-down; a batch made with the recipe's task
-    parameters and the CPU env made with them take the same 5-entry action."""
+def test_the_object_recipes_act_by_translation_on_both_backends() -> None:
+    """The object tasks' recipes act by translation and the gripper on a GPU as on the CPU; a
+    batch made with the recipe's task parameters and the CPU env made with them take the same
+    4-entry action."""
     import gymnasium as gym
 
     from mjkdl.task import make_batch
 
+    for task in ("PickCube", "Push", "PickAndPlace"):
+        gpu = recipe(f"mjkdl/Panda{task}-v0").on("cuda:0")
+        assert gpu.task_kwargs == OBJECT_CPU.task_kwargs and gpu.config == OBJECT_CPU.config
+        assert gpu.num_envs == 4096
     r = recipe("mjkdl/PandaPickAndPlace-v0")
-    assert r.task_kwargs == {"cartesian_axes": "vx,vy,vz,wz"}
     # A joint-space action drops the recipe's axes; tasks without a recipe get none.
-    assert r.parameters({"actuation": "joint_position"}) == {"actuation": "joint_position"}
+    assert r.parameters({"actuation": "joint_position"}) == {
+        "actuation": "joint_position",
+        "reward_type": "shaped",
+    }
     assert r.parameters({"time_limit": 5.0}) == {**r.task_kwargs, "time_limit": 5.0}
     assert DEFAULT_RECIPE.task_kwargs == {}
     batch = make_batch("mjkdl/PandaPickAndPlace-v0", 1, device="cpu", **r.task_kwargs)
     env = gym.make("mjkdl/PandaPickAndPlace-v0", **r.task_kwargs)
     try:
-        assert RslRlEnv(batch).num_actions == 5 == env.action_space.shape[0]
+        assert RslRlEnv(batch).num_actions == 4 == env.action_space.shape[0]
     finally:
         batch.close()
         env.close()

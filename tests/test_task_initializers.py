@@ -103,6 +103,26 @@ def test_impossible_box_names_the_prop() -> None:
     env.close()
 
 
+def test_prop_placer_keeps_clear_of_a_body_placed_before() -> None:
+    """`min_distance` from `away_from`, horizontally; the draws it refuses cost no contact
+    check, and a box that cannot hold the gap names the body and the gap."""
+    clear = PropPlacer(["prop1"], [0.3, -0.3, 0.05], [0.6, 0.3, 0.05], False, 100, "prop0", 0.2)
+    env = env_with(PropPlacer(["prop0"], [0.3, -0.3, 0.05], [0.6, 0.3, 0.05]), clear)
+    gaps = []
+    for seed in range(20):
+        env.reset(seed=seed)
+        xpos = env.scene.data.xpos
+        p0, p1 = xpos[env.scene.body_id("prop0")], xpos[env.scene.body_id("prop1")]
+        gaps.append(float(np.hypot(*(p1 - p0)[:2])))
+    assert min(gaps) >= 0.2, gaps
+    env.close()
+    tight = PropPlacer(["prop1"], [0.3, 0, 0.05], [0.35, 0, 0.05], False, 7, "prop0", 0.5)
+    env = env_with(PropPlacer(["prop0"], [0.3, 0, 0.05], [0.3, 0, 0.05]), tight)
+    with pytest.raises(ValueError, match=r"'prop1' without contact and 0\.5 m from 'prop0' in 7"):
+        env.reset(seed=0)
+    env.close()
+
+
 @pytest.mark.parametrize(
     ("placer", "error", "message"),
     [
@@ -115,6 +135,11 @@ def test_impossible_box_names_the_prop() -> None:
             PropPlacer(["link3"], [0, 0, 0.1], [0, 0, 0.1]),
             ValueError,
             "'link3' is neither a free body",
+        ),
+        (
+            PropPlacer(["prop0"], [0, 0, 0.1], [0, 0, 0.1], away_from="porp1", min_distance=0.1),
+            KeyError,
+            r"'porp1' in PropPlacer\.away_from",
         ),
         (PropPlacer(["prop0"], [0, 0, 0.1], [0, 0]), ValueError, r"PropPlacer\.high"),
         (PropPlacer(["prop0"], [0, 0, 0.2], [0, 0, 0.1]), ValueError, "low must not exceed"),
@@ -295,6 +320,16 @@ POSE = ([0.4, 0, 0.4, 180, 0, 0], [0.45, 0, 0.45, 180, 0, 0])
             PropPlacer(["prop0", 5], *BOX),  # type: ignore[list-item]
             mjk.SpecTypeError,
             "PropPlacer.bodies[1] must be a string, got 5",
+        ),
+        (
+            PropPlacer(["prop0"], *BOX, min_distance=-0.1, away_from="prop1"),
+            mjk.SpecError,
+            "PropPlacer.min_distance must be >= 0 (0: off), got -0.1",
+        ),
+        (
+            PropPlacer(["prop0"], *BOX, min_distance=0.1),
+            mjk.SpecError,
+            "PropPlacer.min_distance needs PropPlacer.away_from: the body to keep clear of",
         ),
         (
             PropPlacer(["prop0"], *BOX, random_yaw="no"),  # type: ignore[arg-type]

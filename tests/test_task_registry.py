@@ -539,6 +539,26 @@ def test_push_goals_lie_on_the_floor_and_pick_and_place_targets_in_the_air() -> 
     place.close()
 
 
+def test_push_goals_start_clear_of_the_cube() -> None:
+    """No Push episode begins solved: the goal lands `goal_clearance` (10 cm) or more from
+    the cube; 0 draws it anywhere, as panda-gym does, and a negative one is refused."""
+    env = gym.make(PUSH)
+    gaps = []
+    for seed in range(40):
+        obs = env.reset(seed=seed)[0]
+        gaps.append(float(np.hypot(*(obs["goal_pose"] - obs["cube_pose"])[:2])))
+        assert not env.unwrapped.task_spec.success(obs)
+    assert min(gaps) >= 0.1
+    env.close()
+    anywhere = gym.make(PUSH, goal_clearance=0.0)
+    near = [anywhere.reset(seed=s)[0] for s in range(40)]
+    assert min(float(np.hypot(*(o["goal_pose"] - o["cube_pose"])[:2])) for o in near) < 0.1
+    anywhere.close()
+    with pytest.raises(SpecError) as err:
+        gym.make(PUSH, goal_clearance=-1)
+    assert str(err.value) == "goal_clearance must be >= 0 metres (0: anywhere), got -1"
+
+
 def test_stack_succeeds_only_once_the_cube_is_let_go_on_the_base() -> None:
     env = gym.make(STACK)
     obs, info = env.reset(seed=3)
@@ -565,7 +585,7 @@ def test_new_goal_variants_recompute_reward_and_ends_from_goals(env_id: str) -> 
     obs, _ = env.reset(seed=4)
     expert = expert_for(env)
     rows = []
-    for _ in range(40):
+    for _ in range(80):
         obs, reward, terminated, truncated, info = env.step(expert(obs))
         ag, dg = obs["achieved_goal"], obs["desired_goal"]
         assert reward == inner.compute_reward(ag, dg, info)
@@ -573,11 +593,11 @@ def test_new_goal_variants_recompute_reward_and_ends_from_goals(env_id: str) -> 
         assert truncated == inner.compute_truncated(ag, dg, info)
         rows.append((ag, dg, reward))
     ag, dg, rewards = (np.array(c) for c in zip(*rows, strict=True))
-    np.testing.assert_array_equal(inner.compute_reward(ag, dg, [{}] * 40), rewards)
+    np.testing.assert_array_equal(inner.compute_reward(ag, dg, [{}] * 80), rewards)
     # Relabelled with the achieved goal, every step pays the success reward.
-    np.testing.assert_array_equal(inner.compute_reward(ag, ag, [{}] * 40), np.ones(40))
-    assert inner.compute_terminated(ag, dg, [{}] * 40).shape == (40,)
-    assert 1.0 in rewards  # the expert gets there within 40 steps
+    np.testing.assert_array_equal(inner.compute_reward(ag, ag, [{}] * 80), np.ones(80))
+    assert inner.compute_terminated(ag, dg, [{}] * 80).shape == (80,)
+    assert 1.0 in rewards  # the expert gets there within 80 steps
     env.close()
 
 

@@ -220,6 +220,27 @@ NAN = float("nan")
             "Placed.contacts must be a string, got None",
         ),
         (
+            lambda: PlaceReward("t", "o", "g", bool, behind=-0.01),
+            mjk.SpecError,
+            "PlaceReward.behind must be >= 0 (0: off), got -0.01",
+        ),
+        (
+            lambda: PlaceReward("t", "o", "g", bool, gate=-1),
+            mjk.SpecError,
+            "PlaceReward.gate must be >= 0 (0: off), got -1",
+        ),
+        (
+            lambda: PlaceReward("t", "o", "g", bool, "c", hold="yes"),
+            mjk.SpecTypeError,
+            "PlaceReward.hold must be True or False, got 'yes'",
+        ),
+        (
+            lambda: PlaceReward("t", "o", "g", bool, hold=True),
+            mjk.SpecError,
+            "PlaceReward.hold needs PlaceReward.contacts: the ContactSensor observation that "
+            "says the object is grasped",
+        ),
+        (
             lambda: PlaceReward("t", "o", "g", success=3),
             mjk.SpecTypeError,
             "PlaceReward.success must be callable, got 3",
@@ -298,6 +319,52 @@ def test_shaped_place_reward_pulls_from_afar() -> None:
     assert place_reward(0.5, 0.5, False, 0.5, 0.25, 0.05) == pytest.approx(r(far))
 
 
+def test_place_reward_reaches_behind_the_object_away_from_the_goal() -> None:
+    """`behind`: the reach point lies that far behind the object on the line from the goal,
+    in the horizontal plane; a hand there is paid the whole reach term."""
+    success = Placed("cube_pose", "goal_pose", 0.05)
+    r = PlaceReward("tcp_pos", "cube_pose", "goal_pose", success, behind=0.035)
+    goal = {"goal_pose": np.array([0.3, 0.4, 0.02])}  # 0.5 m away along (0.6, 0.8)
+    goal_term = 0.5 * (1 - math.tanh(0.5 / 0.25))
+    behind = {**obs([-0.021, -0.028, 0.02], [0.0, 0.0, 0.02]), **goal}
+    assert r(behind) == pytest.approx(0.25 + goal_term, abs=1e-9)
+    # The hand on the cube's centre is `behind` from the point; in front, twice that.
+    on = {**behind, "tcp_pos": np.array([0.0, 0.0, 0.02])}
+    front = {**behind, "tcp_pos": np.array([0.021, 0.028, 0.02])}
+    assert r(on) == pytest.approx(0.25 * (1 - math.tanh(0.035 / 0.1)) + goal_term)
+    assert r(front) == pytest.approx(0.25 * (1 - math.tanh(0.07 / 0.1)) + goal_term)
+    # Height counts as distance: the point is at the object's height.
+    above = {**behind, "tcp_pos": np.array([-0.021, -0.028, 0.07])}
+    assert r(above) == pytest.approx(0.25 * (1 - math.tanh(0.05 / 0.1)) + goal_term)
+
+
+def test_place_reward_with_gate_pays_the_goal_only_at_the_reach_point() -> None:
+    """`gate`: the goal term only while the TCP is that near its reach point (behind the cube
+    for Push), so knocking the cube about on the way costs nothing."""
+    success = Placed("cube_pose", "goal_pose", 0.05)
+    r = PlaceReward("tcp_pos", "cube_pose", "goal_pose", success, behind=0.035, gate=0.02)
+    at = {**obs([-0.035, 0.0, 0.02], [0.0, 0.0, 0.02]), "goal_pose": np.array([0.2, 0, 0.02])}
+    assert r(at) == pytest.approx(0.25 + 0.5 * (1 - math.tanh(0.2 / 0.25)))
+    off = {**at, "tcp_pos": np.array([-0.035, 0.021, 0.02])}
+    assert r(off) == pytest.approx(0.25 * (1 - math.tanh(0.021 / 0.1)))
+    assert place_reward(0.021, 0.2, False, 0.1, 0.25, gate=0.02) == pytest.approx(r(off))
+
+
+def test_place_reward_with_hold_pays_the_goal_only_while_grasped() -> None:
+    """`hold`: the cube pushed right under its goal pays no goal term until it is grasped."""
+    success = Placed("cube_pose", "goal_pose", 0.03)
+    r = PlaceReward(
+        "tcp_pos", "cube_pose", "goal_pose", success, contacts="cube_contacts", hold=True
+    )
+    under = {**obs([0.0, 0.0, 0.02], [0.0, 0.0, 0.02]), "goal_pose": np.array([0, 0, 0.12])}
+    assert r(under) == pytest.approx(0.25)
+    held = {**under, "cube_contacts": np.array([1.0, 1.0])}
+    assert r(held) == pytest.approx(0.5 + 0.5 * (1 - math.tanh(0.1 / 0.25)))
+    assert place_reward(0.0, 0.1, False, 0.1, 0.25, hold=True) == pytest.approx(0.25)
+    both = place_reward(np.zeros(2), np.full(2, 0.1), np.array([False, True]), 0.1, 0.25, hold=True)
+    np.testing.assert_allclose(both, [r(under), r(held)], rtol=0, atol=1e-15)
+
+
 def test_place_reward_formula_takes_batches() -> None:
     """The formula a batched backend evaluates: arrays with a leading batch axis give the
     numbers the scalar reward gives one by one."""
@@ -343,6 +410,18 @@ def test_every_rule_evaluates_batches_as_it_evaluates_one_world() -> None:
         placed,
         Placed("cube_pose", "goal_pose", 0.03),
         PlaceReward("tcp_pos", "cube_pose", "goal_pose", placed, contacts="cube_contacts"),
+        PlaceReward(
+            "tcp_pos",
+            "cube_pose",
+            "goal_pose",
+            placed,
+            "",
+            0.5,
+            near_scale=0.05,
+            behind=0.035,
+            gate=0.05,
+        ),
+        PlaceReward("tcp_pos", "cube_pose", "goal_pose", placed, "cube_contacts", hold=True),
         SparseReward(placed),
         GoalReward("cube_pose", "goal_pose", 0.03, "dense"),
         GoalReward("cube_pose", "goal_pose", 0.03, "sparse"),
@@ -385,7 +464,8 @@ def test_pick_cube_pays_a_gradient_from_the_first_step(reward_type, low, high, l
 
 def test_place_tasks_shaped_reward_pays_the_reach_from_the_first_step() -> None:
     """Push's and PickAndPlace's hand starts about 0.5 m from the cube, where the dense
-    reach term (0.1 m) pays nothing: the shaped one adds a median 0.029 to the first step."""
+    reach term (0.1 m) pays nothing. The shaped reward's goal term waits for the hand (at the
+    push point, or grasping), so its first step pays the reach alone: a median 0.028."""
     import gymnasium as gym
     from conftest import menagerie
 
@@ -393,17 +473,14 @@ def test_place_tasks_shaped_reward_pays_the_reach_from_the_first_step() -> None:
 
     menagerie("franka_emika_panda")
     for task in ("Push", "PickAndPlace"):
-        gained = []
-        for kind in ("dense", "shaped"):
-            env = gym.make(f"mjkdl/Panda{task}-v0", reward_type=kind)
-            first = []
-            for seed in range(10):
-                env.reset(seed=seed)
-                first.append(env.step(np.zeros(env.action_space.shape, np.float32))[1])
-            env.close()
-            gained.append(np.array(first))
-        extra = gained[1] - gained[0]
-        assert 0.027 < float(np.median(extra)) < 0.030, (task, np.median(extra))
+        env = gym.make(f"mjkdl/Panda{task}-v0", reward_type="shaped")
+        first = []
+        for seed in range(10):
+            env.reset(seed=seed)
+            first.append(env.step(np.zeros(env.action_space.shape, np.float32))[1])
+        env.close()
+        assert 0.027 < float(np.median(first)) < 0.029, (task, np.median(first))
+        assert max(first) < 0.03, (task, max(first))  # no goal term before the hand is there
 
 
 def test_shaped_reward_is_the_object_tasks_only() -> None:

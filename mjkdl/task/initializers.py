@@ -48,14 +48,18 @@ class PropPlacer:
     """Puts free or marker `bodies` at random positions in the box `low`..`high` (xyz, world), each
     without contact with anything — the scene, the arms and the props placed before it —
     as MuJoCo's collision detection sees it (margins included). Orientation: a random yaw
-    about the world z when `random_yaw`, else the body's initial one. A body that still
-    touches something after `max_tries` draws raises, naming it."""
+    about the world z when `random_yaw`, else the body's initial one. With `min_distance`,
+    each also lands at least that far (horizontally) from the body `away_from`, placed
+    before it: a goal drawn on top of its object would start an episode already solved. A
+    body that still touches something after `max_tries` draws raises, naming it."""
 
     bodies: Sequence[str]
     low: Sequence[float]
     high: Sequence[float]
     random_yaw: bool = True
     max_tries: int = 100
+    away_from: str = ""
+    min_distance: float = 0.0
 
     def __call__(self, env: TaskEnv, rng: np.random.Generator) -> None:
         where = "PropPlacer"
@@ -63,11 +67,23 @@ class PropPlacer:
         bodies = names(self.bodies, f"{where}.bodies")
         max_tries = integer(self.max_tries, f"{where}.max_tries")
         random_yaw = flag(self.random_yaw, f"{where}.random_yaw")
+        gap = real(self.min_distance, f"{where}.min_distance")
+        if gap < 0:
+            raise SpecError(f"{where}.min_distance must be >= 0 (0: off), got {gap!r}")
+        if gap and not text(self.away_from, f"{where}.away_from"):
+            raise SpecError(
+                f"{where}.min_distance needs {where}.away_from: the body to keep clear of"
+            )
         scene = env.scene
         model, data = scene.model, scene.data
         ids = [
             self._free_body(model, name, f"{where}.bodies[{i}]") for i, name in enumerate(bodies)
         ]
+        away = (
+            model_id(model, mujoco.mjtObj.mjOBJ_BODY, "body", self.away_from, f"{where}.away_from")
+            if gap
+            else -1
+        )
         # Geoms of each prop's subtree; contacts with props not yet placed do not count.
         owner = {g: b for b in ids for g in _subtree_geoms(model, b)}
         pending = set(ids)
@@ -75,6 +91,8 @@ class PropPlacer:
             pending.discard(body)
             for _ in range(max_tries):
                 pos = rng.uniform(lo, hi)
+                if away >= 0 and math.dist(pos[:2], data.xpos[away, :2]) < gap:
+                    continue
                 quat = None
                 if random_yaw:
                     yaw = rng.uniform(-math.pi, math.pi)
@@ -85,10 +103,11 @@ class PropPlacer:
                 if not _touches(data, body, owner, pending):
                     break
             else:
+                apart = f" and {gap} m from {self.away_from!r}" if gap else ""
                 raise SpecError(
-                    f"{where}: cannot place body {name!r} without contact in {max_tries} "
-                    f"tries inside low={lo.tolist()}, high={hi.tolist()}; enlarge the box or "
-                    "move it clear of the scene"
+                    f"{where}: cannot place body {name!r} without contact{apart} in "
+                    f"{max_tries} tries inside low={lo.tolist()}, high={hi.tolist()}; enlarge "
+                    "the box or move it clear of the scene"
                 )
         mujoco.mj_forward(model, data)
 

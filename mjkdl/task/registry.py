@@ -71,6 +71,13 @@ HIDDEN = ("panda_joint_torques", "time")
 # median 0.029 over 20 seeds, its dense reward's 0.3 m alone 0.016), and a 5 cm one, steep
 # where the fingers close around the cube.
 SHAPED_REACH = {"reach_scale": 0.5, "near_scale": 0.05}
+# Push's: reach the point behind the cube, away from the goal, where the closed fingers
+# (about 1 cm from the TCP to a pad's face) touch the cube's far side and push it on; the
+# goal term only while the TCP is within 2 cm of it, as ManiSkill's PushCube.
+SHAPED_PUSH = {**SHAPED_REACH, "behind": CUBE_HALF + 0.015, "gate": 0.02}
+# PickAndPlace's: the goal term only while grasped, so pushing the cube under its target in
+# the air pays nothing.
+SHAPED_CARRY = {**SHAPED_REACH, "hold": True}
 MAX_EPISODE_STEPS = 100  # Gymnasium's TimeLimit: 10 s at the default 0.1 s control period
 REACH_GOAL_LOW = (0.3, -0.3, 0.1)
 REACH_GOAL_HIGH = (0.7, 0.3, 0.5)
@@ -81,6 +88,9 @@ TARGET_HIGH = (0.6, 0.15, CUBE_HALF + 0.2)
 PUSH_GOAL_LOW = (0.35, -0.2)
 PUSH_GOAL_HIGH = (0.65, 0.2)
 PUSH_DISTANCE = 0.05  # panda-gym's distance_threshold
+# Push's goal lands at least this far from the cube: drawn anywhere, 7 % of episodes began
+# already solved, and their reward swamped what the others taught a learner (docs/task.md).
+PUSH_GOAL_CLEARANCE = 0.1
 PLACE_DISTANCE = 0.03
 STACK_DISTANCE = 0.02
 
@@ -247,15 +257,20 @@ def panda_push_spec(
     goal_low: Sequence[float] = PUSH_GOAL_LOW,
     goal_high: Sequence[float] = PUSH_GOAL_HIGH,
     success_distance: float = PUSH_DISTANCE,
+    goal_clearance: float = PUSH_GOAL_CLEARANCE,
 ) -> TaskSpec:
     """Push the cube along the floor until its centre is within `success_distance` of a
-    goal marker on the floor (xy box `goal_low`..`goal_high`). Observations add
-    `cube_pose`, `cube_rel`, `cube_contacts` and `goal_pose`."""
+    goal marker on the floor (xy box `goal_low`..`goal_high`, at least `goal_clearance`
+    from where the cube starts). Observations add `cube_pose`, `cube_rel`, `cube_contacts`
+    and `goal_pose`."""
     lo, hi = _cube_box(cube_low, cube_high)
     z = CUBE_HALF
     glo, ghi = _box3([*_pair(goal_low, "goal_low"), z], [*_pair(goal_high, "goal_high"), z], "goal")
     objects = [_cube(), _marker("goal", [1.0, 0.1, 0.1, 0.5])]
-    inits: list[Any] = [PropPlacer(["cube"], lo, hi), PropPlacer(["goal"], glo, ghi, False)]
+    inits: list[Any] = [
+        PropPlacer(["cube"], lo, hi),
+        PropPlacer(["goal"], glo, ghi, False, away_from="cube", min_distance=goal_clearance),
+    ]
     return _place_spec(
         objects, inits, "goal", Placed("cube_pose", "goal_pose", success_distance), False
     )
@@ -558,13 +573,15 @@ class PandaPickCubeGoalEnv(_Registered, GoalTaskEnv):
 class PandaPushEnv(_Registered, TaskEnv):
     """`mjkdl/PandaPush-v0`: push the cube along the floor to a goal on the floor.
 
-    Success: the cube's centre within `success_distance` (5 cm, panda-gym's) of the goal.
+    Success: the cube's centre within `success_distance` (5 cm, panda-gym's) of the goal,
+    which starts at least `goal_clearance` (10 cm) from the cube.
     `reward_type`: "dense" (`PlaceReward`: reach the cube, bring it to the goal), "shaped"
-    (the reach stage as PickCube's: `SHAPED_REACH`) or "sparse". The gripper stays in the
-    action; the expert keeps it closed.
+    (`SHAPED_PUSH`: reach the point behind the cube, away from the goal, with PickCube's two
+    reach terms; the goal term only while the TCP is there) or "sparse". The gripper stays in
+    the action; the expert keeps it closed.
     """
 
-    _shaped = SHAPED_REACH
+    _shaped = SHAPED_PUSH
 
     def __init__(
         self,
@@ -575,10 +592,12 @@ class PandaPushEnv(_Registered, TaskEnv):
         goal_low: Sequence[float] = PUSH_GOAL_LOW,
         goal_high: Sequence[float] = PUSH_GOAL_HIGH,
         success_distance: float = PUSH_DISTANCE,
+        goal_clearance: float = PUSH_GOAL_CLEARANCE,
         **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
-        spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold)
+        clear = _clearance(goal_clearance)
+        spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold, clear)
         self._finish(spec, render_mode, shared)
 
 
@@ -587,10 +606,11 @@ class PandaPickAndPlaceEnv(_Registered, TaskEnv):
 
     Success: the cube's centre within `success_distance` (3 cm) of the target marker.
     `reward_type`: "dense" (`PlaceReward`: reach, grasp, bring to the target), "shaped"
-    (`SHAPED_REACH`) or "sparse".
+    (`SHAPED_CARRY`: PickCube's two reach terms; the goal term only while grasped) or
+    "sparse".
     """
 
-    _shaped = SHAPED_REACH
+    _shaped = SHAPED_CARRY
 
     def __init__(
         self,
@@ -644,10 +664,12 @@ class PandaPushGoalEnv(_Registered, GoalTaskEnv):
         goal_low: Sequence[float] = PUSH_GOAL_LOW,
         goal_high: Sequence[float] = PUSH_GOAL_HIGH,
         success_distance: float = PUSH_DISTANCE,
+        goal_clearance: float = PUSH_GOAL_CLEARANCE,
         **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
-        spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold)
+        clear = _clearance(goal_clearance)
+        spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold, clear)
         goal = {"achieved": "cube_pose", "desired": "goal_pose", "threshold": threshold}
         self._finish(spec, render_mode, shared, goal)
 
@@ -723,6 +745,13 @@ def _positive(value: object, field: str) -> float:
     out = real(value, field)
     if out <= 0:
         raise SpecError(f"{field} must be a positive number of metres, got {value!r}")
+    return out
+
+
+def _clearance(value: object) -> float:
+    out = real(value, "goal_clearance")
+    if out < 0:
+        raise SpecError(f"goal_clearance must be >= 0 metres (0: anywhere), got {value!r}")
     return out
 
 

@@ -393,7 +393,15 @@ class PlaceReward:
     """Staged dense reward in [0, 1] for bringing an object to a goal (push, pick and place,
     stack): `place_reward` of the TCP-object and object-goal distances and, with `contacts`,
     whether the fingers hold the object. A success step (`success`) pays 1. With
-    `near_scale` (`reward_type="shaped"`) the reach stage is two terms, as `LiftReward`'s."""
+    `near_scale` (`reward_type="shaped"`) the reach stage is two terms, as `LiftReward`'s.
+
+    Three choices fit the reward to its task. `behind` > 0 moves the reach point that many
+    metres behind the object, on the far side from the goal in the horizontal plane: a hand
+    there pushes the object towards the goal. `gate` > 0 pays the goal term only while the
+    TCP is that near its reach point, so a hand that knocks the object about on its way is
+    not taught to keep away from it (ManiSkill's PushCube does both). `hold` pays the goal
+    term only while the object is grasped, so pushing it under a goal in the air pays nothing
+    (ManiSkill's PickCube gates its place term the same way)."""
 
     tcp: str
     obj: str
@@ -404,6 +412,12 @@ class PlaceReward:
     goal_scale: float = 0.25
     near_scale: float = 0.0
     """0: one reach term; else the scale in metres of the second, near one."""
+    behind: float = 0.0
+    """0: reach the object; else the point this many metres behind it, away from the goal."""
+    hold: bool = False
+    """Pay the goal term only while `contacts` all touch the object."""
+    gate: float = 0.0
+    """0: off; else pay the goal term only while the TCP is this near its reach point."""
 
     def __post_init__(self) -> None:
         text(self.tcp, "PlaceReward.tcp")
@@ -419,6 +433,17 @@ class PlaceReward:
             raise SpecError(
                 f"PlaceReward.near_scale must be >= 0 (0: off), got {self.near_scale!r}"
             )
+        if real(self.behind, "PlaceReward.behind") < 0:
+            raise SpecError(f"PlaceReward.behind must be >= 0 (0: off), got {self.behind!r}")
+        if real(self.gate, "PlaceReward.gate") < 0:
+            raise SpecError(f"PlaceReward.gate must be >= 0 (0: off), got {self.gate!r}")
+        if not isinstance(self.hold, bool):
+            raise SpecTypeError(f"PlaceReward.hold must be True or False, got {self.hold!r}")
+        if self.hold and not self.contacts:
+            raise SpecError(
+                "PlaceReward.hold needs PlaceReward.contacts: the ContactSensor observation "
+                "that says the object is grasped"
+            )
 
     def _positions(self) -> dict[str, str]:
         return {
@@ -430,13 +455,19 @@ class PlaceReward:
     def evaluate(self, obs: Mapping[str, Any]) -> Any:
         """Per world: the reward."""
         grasped = _grasped(obs, self.contacts) if self.contacts else False
+        if self.behind:
+            d_reach = _behind_distance(obs, self.tcp, self.obj, self.goal, self.behind)
+        else:
+            d_reach = distances(obs, self.tcp, self.obj)
         staged = place_reward(
-            distances(obs, self.tcp, self.obj),
+            d_reach,
             distances(obs, self.obj, self.goal),
             grasped,
             self.reach_scale,
             self.goal_scale,
             self.near_scale,
+            self.hold,
+            self.gate,
         )
         return array_module(staged).where(_outcome(self.success, obs), 1.0, staged)
 
@@ -452,12 +483,15 @@ def place_reward(
     reach_scale: float,
     goal_scale: float,
     near_scale: float = 0.0,
+    hold: bool = False,
+    gate: float = 0.0,
 ) -> Any:
     """`PlaceReward`'s formula before success, for numbers or arrays with a leading batch
     axis (NumPy or torch): `0.25 * (1 - tanh(d_reach / reach_scale)) + 0.25 * grasped
     + 0.5 * (1 - tanh(d_goal / goal_scale))`, below 1 whenever `d_goal > 0`; with
     `near_scale` the reach term is the mean of `1 - tanh(d_reach / reach_scale)` and
-    `1 - tanh(d_reach / near_scale)`."""
+    `1 - tanh(d_reach / near_scale)`; with `hold` the goal term is paid only when grasped, with
+    `gate` only while `d_reach <= gate`."""
     xp = array_module(d_reach)
     if xp is np:
         d_reach, d_goal, grasped = np.asarray(d_reach), np.asarray(d_goal), np.asarray(grasped)
@@ -465,4 +499,21 @@ def place_reward(
     if near_scale:
         reach = 0.5 * reach + 0.5 * (1.0 - xp.tanh(d_reach / near_scale))
     goal = 1.0 - xp.tanh(d_goal / goal_scale)
+    if hold:
+        goal = goal * grasped
+    if gate:
+        goal = goal * (d_reach <= gate)
     return 0.25 * reach + 0.25 * grasped + 0.5 * goal
+
+
+def _behind_distance(obs: Mapping[str, Any], tcp: str, obj: str, goal: str, behind: float) -> Any:
+    """Metres from `tcp` to the point `behind` metres from `obj` on its far side from `goal`,
+    in the horizontal plane at the object's height (a pose that pushes it to the goal)."""
+    o, g, t = _xyz(obs, obj), _xyz(obs, goal), _xyz(obs, tcp)
+    xp = array_module(o)
+    ux, uy = g[..., 0] - o[..., 0], g[..., 1] - o[..., 1]
+    norm = xp.sqrt(ux * ux + uy * uy) + 1e-9  # the object on its goal: any side will do
+    ex = t[..., 0] - o[..., 0] + behind * ux / norm
+    ey = t[..., 1] - o[..., 1] + behind * uy / norm
+    ez = t[..., 2] - o[..., 2]
+    return xp.sqrt(ex * ex + ey * ey + ez * ez)
