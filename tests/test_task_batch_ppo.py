@@ -14,6 +14,7 @@ from mjkdl.task.batch.ppo import (  # noqa: E402
     DEFAULT_RECIPE,
     OBJECT_CPU,
     RslRlEnv,
+    auto_reset_workers,
     env_policy,
     recipe,
     train,
@@ -141,3 +142,14 @@ def test_recipes_and_unbounded_episodes() -> None:
             RslRlEnv(batch)
     finally:
         batch.close()
+
+
+def test_reset_workers_follow_the_cores_this_process_may_use(monkeypatch) -> None:
+    """Pinned to 4 of a machine's 64 cores (taskset, a container's CPU set), a GPU batch
+    gets 2 reset workers, not 15; the CPU engine none."""
+    import os
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    assert auto_reset_workers("cuda:0") == 2
+    assert auto_reset_workers("cpu") == 0

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import os
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -28,6 +27,7 @@ from tensordict import TensorDict
 from ...errors import SpecError
 from ..registry import actuation
 from ..spec import Actuation
+from .cpu_engine import available_threads
 from .env import BatchEnv, make_batch
 
 
@@ -194,11 +194,12 @@ def recipe(task_id: str) -> Recipe:
 
 
 def auto_reset_workers(device: str) -> int:
-    """Reset workers for a batch on `device`: on a GPU all cores but two (at most 15), which
-    keep up with thousands of worlds; none on the CPU, whose physics takes every core."""
+    """Reset workers for a batch on `device`: on a GPU all cores this process may run on but
+    two (at most 15), which keep up with thousands of worlds; none on the CPU, whose physics
+    takes every core."""
     if not device.startswith("cuda"):
         return 0
-    return max(0, min(15, (os.cpu_count() or 1) - 2))
+    return max(0, min(15, available_threads() - 2))
 
 
 @dataclass
