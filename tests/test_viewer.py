@@ -446,9 +446,13 @@ def test_ctrl_c_ends_the_loop_and_finalises_the_recording(display: str, tmp_path
         """
     )
     video = tmp_path / "interrupted.mp4"
+    # The child starts with SIGINT's default action, as from a terminal: a shell that ran
+    # pytest in the background leaves SIGINT ignored, Python keeps it so, and the viewer
+    # rightly installs nothing over an ignored signal.
     proc = subprocess.Popen(
         [sys.executable, "-c", script, str(video)], cwd=tmp_path, env=dict(os.environ),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
     try:
         assert proc.stdout is not None and proc.stdout.readline() == "looping\n"
