@@ -503,3 +503,10 @@ def untested_robot(env: mjk.Env, name: str) -> mjk.Robot:
     robot.ctrl_mode = mjk.CtrlMode.POSITION
     robot.update()
     return robot
+
+
+def sigint_as_from_a_terminal() -> None:
+    """`Popen(preexec_fn=)` for a child a test stops with Ctrl+C (SIGINT): the signal's
+    default action, as a terminal gives it. A shell that ran pytest in the background leaves
+    SIGINT ignored, the child inherits that, and Python installs no KeyboardInterrupt then."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -20,7 +20,14 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import ROOT, franka_sim, import_extra, menagerie, needs_extra
+from conftest import (
+    ROOT,
+    franka_sim,
+    import_extra,
+    menagerie,
+    needs_extra,
+    sigint_as_from_a_terminal,
+)
 
 from mjkdl import SpecError
 from mjkdl.demos import (
@@ -294,6 +301,7 @@ def _deploy_cli(arm: str, stdin: int) -> subprocess.Popen:
          "--robot-ip", arm],
         stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "PYTHONPATH": f"{ROOT}:{ROOT / 'tests'}"},
+        preexec_fn=sigint_as_from_a_terminal,
     )  # fmt: skip
 
 

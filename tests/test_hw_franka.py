@@ -15,7 +15,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
-from conftest import needs_extra
+from conftest import needs_extra, sigint_as_from_a_terminal
 
 import mjkdl as mjk
 from mjkdl.hw.connection import ArmConnection
@@ -245,7 +245,11 @@ def test_ctrl_c_stops_the_arm_and_closes_the_connection(franka_server: str) -> N
         """
     )
     proc = subprocess.Popen(
-        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [sys.executable, "-c", script],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=sigint_as_from_a_terminal,
     )
     try:
         assert proc.stdout is not None

@@ -24,7 +24,15 @@ import cv2
 import mujoco
 import numpy as np
 import pytest
-from conftest import HOME, ROOT, base_spec, gripper_tool, table_object, tutorial_spec
+from conftest import (
+    HOME,
+    ROOT,
+    base_spec,
+    gripper_tool,
+    sigint_as_from_a_terminal,
+    table_object,
+    tutorial_spec,
+)
 from screen import grab_window
 
 import mjkdl as mjk
@@ -446,13 +454,10 @@ def test_ctrl_c_ends_the_loop_and_finalises_the_recording(display: str, tmp_path
         """
     )
     video = tmp_path / "interrupted.mp4"
-    # The child starts with SIGINT's default action, as from a terminal: a shell that ran
-    # pytest in the background leaves SIGINT ignored, Python keeps it so, and the viewer
-    # rightly installs nothing over an ignored signal.
     proc = subprocess.Popen(
         [sys.executable, "-c", script, str(video)], cwd=tmp_path, env=dict(os.environ),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=sigint_as_from_a_terminal,
     )  # fmt: skip
     try:
         assert proc.stdout is not None and proc.stdout.readline() == "looping\n"
