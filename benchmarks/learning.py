@@ -292,12 +292,20 @@ def bc_pick(demos: int, epochs: int, noise: float) -> None:
 
 
 def rslrl_run(
-    run: str, env_id: str, device: str, envs: int, iterations: int, chunks: int, minutes: float
+    run: str,
+    env_id: str,
+    device: str,
+    envs: int,
+    iterations: int,
+    chunks: int,
+    minutes: float,
+    seed: int = 0,
 ):
     """rsl-rl PPO on `envs` worlds of `env_id` (the task's recipe), evaluated on the CPU env
     after each of `chunks` equal parts of `iterations`; with `minutes`, instead for that much
-    training wall time, evaluated about every `minutes / chunks`. The curve is saved after
-    every evaluation, so a run stopped from outside keeps what it measured."""
+    training wall time, evaluated about every `minutes / chunks`. PyTorch is seeded with
+    `seed`, as `train` seeds it (the worlds start from seeds 0, 1, ...). The curve is saved
+    after every evaluation, so a run stopped from outside keeps what it measured."""
     import torch
     from rsl_rl.runners import OnPolicyRunner
 
@@ -312,6 +320,7 @@ def rslrl_run(
     r = recipe(env_id).on(device)
     envs = envs or r.num_envs
     iterations = iterations or r.iterations
+    torch.manual_seed(seed)
     batch = make_batch(
         env_id,
         envs,
@@ -335,6 +344,7 @@ def rslrl_run(
         "num_steps_per_env": r.num_steps_per_env,
         "config": r.config,
         "torch_threads": torch.get_num_threads(),
+        "seed": seed,
     }
     budget = 60.0 * minutes
     for k in range(10**9 if budget else chunks):
@@ -426,6 +436,7 @@ def main() -> None:
         "--minutes", type=float, default=0.0, help="rslrl-*: train this long (not --iterations)"
     )
     parser.add_argument("--steps", type=int, default=0, help="training steps (0: the run's own)")
+    parser.add_argument("--seed", type=int, default=0, help="rslrl-*: PyTorch's seed")
     parser.add_argument("--demos", type=int, default=300, help="bc-pick: expert episodes")
     parser.add_argument("--epochs", type=int, default=50, help="bc-pick: training epochs")
     parser.add_argument(
@@ -461,6 +472,7 @@ def main() -> None:
             args.iterations,
             args.chunks,
             args.minutes,
+            args.seed,
         )
         save(result_name(record), record)
     elif args.run == "bc-pick":

@@ -118,3 +118,15 @@ def test_learning_runs_and_saves_its_curve(run, args, figure, tmp_path) -> None:
     assert re.search(figure + NUMBER + " s wall", out), out
     curve = __import__("json").loads((tmp_path / f"{run}.json").read_text())["curve"]
     assert curve and 0.0 <= curve[-1]["success"] <= 1.0
+
+
+def test_rslrl_learning_run_records_its_seed(tmp_path) -> None:
+    """An rsl-rl run on the CPU engine: evaluated on the held-out seeds, its settings and its
+    PyTorch seed saved with the curve."""
+    needs_extra("warp-rl")
+    args = ("--device", "cpu", "--envs", "2", "--iterations", "1", "--seed", "3")
+    out = run_benchmark("learning", "rslrl-reach", *args, "--results", str(tmp_path))
+    assert re.search(r"\b48 steps: \d+% \(", out), out
+    record = __import__("json").loads((tmp_path / "rslrl-reach.json").read_text())
+    assert record["seed"] == 3 and record["num_envs"] == 2
+    assert [p["steps"] for p in record["curve"]] == [48]

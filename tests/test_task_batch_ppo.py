@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from conftest import import_extra
 
@@ -13,6 +15,7 @@ from mjkdl.errors import SpecError  # noqa: E402
 from mjkdl.task.batch.ppo import (  # noqa: E402
     DEFAULT_RECIPE,
     OBJECT_CPU,
+    PUSH_CPU,
     RslRlEnv,
     auto_reset_workers,
     env_policy,
@@ -39,6 +42,26 @@ def test_recipe_trains_end_to_end_and_the_policy_acts() -> None:
     action = policy(obs)
     assert action.shape == (5, 7)
     assert bool(torch.isfinite(action).all())
+
+
+def test_training_on_the_cpu_engine_repeats_with_its_seed() -> None:
+    """`train(seed=)` seeds PyTorch, and the batch's physics and resets are deterministic: the
+    same seed gives the same weights, another seed others."""
+
+    def weights(seed: int) -> list[torch.Tensor]:
+        result = train(
+            "mjkdl/PandaReach-v0",
+            device="cpu",
+            num_envs=2,
+            num_steps_per_env=4,
+            iterations=2,
+            seed=seed,
+        )
+        return [p.detach().clone() for p in result.runner.alg.get_policy().parameters()]
+
+    first, again, other = weights(3), weights(3), weights(4)
+    assert all(torch.equal(a, b) for a, b in zip(first, again, strict=True))
+    assert not all(torch.equal(a, b) for a, b in zip(first, other, strict=True))
 
 
 def test_the_env_policy_acts_on_the_cpu_and_goes_back() -> None:
@@ -81,7 +104,8 @@ def test_the_object_recipes_act_by_translation_on_both_backends() -> None:
 
     for task in ("PickCube", "Push", "PickAndPlace"):
         gpu = recipe(f"mjkdl/Panda{task}-v0").on("cuda:0")
-        assert gpu.task_kwargs == OBJECT_CPU.task_kwargs and gpu.config == OBJECT_CPU.config
+        cpu = recipe(f"mjkdl/Panda{task}-v0").on("cpu")
+        assert gpu.task_kwargs == cpu.task_kwargs and gpu.config == OBJECT_CPU.config
         assert gpu.num_envs == 4096
     r = recipe("mjkdl/PandaPickAndPlace-v0")
     # A joint-space action drops the recipe's axes; tasks without a recipe get none.
@@ -103,8 +127,12 @@ def test_the_object_recipes_act_by_translation_on_both_backends() -> None:
 def test_the_pick_cube_cpu_recipe_runs_a_few_updates() -> None:
     """The object tasks' CPU recipe (`OBJECT_CPU`): translation and the gripper, the shaped
     reward, on the batch and in the CPU env that evaluates it; its PPO settings reach rsl-rl."""
-    for task in ("PickCube", "Push", "PickAndPlace"):
+    for task in ("PickCube", "PickAndPlace"):
         assert recipe(f"mjkdl/Panda{task}-v0").on("cpu") == OBJECT_CPU
+    # Push's ends its episodes on success; otherwise the same.
+    assert recipe("mjkdl/PandaPush-v0").on("cpu") == PUSH_CPU
+    assert PUSH_CPU.task_kwargs == {**OBJECT_CPU.task_kwargs, "terminate_on_success": True}
+    assert dataclasses.replace(PUSH_CPU, task_kwargs=OBJECT_CPU.task_kwargs) == OBJECT_CPU
     cpu = recipe("mjkdl/PandaPickCube-v0").on("cpu")
     assert cpu.num_envs == 128 and cpu.num_steps_per_env == 24
     assert cpu.task_kwargs == {"cartesian_axes": "vx,vy,vz", "reward_type": "shaped"}

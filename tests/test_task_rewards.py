@@ -230,6 +230,17 @@ NAN = float("nan")
             "PlaceReward.gate must be >= 0 (0: off), got -1",
         ),
         (
+            lambda: PlaceReward("t", "o", "g", bool, behind=0.035, over=-0.06),
+            mjk.SpecError,
+            "PlaceReward.over must be >= 0 (0: off), got -0.06",
+        ),
+        (
+            lambda: PlaceReward("t", "o", "g", bool, over=0.06),
+            mjk.SpecError,
+            "PlaceReward.over needs PlaceReward.behind: the path goes over the object to the "
+            "reach point behind it",
+        ),
+        (
             lambda: PlaceReward("t", "o", "g", bool, "c", hold="yes"),
             mjk.SpecTypeError,
             "PlaceReward.hold must be True or False, got 'yes'",
@@ -350,6 +361,36 @@ def test_place_reward_with_gate_pays_the_goal_only_at_the_reach_point() -> None:
     assert place_reward(0.021, 0.2, False, 0.1, 0.25, gate=0.02) == pytest.approx(r(off))
 
 
+def test_place_reward_with_over_charges_the_path_over_the_object() -> None:
+    """`over`: a hand on the object's near side (more than `gate` past the reach point
+    towards the goal) is charged the path up to `over` above the reach point, across and
+    down; behind it, the straight distance. Pressed against the near face, the hand is paid
+    less than anywhere on the way over."""
+    success = Placed("cube_pose", "goal_pose", 0.05)
+    r = PlaceReward(
+        "tcp_pos", "cube_pose", "goal_pose", success, behind=0.035, gate=0.02, over=0.06
+    )
+    goal = {"goal_pose": np.array([0.3, 0.0, 0.02])}
+
+    def reach(d: float) -> float:
+        return 0.25 * (1 - math.tanh(d / 0.1))
+
+    near_face = {**obs([0.03, 0.0, 0.02], [0.0, 0.0, 0.02]), **goal}
+    assert r(near_face) == pytest.approx(reach(0.065 + 0.06 + 0.06))
+    over_top = {**near_face, "tcp_pos": np.array([0.0, 0.0, 0.08])}
+    assert r(over_top) == pytest.approx(reach(0.035 + 0.06))
+    assert r(over_top) > r(near_face)
+    # High up on the near side: down to `over`, across, down.
+    high = {**near_face, "tcp_pos": np.array([0.1, 0.0, 0.3])}
+    assert r(high) == pytest.approx(reach(0.22 + 0.135 + 0.06))
+    # Within `gate` past the point, or behind it, straight: as without `over`.
+    straight = PlaceReward("tcp_pos", "cube_pose", "goal_pose", success, behind=0.035, gate=0.02)
+    for x in (-0.016, -0.2):
+        behind = {**near_face, "tcp_pos": np.array([x, 0.03, 0.1])}
+        assert r(behind) == pytest.approx(straight(behind), abs=1e-15)
+    assert r(over_top) < straight(over_top)
+
+
 def test_place_reward_with_hold_pays_the_goal_only_while_grasped() -> None:
     """`hold`: the cube pushed right under its goal pays no goal term until it is grasped."""
     success = Placed("cube_pose", "goal_pose", 0.03)
@@ -421,6 +462,7 @@ def test_every_rule_evaluates_batches_as_it_evaluates_one_world() -> None:
             behind=0.035,
             gate=0.05,
         ),
+        PlaceReward("tcp_pos", "cube_pose", "goal_pose", placed, behind=0.035, over=0.06),
         PlaceReward("tcp_pos", "cube_pose", "goal_pose", placed, "cube_contacts", hold=True),
         SparseReward(placed),
         GoalReward("cube_pose", "goal_pose", 0.03, "dense"),
@@ -465,21 +507,22 @@ def test_pick_cube_pays_a_gradient_from_the_first_step(reward_type, low, high, l
 def test_place_tasks_shaped_reward_pays_the_reach_from_the_first_step() -> None:
     """Push's and PickAndPlace's hand starts about 0.5 m from the cube, where the dense
     reach term (0.1 m) pays nothing. The shaped reward's goal term waits for the hand (at the
-    push point, or grasping), so its first step pays the reach alone: a median 0.028."""
+    push point, or grasping), so its first step pays the reach alone: a median 0.028 for
+    PickAndPlace, 0.018 for Push, whose reach counts the way over the cube (`over`)."""
     import gymnasium as gym
     from conftest import menagerie
 
     import mjkdl.task  # noqa: F401  (registers the tasks)
 
     menagerie("franka_emika_panda")
-    for task in ("Push", "PickAndPlace"):
+    for task, median in (("Push", 0.018), ("PickAndPlace", 0.028)):
         env = gym.make(f"mjkdl/Panda{task}-v0", reward_type="shaped")
         first = []
         for seed in range(10):
             env.reset(seed=seed)
             first.append(env.step(np.zeros(env.action_space.shape, np.float32))[1])
         env.close()
-        assert 0.027 < float(np.median(first)) < 0.029, (task, np.median(first))
+        assert float(np.median(first)) == pytest.approx(median, abs=0.001), task
         assert max(first) < 0.03, (task, max(first))  # no goal term before the hand is there
 
 

@@ -395,13 +395,15 @@ class PlaceReward:
     whether the fingers hold the object. A success step (`success`) pays 1. With
     `near_scale` (`reward_type="shaped"`) the reach stage is two terms, as `LiftReward`'s.
 
-    Three choices fit the reward to its task. `behind` > 0 moves the reach point that many
+    Four choices fit the reward to its task. `behind` > 0 moves the reach point that many
     metres behind the object, on the far side from the goal in the horizontal plane: a hand
     there pushes the object towards the goal. `gate` > 0 pays the goal term only while the
     TCP is that near its reach point, so a hand that knocks the object about on its way is
     not taught to keep away from it (ManiSkill's PushCube does both). `hold` pays the goal
     term only while the object is grasped, so pushing it under a goal in the air pays nothing
-    (ManiSkill's PickCube gates its place term the same way)."""
+    (ManiSkill's PickCube gates its place term the same way). `over` charges a hand on the
+    object's near side the way over the object to a reach point `behind` it, not the
+    straight line through the object, which holds a learner's hand against its near side."""
 
     tcp: str
     obj: str
@@ -418,6 +420,10 @@ class PlaceReward:
     """Pay the goal term only while `contacts` all touch the object."""
     gate: float = 0.0
     """0: off; else pay the goal term only while the TCP is this near its reach point."""
+    over: float = 0.0
+    """0: the straight distance to the reach point; else, for a hand more than `gate` past
+    the reach point towards the goal, the way over the object, this many metres above the
+    reach point (needs `behind`)."""
 
     def __post_init__(self) -> None:
         text(self.tcp, "PlaceReward.tcp")
@@ -437,6 +443,13 @@ class PlaceReward:
             raise SpecError(f"PlaceReward.behind must be >= 0 (0: off), got {self.behind!r}")
         if real(self.gate, "PlaceReward.gate") < 0:
             raise SpecError(f"PlaceReward.gate must be >= 0 (0: off), got {self.gate!r}")
+        if real(self.over, "PlaceReward.over") < 0:
+            raise SpecError(f"PlaceReward.over must be >= 0 (0: off), got {self.over!r}")
+        if self.over and not self.behind:
+            raise SpecError(
+                "PlaceReward.over needs PlaceReward.behind: the path goes over the object to "
+                "the reach point behind it"
+            )
         if not isinstance(self.hold, bool):
             raise SpecTypeError(f"PlaceReward.hold must be True or False, got {self.hold!r}")
         if self.hold and not self.contacts:
@@ -456,7 +469,9 @@ class PlaceReward:
         """Per world: the reward."""
         grasped = _grasped(obs, self.contacts) if self.contacts else False
         if self.behind:
-            d_reach = _behind_distance(obs, self.tcp, self.obj, self.goal, self.behind)
+            d_reach = _behind_distance(
+                obs, self.tcp, self.obj, self.goal, self.behind, self.over, self.gate
+            )
         else:
             d_reach = distances(obs, self.tcp, self.obj)
         staged = place_reward(
@@ -506,14 +521,32 @@ def place_reward(
     return 0.25 * reach + 0.25 * grasped + 0.5 * goal
 
 
-def _behind_distance(obs: Mapping[str, Any], tcp: str, obj: str, goal: str, behind: float) -> Any:
+def _behind_distance(
+    obs: Mapping[str, Any],
+    tcp: str,
+    obj: str,
+    goal: str,
+    behind: float,
+    over: float = 0.0,
+    margin: float = 0.0,
+) -> Any:
     """Metres from `tcp` to the point `behind` metres from `obj` on its far side from `goal`,
-    in the horizontal plane at the object's height (a pose that pushes it to the goal)."""
+    in the horizontal plane at the object's height (a pose that pushes it to the goal).
+
+    With `over`, a hand more than `margin` past that point towards the goal is charged the
+    path up or down to `over` above the point, across and down: the straight line from the
+    object's near side runs through the object, and a reward of that distance keeps a
+    learner's hand pressed against it."""
     o, g, t = _xyz(obs, obj), _xyz(obs, goal), _xyz(obs, tcp)
     xp = array_module(o)
     ux, uy = g[..., 0] - o[..., 0], g[..., 1] - o[..., 1]
     norm = xp.sqrt(ux * ux + uy * uy) + 1e-9  # the object on its goal: any side will do
-    ex = t[..., 0] - o[..., 0] + behind * ux / norm
-    ey = t[..., 1] - o[..., 1] + behind * uy / norm
+    ux, uy = ux / norm, uy / norm
+    ex = t[..., 0] - o[..., 0] + behind * ux
+    ey = t[..., 1] - o[..., 1] + behind * uy
     ez = t[..., 2] - o[..., 2]
-    return xp.sqrt(ex * ex + ey * ey + ez * ez)
+    straight = xp.sqrt(ex * ex + ey * ey + ez * ez)
+    if not over:
+        return straight
+    around = abs(ez - over) + xp.sqrt(ex * ex + ey * ey) + over
+    return xp.where(ex * ux + ey * uy <= margin, straight, around)
