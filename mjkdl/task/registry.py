@@ -72,8 +72,9 @@ HIDDEN = ("panda_joint_torques", "time")
 # where the fingers close around the cube.
 SHAPED_REACH = {"reach_scale": 0.5, "near_scale": 0.05}
 # Push's: reach the point behind the cube, away from the goal, where the closed fingers
-# (about 1 cm from the TCP to a pad's face) touch the cube's far side and push it on; the
-# goal term only while the TCP is within 2 cm of it, as ManiSkill's PushCube.
+# (about 1 cm from the TCP to a pad's face) touch the cube's far side and push it on, by way
+# of 6 cm above it from the cube's near side; the goal term only while the TCP is within 3 cm
+# of it (ManiSkill's PushCube gates its goal term so; open fingers push from 2.1-2.5 cm).
 SHAPED_PUSH = {**SHAPED_REACH, "behind": CUBE_HALF + 0.015, "gate": 0.03, "over": 0.06}
 # PickAndPlace's: the goal term only while grasped, so pushing the cube under its target in
 # the air pays nothing.
