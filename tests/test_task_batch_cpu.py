@@ -171,6 +171,13 @@ def test_shaped_rewards_and_translation_actions_match_the_cpu_env(task: str) -> 
     assert _assert_cartesian_episodes_match(f"mjkdl/Panda{task}-v0", 2, **kwargs) == 4
 
 
+def test_pushing_with_the_gripper_blocked_matches_the_cpu_env() -> None:
+    """Push with `block_gripper` and the CPU recipe's action: the fingers held closed, out of
+    the 3-entry action, in every world as in the CPU env."""
+    kwargs = {"cartesian_axes": "vx,vy,vz", "reward_type": "shaped", "block_gripper": True}
+    assert _assert_cartesian_episodes_match("mjkdl/PandaPush-v0", 3, **kwargs) == 3
+
+
 def test_any_thread_count_gives_the_same_states() -> None:
     actions = _actions(8, 2)
     runs = []

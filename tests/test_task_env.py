@@ -251,6 +251,22 @@ def test_gripper_observation_follows_the_action(env: TaskEnv) -> None:
     assert obs["panda_gripper"][0] < 0.05
 
 
+def test_a_held_gripper_takes_no_action_entry_and_keeps_its_command() -> None:
+    """`GripperSpec.held`: the fingers start at the held command (half closed, the ctrl
+    linear in it) and stay there whatever the arm does; the action is the twist alone."""
+    arm = panda_arm()
+    assert arm.gripper is not None
+    arm.gripper.held, arm.gripper.binary = 0.5, False
+    env = make(arms=[arm])
+    assert env.action_labels == [f"panda.{a}" for a in ("vx", "vy", "vz", "wx", "wy", "wz")]
+    assert env.effectors[0].grip_index == -1
+    obs, _ = env.reset(seed=0)
+    assert obs["panda_gripper"][0] == pytest.approx(0.5, abs=0.01)
+    for _ in range(10):
+        obs, *_ = env.step(np.full(6, 0.1))
+    assert obs["panda_gripper"][0] == pytest.approx(0.5, abs=0.01)
+
+
 def test_joint_position_actuation_tracks_the_command() -> None:
     arm = panda_arm()
     arm.actuation, arm.gripper = Actuation.JOINT_POSITION, None
@@ -563,6 +579,17 @@ def _gripper(field: str, value: object):
             _gripper("binary", "no"),
             mjk.SpecTypeError,
             "TaskSpec.arms[0].gripper.binary must be True or False, got 'no'",
+        ),
+        (
+            _gripper("held", 1.5),
+            mjk.SpecError,
+            "TaskSpec.arms[0].gripper.held must be None (the action commands the gripper) or "
+            "a command in [0, 1] (0 open, 1 closed), got 1.5",
+        ),
+        (
+            _gripper("held", "closed"),
+            mjk.SpecTypeError,
+            "TaskSpec.arms[0].gripper.held must be a number, got 'closed'",
         ),
         (
             lambda s: setattr(s.arms[0], "prefix", None),

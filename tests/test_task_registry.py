@@ -773,3 +773,25 @@ def test_the_shared_parameters_are_declared_once_and_documented() -> None:
     ]
     with pytest.raises(SpecError, match=r"unknown parameter\(s\) \['terminate_on_success'\]"):
         gym.make(PICK_GOAL, terminate_on_success=True)
+
+
+def test_push_with_a_blocked_gripper_holds_the_fingers_closed_out_of_the_action() -> None:
+    """`block_gripper` (panda-gym's Push): the action loses its gripper entry, the fingers
+    start closed and stay closed, and the expert still pushes the cube there; the goal variant
+    takes it too, and a non-boolean is refused by name."""
+    env = gym.make(PUSH, block_gripper=True, cartesian_axes="vx,vy,vz")
+    assert env.unwrapped.action_labels == ["panda.vx", "panda.vy", "panda.vz"]
+    assert env.action_space.shape == (3,)
+    obs, _ = env.reset(seed=0)
+    assert obs["panda_gripper"][0] < 1e-3  # closed at the first observation
+    for _ in range(5):
+        obs = env.step(np.ones(3, np.float32))[0]
+    assert obs["panda_gripper"][0] < 1e-3
+    steps = steps_to_success(env, expert_for(env), 1)
+    env.close()
+    assert steps is not None and steps < 80, steps
+    goal = gym.make("mjkdl/PandaPushGoal-v0", block_gripper=True)
+    assert goal.action_space.shape == (6,)
+    goal.close()
+    with pytest.raises(SpecTypeError, match="block_gripper must be True or False, got 'yes'"):
+        gym.make(PUSH, block_gripper="yes")

@@ -153,7 +153,9 @@ class ArmEffector:
         self._twist = np.zeros(6)  # the action's entries, zeros for the axes it omits
         n = len(self.axes) if controller is not None else robot.n_joints
         self.slice = slice(start, start + n)
-        self.grip_index = start + n if gripper is not None else -1
+        # A held gripper takes no entry: its command is set at reset and never changes.
+        self.held = None if gripper is None or arm.gripper is None else arm.gripper.held
+        self.grip_index = start + n if gripper is not None and self.held is None else -1
         self.home = None if arm.home is None else np.asarray(arm.home, dtype=float)
         self._command = self._previous = np.zeros(0)  # views of the scene's userdata
 
@@ -179,13 +181,13 @@ class ArmEffector:
             np.copyto(self._previous, self.robot.jnt_vel_msr)
 
     def new_episode(self, scene: Env) -> None:
-        """Arm at home, gripper open, and a fresh controller: the QP's acceleration bounds
-        start from the state, not from the last episode's motion (its own reset detection
-        goes by a clock that an episode of one step does not advance)."""
+        """Arm at home, gripper open (or as `held`), and a fresh controller: the QP's
+        acceleration bounds start from the state, not from the last episode's motion (its own
+        reset detection goes by a clock that an episode of one step does not advance)."""
         if self.home is not None:
             self.robot.set_joint_pos(self.home, call_forward=False)
         if self.gripper is not None:
-            self.gripper.command(0.0)
+            self.gripper.command(0.0 if self.held is None else self.held)
             _settle_tool(scene, self.arm.prefix + self.arm.tip_body)
         if self.controller is not None:
             self.controller = _controller(self.robot, self.arm)
@@ -207,8 +209,8 @@ class ArmEffector:
             robot.jnt_vel_cmd = a
         else:  # torque on top of gravity compensation, as a torque-controlled arm takes it
             robot.jnt_trq_cmd = a + robot.gravity_torques()
-        if self.gripper is not None:
-            self.gripper.command(action[self.grip_index])
+        if self.grip_index >= 0:
+            self.gripper.command(action[self.grip_index])  # type: ignore[union-attr]
 
 
 class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
@@ -220,13 +222,14 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
 
     The action concatenates, per arm in order, a twist `[vx, vy, vz, wx, wy, wz]` of the TCP
     along the control frame (Cartesian velocity; the entries of `ArmSpec.cartesian_axes`,
-    the others zero) or one value per joint (joint modes), then
-    the gripper's entry in [0, 1] when it has one; with `TaskSpec.normalize_actions` every
-    entry is in [-1, 1] instead, scaled onto those bounds. Actions are clipped into
+    the others zero) or one value per joint (joint modes), then the gripper's entry in
+    [0, 1] when it has one (none when `GripperSpec.held`); with `TaskSpec.normalize_actions`
+    every entry is in [-1, 1] instead, scaled onto those bounds. Actions are clipped into
     `action_space` (a policy's exploration noise past a bound acts at the bound); NaN or
     infinite entries are an error naming them. Each `step` holds the action for
     `control_timestep`, i.e. `control_timestep / scene.timestep` physics steps. An episode
-    starts with each gripper open: its fingers are moved there before the first observation.
+    starts with each gripper open (a held one as held): its fingers are moved there before the
+    first observation.
 
     Observations are fresh arrays every step (the agent may keep them); see `ArmReader`,
     `CameraSensor`, `BodyPoseSensor` and `ContactSensor` for their meaning. `info` holds
@@ -416,6 +419,12 @@ class TaskEnv(gym.Env[dict[str, Any], np.ndarray]):
                     raise SpecError(f"{where}.gripper must be a GripperSpec or None")
                 text(arm.gripper.actuator, f"{where}.gripper.actuator")
                 flag(arm.gripper.binary, f"{where}.gripper.binary")
+                held = arm.gripper.held
+                if held is not None and not 0.0 <= real(held, f"{where}.gripper.held") <= 1.0:
+                    raise SpecError(
+                        f"{where}.gripper.held must be None (the action commands the gripper) "
+                        f"or a command in [0, 1] (0 open, 1 closed), got {held!r}"
+                    )
             _check_axes(arm, where)
             for field in ("max_linear_velocity", "max_angular_velocity"):
                 value = getattr(arm, field)
@@ -1158,7 +1167,7 @@ def _action_bounds(
             high = _effort_limits(model, joints)
             low = -high
         names = list(joints)
-    if eff.gripper is not None:
+    if eff.grip_index >= 0:
         low, high = np.append(low, 0.0), np.append(high, 1.0)
         names.append("gripper")
     return low, high, names

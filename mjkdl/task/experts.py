@@ -57,17 +57,20 @@ class _Cartesian:
             [arm.max_linear_velocity] * 3 + [arm.max_angular_velocity] * 3, dtype=float
         )
         self.axes = env.effectors[0].axes
+        self.gripper = env.effectors[0].grip_index >= 0  # False: held, no entry
         self.period = env.control_timestep
         self.goal_keys: list[tuple[str, int]] = []
         if isinstance(env, GoalTaskEnv):
             self.goal_keys = env.observation_layout
 
     def action(self, twist: np.ndarray, close: bool) -> np.ndarray:
-        """The twist's entries the arm's action holds (`cartesian_axes`), then the gripper."""
+        """The twist's entries the arm's action holds (`cartesian_axes`), then the gripper
+        unless it is held (`GripperSpec.held`)."""
         n = len(self.axes)
-        out = np.empty(n + 1, dtype=np.float32)
+        out = np.empty(n + self.gripper, dtype=np.float32)
         out[:n] = np.clip(twist / self.scale, -1.0, 1.0)[self.axes]
-        out[n] = 1.0 if close else -1.0
+        if self.gripper:
+            out[n] = 1.0 if close else -1.0
         return out
 
     def named(self, obs: Mapping[str, np.ndarray]) -> Mapping[str, np.ndarray]:

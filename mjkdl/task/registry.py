@@ -259,11 +259,12 @@ def panda_push_spec(
     goal_high: Sequence[float] = PUSH_GOAL_HIGH,
     success_distance: float = PUSH_DISTANCE,
     goal_clearance: float = PUSH_GOAL_CLEARANCE,
+    block_gripper: bool = False,
 ) -> TaskSpec:
     """Push the cube along the floor until its centre is within `success_distance` of a
     goal marker on the floor (xy box `goal_low`..`goal_high`, at least `goal_clearance`
     from where the cube starts). Observations add `cube_pose`, `cube_rel`, `cube_contacts`
-    and `goal_pose`."""
+    and `goal_pose`. `block_gripper` holds the fingers closed, out of the action."""
     lo, hi = _cube_box(cube_low, cube_high)
     z = CUBE_HALF
     glo, ghi = _box3([*_pair(goal_low, "goal_low"), z], [*_pair(goal_high, "goal_high"), z], "goal")
@@ -272,9 +273,13 @@ def panda_push_spec(
         PropPlacer(["cube"], lo, hi),
         PropPlacer(["goal"], glo, ghi, False, away_from="cube", min_distance=goal_clearance),
     ]
-    return _place_spec(
+    spec = _place_spec(
         objects, inits, "goal", Placed("cube_pose", "goal_pose", success_distance), False
     )
+    if flag(block_gripper, "block_gripper"):
+        grip = spec.arms[0].gripper
+        spec.arms[0].gripper = None if grip is None else replace(grip, held=1.0)
+    return spec
 
 
 def panda_pick_and_place_spec(
@@ -575,11 +580,12 @@ class PandaPushEnv(_Registered, TaskEnv):
     """`mjkdl/PandaPush-v0`: push the cube along the floor to a goal on the floor.
 
     Success: the cube's centre within `success_distance` (5 cm, panda-gym's) of the goal,
-    which starts at least `goal_clearance` (10 cm) from the cube.
+    which starts at least `goal_clearance` (10 cm) from the cube. `block_gripper` holds the
+    fingers closed and drops the gripper's action entry, as panda-gym's Push does.
     `reward_type`: "dense" (`PlaceReward`: reach the cube, bring it to the goal), "shaped"
     (`SHAPED_PUSH`: reach the point behind the cube, away from the goal, with PickCube's two
-    reach terms; the goal term only while the TCP is there) or "sparse". The gripper stays in
-    the action; the expert keeps it closed.
+    reach terms; the goal term only while the TCP is there) or "sparse". Without
+    `block_gripper` the gripper stays in the action; the expert keeps it closed.
     """
 
     _shaped = SHAPED_PUSH
@@ -594,11 +600,14 @@ class PandaPushEnv(_Registered, TaskEnv):
         goal_high: Sequence[float] = PUSH_GOAL_HIGH,
         success_distance: float = PUSH_DISTANCE,
         goal_clearance: float = PUSH_GOAL_CLEARANCE,
+        block_gripper: bool = False,
         **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
         clear = _clearance(goal_clearance)
-        spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold, clear)
+        spec = panda_push_spec(
+            cube_low, cube_high, goal_low, goal_high, threshold, clear, block_gripper
+        )
         self._finish(spec, render_mode, shared)
 
 
@@ -666,11 +675,14 @@ class PandaPushGoalEnv(_Registered, GoalTaskEnv):
         goal_high: Sequence[float] = PUSH_GOAL_HIGH,
         success_distance: float = PUSH_DISTANCE,
         goal_clearance: float = PUSH_GOAL_CLEARANCE,
+        block_gripper: bool = False,
         **shared: Any,
     ) -> None:
         threshold = _positive(success_distance, "success_distance")
         clear = _clearance(goal_clearance)
-        spec = panda_push_spec(cube_low, cube_high, goal_low, goal_high, threshold, clear)
+        spec = panda_push_spec(
+            cube_low, cube_high, goal_low, goal_high, threshold, clear, block_gripper
+        )
         goal = {"achieved": "cube_pose", "desired": "goal_pose", "threshold": threshold}
         self._finish(spec, render_mode, shared, goal)
 

@@ -40,7 +40,8 @@ class GripperSpec:
     """A gripper driven by one actuator: `open`/`closed` are its ctrl values.
 
     `actuator` is named without the arm's prefix. The action entry is in [0, 1] (0 open,
-    1 closed); `binary` grippers open below 0.5 and close from 0.5 on.
+    1 closed); `binary` grippers open below 0.5 and close from 0.5 on. With `held` the
+    gripper stays at that command and takes no action entry (panda-gym's `block_gripper`).
     """
 
     actuator: str
@@ -51,6 +52,9 @@ class GripperSpec:
     """The actuator's ctrl value that closes the gripper (action 1). Required."""
     binary: bool = True
     """Open below 0.5, close from 0.5 on; False: ctrl linear in the action."""
+    held: float | None = None
+    """None: the action's entry commands the gripper; else the command (0 open, 1 closed)
+    it holds from every reset on, with no action entry (a pusher's closed fingers)."""
 
 
 @dataclass
@@ -80,7 +84,7 @@ class ArmSpec:
     control_frame: str = ""
     """Site or body (full name) whose axes the Cartesian action is along; "": the world."""
     gripper: GripperSpec | None = None
-    """The gripper, which adds one action entry; None: no gripper."""
+    """The gripper, which adds one action entry unless `held`; None: no gripper."""
     home: list[float] | None = None
     """Joint positions (chain order) at every reset; None keeps the model's `qpos0`."""
     cartesian_axes: tuple[str, ...] = CARTESIAN_AXES

@@ -85,6 +85,7 @@ class BatchArm:
             assert g is not None
             gid = model.actuator(arm.prefix + g.actuator).id
             self._gripper = (gid, float(g.open), float(g.closed), bool(g.binary))
+            self._held = eff.held  # the command it holds: no action entry, ctrl set at reset
         self._ctrl_frame = _frame(model, arm.control_frame) if arm.control_frame else None
         self.cartesian = eff.controller is not None
         nworld = state.nworld
@@ -154,7 +155,7 @@ class BatchArm:
         if self._ff:
             cmd = cmd + self.gravity_torques() * self._ff_scale
         s.ctrl[:, self._act] = cmd
-        if self._gripper is not None:
+        if self._gripper is not None and self._held is None:
             gid, open_, closed, binary = self._gripper
             g = action[:, self.grip_index]
             if binary:
