@@ -277,8 +277,8 @@ def panda_push_spec(
         objects, inits, "goal", Placed("cube_pose", "goal_pose", success_distance), False
     )
     if flag(block_gripper, "block_gripper"):
-        grip = spec.arms[0].gripper
-        spec.arms[0].gripper = None if grip is None else replace(grip, held=1.0)
+        assert spec.arms[0].gripper is not None  # panda_arm's hand
+        spec.arms[0].gripper = replace(spec.arms[0].gripper, held=1.0)
     return spec
 
 

@@ -80,12 +80,11 @@ class BatchArm:
         self._tcp = state.tcp_of(arm.name)
         self._chain = ChainKinematics(model, arm, jids, self._tcp, state)
         self._gripper = None
-        if eff.gripper is not None:
+        if self.grip_index >= 0:  # a held gripper keeps the ctrl its reset state holds
             g = arm.gripper
             assert g is not None
             gid = model.actuator(arm.prefix + g.actuator).id
             self._gripper = (gid, float(g.open), float(g.closed), bool(g.binary))
-            self._held = eff.held  # the command it holds: no action entry, ctrl set at reset
         self._ctrl_frame = _frame(model, arm.control_frame) if arm.control_frame else None
         self.cartesian = eff.controller is not None
         nworld = state.nworld
@@ -155,7 +154,7 @@ class BatchArm:
         if self._ff:
             cmd = cmd + self.gravity_torques() * self._ff_scale
         s.ctrl[:, self._act] = cmd
-        if self._gripper is not None and self._held is None:
+        if self._gripper is not None:
             gid, open_, closed, binary = self._gripper
             g = action[:, self.grip_index]
             if binary:
